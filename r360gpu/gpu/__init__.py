@@ -1,0 +1,17 @@
+"""The device layer: adapter choice, one context per device, shader loading."""
+from __future__ import annotations
+
+from .adapter import ENV_VAR, list_adapters, select_adapter
+from .context import BufferRange, GpuContext, get_context
+from .shaders import available_shaders, shader_path
+
+__all__ = [
+    "ENV_VAR",
+    "BufferRange",
+    "GpuContext",
+    "available_shaders",
+    "get_context",
+    "list_adapters",
+    "select_adapter",
+    "shader_path",
+]

@@ -1,0 +1,283 @@
+"""The GPU context: one wgpu device plus cached shaders and compute pipelines.
+
+Callers never write wgpu boilerplate: they ask the context for a pipeline by
+shader file name, for buffers, and to dispatch passes.
+
+Device limits that shape every kernel wrapper:
+
+``max_binding_bytes``
+    the largest storage-buffer binding (lavapipe: 128 MiB).  Wrappers split
+    their inputs so that no binding exceeds it.
+``max_workgroups``
+    the most workgroups per dispatch dimension (65,535).  :meth:`GpuContext.grid`
+    folds a 1-D workgroup count into x and y; shaders recover the linear id
+    as ``wid.x + wid.y * nwg.x``.
+
+Both can be lowered (never raised) with the constructor's ``limit_*``
+arguments so the chunking paths can be tested on small inputs.
+"""
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from .adapter import select_adapter
+from .shaders import load_shader_source
+
+# Usage flags spelled once, so callers need not import wgpu.
+STORAGE = 0x80  # wgpu.BufferUsage.STORAGE
+UNIFORM = 0x40
+COPY_SRC = 0x04
+COPY_DST = 0x08
+MAP_READ = 0x01
+
+_WANTED_LIMITS = (
+    "max-storage-buffer-binding-size",
+    "max-buffer-size",
+    "max-compute-workgroup-storage-size",
+    "max-compute-invocations-per-workgroup",
+    "max-compute-workgroup-size-x",
+    "max-compute-workgroup-size-y",
+    "max-storage-buffers-per-shader-stage",
+)
+_OPTIONAL_FEATURES = ("subgroup", "timestamp-query", "shader-f16")
+
+
+@dataclass(frozen=True)
+class BufferRange:
+    """A window of a buffer bound to one binding: ``size`` bytes from ``offset``."""
+
+    buffer: Any
+    offset: int
+    size: int
+
+
+class GpuContext:
+    """A wgpu device with shader/pipeline caches and buffer helpers.
+
+    Parameters
+    ----------
+    device:
+        a ``wgpu.GPUDevice``; the caller's own device may be passed for library
+        use inside another GPU pipeline (see :meth:`from_device`).
+    limit_binding_bytes, limit_workgroups:
+        optional lower caps on the device limits (tests use them to force the
+        chunking paths on small inputs).
+    """
+
+    def __init__(self, device, *, limit_binding_bytes: int | None = None, limit_workgroups: int | None = None):
+        self.device = device
+        self.queue = device.queue
+        limits = dict(device.limits)
+        self.limits = limits
+        binding = int(limits.get("max-storage-buffer-binding-size", 128 << 20))
+        buffer = int(limits.get("max-buffer-size", binding))
+        binding = min(binding, buffer)
+        if limit_binding_bytes is not None:
+            binding = min(binding, int(limit_binding_bytes))
+        # Keep bindings a multiple of 256 bytes so windows of one buffer can
+        # start anywhere a binding may (offset alignment is at most 256).
+        self.max_binding_bytes = max(256, binding // 256 * 256)
+        wg = int(limits.get("max-compute-workgroups-per-dimension", 65535))
+        self.max_workgroups = min(wg, int(limit_workgroups)) if limit_workgroups else wg
+        self.storage_offset_alignment = int(limits.get("min-storage-buffer-offset-alignment", 256))
+        self.features = set(device.features)
+        info = getattr(device, "adapter_info", None) or {}
+        self.adapter_info = {
+            "name": str(info.get("device", "unknown")),
+            "vendor": str(info.get("vendor", "")),
+            "backend": str(info.get("backend_type", "unknown")),
+            "adapter_type": str(info.get("adapter_type", "unknown")),
+            "description": str(info.get("description", "")),
+        }
+        self._modules: dict[str, Any] = {}
+        self._pipelines: dict[tuple, Any] = {}
+        self._lock = threading.Lock()
+
+    # -- construction -----------------------------------------------------
+    @classmethod
+    def create(cls, adapter: str | None = None, **kwargs) -> "GpuContext":
+        """Open a device on the adapter chosen by ``adapter`` / ``R360GPU_ADAPTER``."""
+        ad = select_adapter(adapter)
+        alimits = dict(ad.limits)
+        required = {k: alimits[k] for k in _WANTED_LIMITS if k in alimits}
+        features = [f for f in _OPTIONAL_FEATURES if f in ad.features]
+        device = ad.request_device_sync(
+            label="r360gpu", required_features=features, required_limits=required
+        )
+        return cls(device, **kwargs)
+
+    @classmethod
+    def from_device(cls, device, **kwargs) -> "GpuContext":
+        """Wrap a caller's existing ``wgpu.GPUDevice`` (shares its queue)."""
+        return cls(device, **kwargs)
+
+    def describe(self) -> dict:
+        """Adapter name, backend and the limits that matter; goes into every result."""
+        return {
+            **self.adapter_info,
+            "max_binding_bytes": self.max_binding_bytes,
+            "max_workgroups_per_dimension": self.max_workgroups,
+            "features": sorted(str(f) for f in self.features),
+        }
+
+    # -- shaders and pipelines -------------------------------------------
+    def shader(self, name: str):
+        """The compiled shader module of ``shaders/<name>.wgsl`` (cached)."""
+        with self._lock:
+            mod = self._modules.get(name)
+            if mod is None:
+                src = load_shader_source(name)
+                mod = self.device.create_shader_module(label=name, code=src)
+                self._modules[name] = mod
+            return mod
+
+    def pipeline(self, name: str, entry_point: str = "main", constants: dict | None = None):
+        """A compute pipeline for ``entry_point`` of shader ``name`` (cached).
+
+        ``constants`` sets WGSL ``override`` declarations (e.g. workgroup size).
+        """
+        key = (name, entry_point, tuple(sorted((constants or {}).items())))
+        with self._lock:
+            pipe = self._pipelines.get(key)
+        if pipe is None:
+            stage = {"module": self.shader(name), "entry_point": entry_point}
+            if constants:
+                stage["constants"] = {k: float(v) for k, v in constants.items()}
+            pipe = self.device.create_compute_pipeline(
+                label=f"{name}:{entry_point}", layout="auto", compute=stage
+            )
+            with self._lock:
+                self._pipelines[key] = pipe
+        return pipe
+
+    # -- buffers ----------------------------------------------------------
+    def buffer(self, data: np.ndarray | bytes | int, *, usage: int = STORAGE | COPY_SRC | COPY_DST, label: str = ""):
+        """A buffer holding ``data`` (array/bytes) or ``data`` zero bytes (int).
+
+        Sizes are rounded up to a multiple of 4 bytes (and at least 4), as wgpu
+        requires for copies.
+        """
+        if isinstance(data, (int, np.integer)):
+            size = max(4, int(math.ceil(int(data) / 4) * 4))
+            return self.device.create_buffer(label=label, size=size, usage=usage)
+        if isinstance(data, np.ndarray) and data.nbytes and data.nbytes % 4 == 0:
+            # No intermediate copy: wgpu reads the array's memory directly.
+            return self.device.create_buffer_with_data(label=label, data=np.ascontiguousarray(data), usage=usage)
+        raw = np.ascontiguousarray(data).tobytes() if isinstance(data, np.ndarray) else bytes(data)
+        raw = raw + b"\0" * (-len(raw) % 4 if raw else 4)
+        return self.device.create_buffer_with_data(label=label, data=raw, usage=usage)
+
+    def uniform(self, *values, label: str = "params"):
+        """A uniform buffer from 32-bit scalars: ints become u32/i32, floats f32.
+
+        The WGSL struct must list the fields in the same order, all 32-bit.
+        """
+        words = np.zeros(max(4, int(math.ceil(len(values) / 4) * 4)), dtype=np.uint32)
+        for i, v in enumerate(values):
+            if isinstance(v, (float, np.floating)):
+                words[i] = np.float32(v).view(np.uint32)
+            else:
+                words[i] = np.int64(v).astype(np.uint32) if int(v) < 0 else np.uint32(int(v))
+        return self.buffer(words, usage=UNIFORM | COPY_DST, label=label)
+
+    def write(self, buffer, data: np.ndarray, offset: int = 0) -> None:
+        self.queue.write_buffer(buffer, offset, np.ascontiguousarray(data))
+
+    def read(self, buffer, dtype=np.uint8, count: int | None = None, offset: int = 0) -> np.ndarray:
+        """Copy ``count`` elements of ``dtype`` from ``buffer`` (at byte ``offset``) to the host."""
+        itemsize = np.dtype(dtype).itemsize
+        size = buffer.size - offset if count is None else count * itemsize
+        if size <= 0:
+            return np.zeros(0, dtype=dtype)
+        padded = int(math.ceil(size / 4) * 4)
+        raw = self.queue.read_buffer(buffer, offset, padded)
+        return np.frombuffer(raw, dtype=np.uint8)[:size].view(dtype).copy()
+
+    # -- dispatch ---------------------------------------------------------
+    def grid(self, groups: int) -> tuple[int, int, int]:
+        """Fold a 1-D workgroup count into (x, y, 1) within the per-dimension limit."""
+        groups = max(0, int(groups))
+        if groups <= self.max_workgroups:
+            return (groups, 1, 1)
+        y = int(math.ceil(groups / self.max_workgroups))
+        if y > self.max_workgroups:
+            raise ValueError(f"{groups} workgroups exceed one 2-D dispatch; chunk the input")
+        return (int(math.ceil(groups / y)), y, 1)
+
+    def bind_group(self, pipeline, resources: Sequence, group: int = 0):
+        """A bind group for ``pipeline``: ``resources[i]`` goes to ``@binding(i)``.
+
+        Each resource is a buffer (bound whole), a :class:`BufferRange`, or
+        ``None`` for a binding the entry point does not use.
+        """
+        entries = []
+        for i, res in enumerate(resources):
+            if res is None:
+                continue
+            if isinstance(res, BufferRange):
+                entries.append({"binding": i, "resource": {"buffer": res.buffer, "offset": res.offset, "size": res.size}})
+            else:
+                entries.append({"binding": i, "resource": {"buffer": res, "offset": 0, "size": res.size}})
+        return self.device.create_bind_group(layout=pipeline.get_bind_group_layout(group), entries=entries)
+
+    def encoder(self):
+        return self.device.create_command_encoder()
+
+    def dispatch(self, encoder, pipeline, resources: Sequence, groups: Sequence[int] | int) -> None:
+        """Record one compute pass on ``encoder``."""
+        if isinstance(groups, (int, np.integer)):
+            groups = self.grid(int(groups))
+        groups = tuple(int(g) for g in groups) + (1,) * (3 - len(groups))
+        if min(groups) == 0:
+            return
+        if max(groups) > self.max_workgroups:
+            raise ValueError(f"dispatch {groups} exceeds {self.max_workgroups} workgroups per dimension")
+        bg = self.bind_group(pipeline, resources)
+        cp = encoder.begin_compute_pass()
+        cp.set_pipeline(pipeline)
+        cp.set_bind_group(0, bg)
+        cp.dispatch_workgroups(*groups)
+        cp.end()
+
+    def submit(self, encoder) -> None:
+        self.queue.submit([encoder.finish()])
+
+    def run(self, pipeline, resources: Sequence, groups) -> None:
+        """Record and submit a single pass."""
+        enc = self.encoder()
+        self.dispatch(enc, pipeline, resources, groups)
+        self.submit(enc)
+
+
+_contexts: dict[str, GpuContext] = {}
+_contexts_lock = threading.Lock()
+
+
+def get_context(adapter: str | None = None, device=None) -> GpuContext:
+    """The shared context for ``adapter`` (see :mod:`r360gpu.gpu.adapter`), or
+    a context around the caller's ``device``.  Contexts are created once per
+    adapter choice and reused."""
+    if device is not None:
+        if isinstance(device, GpuContext):
+            return device
+        with _contexts_lock:
+            key = f"device:{id(device)}"
+            ctx = _contexts.get(key)
+            if ctx is None or ctx.device is not device:
+                ctx = _contexts[key] = GpuContext.from_device(device)
+            return ctx
+    import os
+
+    from .adapter import ENV_VAR
+
+    key = (adapter or os.environ.get(ENV_VAR) or "auto").strip().lower()
+    with _contexts_lock:
+        ctx = _contexts.get(key)
+        if ctx is None:
+            ctx = _contexts[key] = GpuContext.create(adapter)
+        return ctx

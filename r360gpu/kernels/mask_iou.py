@@ -1,0 +1,385 @@
+"""Batched mask IoU on the GPU (host side of ``shaders/mask_iou.wgsl``).
+
+Masks are bit-packed, 32 pixels per ``u32``, row by row: bit ``b`` of word
+``c`` of row ``r`` is pixel ``(r, 32 c + b)``; each row is padded to whole
+words (``row_words = ceil(W / 32)``).  Every mask also carries the bounding box
+of its set bits in (row, word) units, so a pair of masks only visits the
+overlap of their boxes.  Packing host arrays happens on the CPU with
+``np.packbits`` (measured faster than uploading bytes and packing on the GPU:
+see ``bench/bench_mask_iou.py``); masks that already live on the device
+(:class:`DeviceMasks`) are packed by the ``pack`` kernel instead.
+
+Intersections and areas are computed on the GPU; IoU is ``inter / union``
+with ``IoU = 0`` where the union is empty.  Every stack is split into chunks
+whose buffers fit one storage binding, so any number and size of masks works.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..gpu.context import BufferRange, GpuContext, get_context
+
+SHADER = "mask_iou"
+WG = 64  # workgroup size of every entry point in mask_iou.wgsl
+_RANGES_EMPTY = (0, 0)
+
+
+@dataclass
+class DeviceMasks:
+    """A stack of masks already on the device: ``n`` masks of ``height x width``
+    pixels, one ``u32`` per pixel (0 = outside, non-zero = inside), row-major,
+    mask after mask, starting at byte ``offset`` of ``buffer``.  The buffer
+    needs the ``STORAGE`` usage."""
+
+    buffer: object
+    n: int
+    height: int
+    width: int
+    offset: int = 0
+
+
+@dataclass
+class PackedChunk:
+    """Masks ``k0:k1`` restricted to rows ``r0:r1``, on the device."""
+
+    k0: int
+    k1: int
+    r0: int
+    r1: int
+    words: object  # GPUBuffer: (k1-k0) x (r1-r0) x row_words u32
+    boxes: object  # GPUBuffer: (k1-k0) x vec4<u32> (row0, row1, word0, word1), rows relative to r0
+    boxes_host: np.ndarray  # (k1-k0, 4) uint32, same values
+
+
+@dataclass
+class PackedMasks:
+    """A bit-packed mask stack on the device, split into binding-sized chunks."""
+
+    n: int
+    height: int
+    width: int
+    chunks: list[PackedChunk] = field(default_factory=list)
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return (self.n, self.height, self.width)
+
+    @property
+    def row_words(self) -> int:
+        return row_words(self.width)
+
+
+@dataclass
+class MaskIoU:
+    """Overlap of stacks A (``N`` masks) and B (``M`` masks).
+
+    ``intersection`` (N, M) int64 pixel counts, ``area_a`` (N,) int64,
+    ``area_b`` (M,) int64, ``iou`` (N, M) float64 in [0, 1] (0 where both
+    masks are empty)."""
+
+    intersection: np.ndarray
+    area_a: np.ndarray
+    area_b: np.ndarray
+    iou: np.ndarray
+
+
+def row_words(width: int) -> int:
+    return max(1, math.ceil(width / 32))
+
+
+# -- packing ---------------------------------------------------------------
+def _as_stack(masks, what: str) -> np.ndarray:
+    m = np.asarray(masks)
+    if m.ndim == 2:
+        m = m[None]
+    if m.ndim != 3:
+        raise InputError(f"{what}: expected a mask stack of shape (N, H, W), got shape {m.shape}")
+    if m.dtype == np.bool_:
+        return m.view(np.uint8)
+    if np.issubdtype(m.dtype, np.floating):
+        if np.isnan(m).any():
+            raise InputError(f"{what}: masks contain NaN (binary masks expected)")
+        return (m != 0).view(np.uint8)
+    if not np.issubdtype(m.dtype, np.integer):
+        raise InputError(f"{what}: masks must be bool or integer, got {m.dtype}")
+    if m.dtype.itemsize != 1:
+        return (m != 0).view(np.uint8)
+    return m.view(np.uint8)
+
+
+def pack_bits(masks) -> np.ndarray:
+    """Bit-pack an (N, H, W) stack on the CPU -> (N, H, row_words) ``uint32``.
+
+    Any non-zero value is "inside".  This is the numpy oracle of the layout.
+    """
+    m = _as_stack(masks, "masks")
+    n, h, w = m.shape
+    rw = row_words(w)
+    if n == 0 or h == 0:
+        return np.zeros((n, h, rw), np.uint32)
+    m = np.ascontiguousarray(m)
+    if w % 32 == 0:
+        # Rows end on word boundaries: one flat packbits over the whole stack.
+        flat = np.packbits(m.reshape(-1), bitorder="little")
+        return flat.view("<u4").reshape(n, h, rw)
+    rows = np.packbits(m.reshape(n * h, w), axis=1, bitorder="little")
+    out = np.zeros((n * h, rw * 4), np.uint8)
+    out[:, : rows.shape[1]] = rows
+    return out.view("<u4").reshape(n, h, rw)
+
+
+def _boxes(packed: np.ndarray) -> np.ndarray:
+    """(N, 4) uint32 (row0, row1, word0, word1) of each packed mask's set bits."""
+    n, h, rw = packed.shape
+    out = np.zeros((n, 4), np.uint32)
+    if n == 0:
+        return out
+    nz = packed != 0
+    rows = nz.any(axis=2)
+    cols = nz.any(axis=1)
+    has = rows.any(axis=1)
+    out[:, 0] = np.where(has, rows.argmax(axis=1), 0)
+    out[:, 1] = np.where(has, h - rows[:, ::-1].argmax(axis=1), 0)
+    out[:, 2] = np.where(has, cols.argmax(axis=1), 0)
+    out[:, 3] = np.where(has, rw - cols[:, ::-1].argmax(axis=1), 0)
+    return out
+
+
+def _clip_boxes(boxes: np.ndarray, r0: int, r1: int) -> np.ndarray:
+    """Boxes restricted to rows r0:r1 and made relative to r0 (empty -> zeros)."""
+    b = boxes.astype(np.int64).copy()
+    b[:, 0] = np.clip(b[:, 0] - r0, 0, r1 - r0)
+    b[:, 1] = np.clip(b[:, 1] - r0, 0, r1 - r0)
+    empty = (b[:, 1] <= b[:, 0]) | (b[:, 3] <= b[:, 2])
+    b[empty] = 0
+    return b.astype(np.uint32)
+
+
+def _layout(ctx: GpuContext, n: int, h: int, rw: int) -> tuple[int, int]:
+    """(masks per chunk, rows per chunk) so one chunk's words fit a binding."""
+    per_binding = ctx.max_binding_bytes // 4
+    if rw > per_binding:
+        raise InputError(f"mask rows of {rw * 32} pixels do not fit one GPU storage binding")
+    rchunk = max(1, min(h, per_binding // rw))
+    kchunk = max(1, min(n, per_binding // (rchunk * rw), ctx.max_workgroups)) if n else 1
+    return kchunk, rchunk
+
+
+def pack(masks, *, ctx: GpuContext | None = None) -> PackedMasks:
+    """Upload a stack to the device as :class:`PackedMasks`.
+
+    ``masks``: (N, H, W) or (H, W) bool/integer numpy array, a
+    :class:`DeviceMasks`, or an existing :class:`PackedMasks` (returned as is).
+    """
+    if isinstance(masks, PackedMasks):
+        return masks
+    ctx = ctx or get_context()
+    if isinstance(masks, DeviceMasks):
+        return _pack_device(masks, ctx)
+    packed = pack_bits(masks)
+    n, h, rw = packed.shape
+    w = np.shape(masks)[-1]
+    boxes = _boxes(packed)
+    out = PackedMasks(n, int(h), int(w))
+    kchunk, rchunk = _layout(ctx, n, h, rw)
+    for k0 in range(0, n, kchunk):
+        k1 = min(n, k0 + kchunk)
+        for r0 in range(0, h, rchunk):
+            r1 = min(h, r0 + rchunk)
+            bx = _clip_boxes(boxes[k0:k1], r0, r1)
+            words = packed[k0:k1] if (r0, r1) == (0, h) else np.ascontiguousarray(packed[k0:k1, r0:r1])
+            out.chunks.append(
+                PackedChunk(k0, k1, r0, r1, ctx.buffer(words, label="mask_words"), ctx.buffer(bx, label="mask_boxes"), bx)
+            )
+    return out
+
+
+def _pack_device(dm: DeviceMasks, ctx: GpuContext) -> PackedMasks:
+    n, h, w = int(dm.n), int(dm.height), int(dm.width)
+    hw = h * w
+    rw = row_words(w)
+    out = PackedMasks(n, h, w)
+    if n == 0 or hw == 0:
+        return out
+    need = dm.offset + n * hw * 4
+    if dm.offset % 4 or dm.buffer.size < need:
+        raise InputError(
+            f"DeviceMasks: buffer of {dm.buffer.size} bytes at offset {dm.offset} cannot hold {n}x{h}x{w} u32 masks"
+        )
+    align = ctx.storage_offset_alignment
+    # The input window (u32 per pixel) must fit one binding as well.
+    span = (ctx.max_binding_bytes - align) // 4
+    kchunk, rchunk = _layout(ctx, n, h, rw)
+    rchunk = max(1, min(rchunk, span // w))
+    if rchunk < h:
+        kchunk = 1
+    else:
+        kchunk = max(1, min(kchunk, (span - hw) // hw + 1))
+    pipe = ctx.pipeline(SHADER, "pack")
+    for k0 in range(0, n, kchunk):
+        k1 = min(n, k0 + kchunk)
+        for r0 in range(0, h, rchunk):
+            r1 = min(h, r0 + rchunk)
+            nk, nr = k1 - k0, r1 - r0
+            first = dm.offset // 4 + k0 * hw + r0 * w  # element of (k0, r0, 0)
+            last = dm.offset // 4 + (k1 - 1) * hw + r1 * w  # one past the window
+            start = first * 4 - (first * 4) % align
+            size = min(last * 4 - start, dm.buffer.size - start)
+            words = ctx.buffer(nk * nr * rw * 4, label="mask_words")
+            boxes = ctx.buffer(np.tile(np.array([nr, 0, rw, 0], np.uint32), nk), label="mask_boxes")
+            params = ctx.uniform(nk, 0, nr, rw, first - start // 4, w, hw, 0)
+            groups = ctx.grid(math.ceil(nk * nr * rw / WG))
+            ctx.run(pipe, [params, None, None, BufferRange(dm.buffer, start, size), None, words, boxes], groups)
+            bx = ctx.read(boxes, np.uint32, 4 * nk).reshape(nk, 4)
+            bx = _clip_boxes(bx, 0, nr)  # zero the boxes of empty masks
+            ctx.write(boxes, bx)
+            out.chunks.append(PackedChunk(k0, k1, r0, r1, words, boxes, bx))
+    return out
+
+
+# -- kernels ---------------------------------------------------------------
+def _check_pair(a: PackedMasks, b: PackedMasks) -> None:
+    if (a.height, a.width) != (b.height, b.width):
+        raise InputError(
+            f"mask stacks differ in size: {a.height}x{a.width} (H x W) vs {b.height}x{b.width}"
+        )
+
+
+def areas(masks, *, ctx: GpuContext | None = None) -> np.ndarray:
+    """Pixel count of every mask: (N,) int64."""
+    ctx = ctx or get_context()
+    p = pack(masks, ctx=ctx)
+    out = np.zeros(p.n, np.int64)
+    pipe = ctx.pipeline(SHADER, "area")
+    for c in p.chunks:
+        nk = c.k1 - c.k0
+        buf = ctx.buffer(nk * 4)
+        params = ctx.uniform(nk, 0, c.r1 - c.r0, p.row_words, 0, 0, 0, 0)
+        ctx.run(pipe, [params, c.words, c.boxes, None, None, buf], ctx.grid(nk))
+        out[c.k0 : c.k1] += ctx.read(buf, np.uint32, nk)
+    return out
+
+
+def intersections(a, b, *, ctx: GpuContext | None = None) -> np.ndarray:
+    """|a_i AND b_j| for every pair: (N, M) int64."""
+    ctx = ctx or get_context()
+    pa, pb = pack(a, ctx=ctx), pack(b, ctx=ctx)
+    _check_pair(pa, pb)
+    inter = np.zeros((pa.n, pb.n), np.int64)
+    if pa.n == 0 or pb.n == 0:
+        return inter
+    pipe = ctx.pipeline(SHADER, "intersect")
+    max_out = ctx.max_binding_bytes // 4
+    pending = []
+    enc = ctx.encoder()
+    queued = 0
+    for ca in pa.chunks:
+        for cb in pb.chunks:
+            if (ca.r0, ca.r1) != (cb.r0, cb.r1):
+                continue
+            # Skip chunk pairs whose boxes cannot overlap.
+            if not _any_overlap(ca.boxes_host, cb.boxes_host):
+                continue
+            na, nb = ca.k1 - ca.k0, cb.k1 - cb.k0
+            # Split rows so the output of one dispatch fits one binding.
+            rows = max(1, min(na, max_out // nb))
+            for r0 in range(0, na, rows):
+                r1 = min(na, r0 + rows)
+                nr = r1 - r0
+                out = ctx.buffer(nr * nb * 4)
+                params = ctx.uniform(nr, nb, ca.r1 - ca.r0, pa.row_words, r0, 0, 0, 0)
+                ctx.dispatch(enc, pipe, [params, ca.words, ca.boxes, cb.words, cb.boxes, out], (nb, nr, 1))
+                pending.append((out, ca.k0 + r0, ca.k0 + r1, cb.k0, cb.k1))
+                queued += nr * nb
+                if queued > (1 << 22):  # bound the memory held by queued outputs
+                    ctx.submit(enc)
+                    _collect(ctx, pending, inter)
+                    enc, queued = ctx.encoder(), 0
+    ctx.submit(enc)
+    _collect(ctx, pending, inter)
+    return inter
+
+
+def _any_overlap(ba: np.ndarray, bb: np.ndarray) -> bool:
+    """Whether any box of ``ba`` can meet any box of ``bb`` (a cheap bound)."""
+    ba = ba[(ba[:, 1] > ba[:, 0]) & (ba[:, 3] > ba[:, 2])]
+    bb = bb[(bb[:, 1] > bb[:, 0]) & (bb[:, 3] > bb[:, 2])]
+    if not len(ba) or not len(bb):
+        return False
+    rows = max(int(ba[:, 0].min()), int(bb[:, 0].min())) < min(int(ba[:, 1].max()), int(bb[:, 1].max()))
+    cols = max(int(ba[:, 2].min()), int(bb[:, 2].min())) < min(int(ba[:, 3].max()), int(bb[:, 3].max()))
+    return rows and cols
+
+
+def _collect(ctx, pending, inter) -> None:
+    for out, i0, i1, j0, j1 in pending:
+        inter[i0:i1, j0:j1] += ctx.read(out, np.uint32, (i1 - i0) * (j1 - j0)).reshape(i1 - i0, j1 - j0)
+    pending.clear()
+
+
+def iou_from_counts(inter: np.ndarray, area_a: np.ndarray, area_b: np.ndarray) -> np.ndarray:
+    """IoU from counts (float64), 0 where the union is empty."""
+    inter = np.asarray(inter, np.float64)
+    union = np.asarray(area_a, np.float64)[:, None] + np.asarray(area_b, np.float64)[None, :] - inter
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+
+
+def mask_iou(a, b, *, ctx: GpuContext | None = None) -> MaskIoU:
+    """IoU matrix between stack ``a`` (N, H, W) and stack ``b`` (M, H, W).
+
+    Inputs: numpy bool/integer arrays (non-zero = inside), :class:`DeviceMasks`
+    or :class:`PackedMasks` (pack once with :func:`pack` to reuse a stack).
+    N = 0 or M = 0 gives empty matrices; different H x W is an InputError.
+    """
+    ctx = ctx or get_context()
+    pa, pb = pack(a, ctx=ctx), pack(b, ctx=ctx)
+    _check_pair(pa, pb)
+    inter = intersections(pa, pb, ctx=ctx)
+    aa, ab = areas(pa, ctx=ctx), areas(pb, ctx=ctx)
+    return MaskIoU(inter, aa, ab, iou_from_counts(inter, aa, ab))
+
+
+def iou_with_target(masks, target, *, ctx: GpuContext | None = None) -> np.ndarray:
+    """IoU of every mask in ``masks`` (N, H, W) with one ``target`` (H, W): (N,) float64."""
+    t = target if isinstance(target, (PackedMasks, DeviceMasks)) else np.asarray(target)
+    if isinstance(t, np.ndarray) and t.ndim != 2:
+        raise InputError(f"target mask must be 2-D (H, W), got shape {t.shape}")
+    return mask_iou(masks, t, ctx=ctx).iou[:, 0]
+
+
+def union(masks, *, ctx: GpuContext | None = None) -> np.ndarray:
+    """Pixel-wise OR of a stack: bool (H, W) (all False for N = 0)."""
+    ctx = ctx or get_context()
+    p = pack(masks, ctx=ctx)
+    rw = p.row_words
+    words = np.zeros((p.height, rw), np.uint32)
+    pipe = ctx.pipeline(SHADER, "union_or")
+    for c in p.chunks:
+        nk, nr = c.k1 - c.k0, c.r1 - c.r0
+        buf = ctx.buffer(nr * rw * 4)
+        params = ctx.uniform(nk, 0, nr, rw, 0, 0, 0, 0)
+        ctx.run(pipe, [params, c.words, c.boxes, None, None, buf], ctx.grid(math.ceil(nr * rw / WG)))
+        words[c.r0 : c.r1] |= ctx.read(buf, np.uint32, nr * rw).reshape(nr, rw)
+    return unpack_bits(words[None], p.width)[0]
+
+
+def to_host(packed: PackedMasks, *, ctx: GpuContext | None = None) -> np.ndarray:
+    """Download a packed stack: (N, H, row_words) uint32 (see :func:`unpack_bits`)."""
+    ctx = ctx or get_context()
+    out = np.zeros((packed.n, packed.height, packed.row_words), np.uint32)
+    for c in packed.chunks:
+        nk, nr = c.k1 - c.k0, c.r1 - c.r0
+        out[c.k0 : c.k1, c.r0 : c.r1] = ctx.read(c.words, np.uint32, nk * nr * packed.row_words).reshape(nk, nr, -1)
+    return out
+
+
+def unpack_bits(packed: np.ndarray, width: int) -> np.ndarray:
+    """Inverse of :func:`pack_bits`: (N, H, row_words) uint32 -> bool (N, H, width)."""
+    n, h, rw = packed.shape
+    bits = np.unpackbits(np.ascontiguousarray(packed).view(np.uint8).reshape(n, h, rw * 4), axis=2, bitorder="little")
+    return bits[:, :, :width].astype(bool)

@@ -1,0 +1,1 @@
+"""Per-view measurements of the Remove360 protocol (semantic, structural, geometric, fidelity)."""

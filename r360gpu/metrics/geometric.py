@@ -1,0 +1,127 @@
+"""Geometric axis: acc_depth per view and over views (PROTOCOL.md, eq. acc_depth).
+
+``acc_depth^v = |changed ∩ M| / |M|`` with ``changed = dD > xi_depth^v`` and
+``xi_depth^v`` from GHT on the 256-bin histogram of dD over the whole image.
+The float-depth path runs on the GPU (:mod:`r360gpu.kernels.depth_change`,
+where the dD, binning and missing-depth conventions are written down); the
+``compat`` path reproduces the public reference pipeline's 8-bit PNG round
+trip (:mod:`r360gpu.metrics.compat`).  A view whose target mask is empty is
+excluded (``acc_depth = None``), never scored 0 or 1.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..kernels import depth_change as kernel
+from .compat import compat_changed, depth_delta
+from .ght import ght, threshold_value
+
+
+@dataclass(frozen=True)
+class GhtParams:
+    """Barron's GHT parameters; defaults are the Remove360 reference values."""
+
+    nu: float = 1000.0
+    tau: float = 300.0
+    kappa: float = 0.0
+    omega: float = 0.0
+
+    def as_dict(self) -> dict:
+        return {"nu": self.nu, "tau": self.tau, "kappa": self.kappa, "omega": self.omega}
+
+
+@dataclass
+class GeometricView:
+    """Geometric measurement of one view.
+
+    acc_depth: fraction of target pixels that changed, or None when excluded.
+    excluded: True when the target mask is empty (the view is not scored).
+    threshold: xi_depth in depth units (float mode) or the 8-bit gray level
+        below which a pixel counts as changed (compat mode).
+    split: the GHT split position in bin units.
+    lo, hi: range of dD spanned by the histogram (float mode; compat: 0, 255).
+    hist: (256,) int64 histogram the threshold was chosen on.
+    changed: (H, W) bool changed-pixel mask (for heat maps).
+    n_mask, n_changed_in_mask: pixel counts behind acc_depth.
+    mode: "float" or "compat".
+    """
+
+    acc_depth: float | None
+    excluded: bool
+    threshold: float
+    split: float
+    lo: float
+    hi: float
+    hist: np.ndarray
+    changed: np.ndarray
+    n_mask: int
+    n_changed_in_mask: int
+    mode: str
+
+    def summary(self) -> dict:
+        """JSON-ready scalars (no images)."""
+        return {
+            "acc_depth": self.acc_depth,
+            "excluded": self.excluded,
+            "threshold": self.threshold,
+            "split": self.split,
+            "lo": self.lo,
+            "hi": self.hi,
+            "n_mask": self.n_mask,
+            "n_changed_in_mask": self.n_changed_in_mask,
+            "mode": self.mode,
+        }
+
+
+def acc_depth_view(
+    d_pre,
+    d_post,
+    mask,
+    *,
+    compat: bool = False,
+    ght_params: GhtParams = GhtParams(),
+    ctx=None,
+) -> GeometricView:
+    """acc_depth^v of one view.
+
+    d_pre, d_post: float32 (H, W) depth (z-distance), 0 = no coverage; numpy
+        arrays or :class:`~r360gpu.kernels.depth_change.DeviceDepth` (float mode).
+    mask: (H, W) target mask M^v, non-zero = target.
+    compat: reproduce the reference pipeline's 8-bit quantisation instead.
+    """
+    m = np.asarray(mask) != 0
+    p = ght_params.as_dict()
+    if compat:
+        if isinstance(d_pre, kernel.DeviceDepth) or isinstance(d_post, kernel.DeviceDepth):
+            raise InputError("compat mode needs host depth arrays (it reproduces a PNG round trip)")
+        delta = depth_delta(d_pre, d_post)
+        if m.shape != delta.shape:
+            raise InputError(f"target mask is {m.shape[0]}x{m.shape[1]} but the depth images are {delta.shape[0]}x{delta.shape[1]} (H x W)")
+        res = compat_changed(delta, **p)
+        n_mask = int(m.sum())
+        n_in = int((res.changed & m).sum())
+        return _view(n_in, n_mask, float(res.threshold), float(res.threshold), 0.0, 255.0, res.hist, res.changed, "compat")
+    stage = kernel.delta_histogram(d_pre, d_post, ctx=ctx)
+    split = ght(stage.hist, **p).threshold
+    res = kernel.changed_in_mask(stage, m, split, ctx=ctx)
+    xi = threshold_value(split, stage.lo, stage.hi, kernel.N_BINS)
+    return _view(res.n_changed_in_mask, res.n_mask, xi, split, stage.lo, stage.hi, stage.hist, res.changed, "float")
+
+
+def _view(n_in, n_mask, threshold, split, lo, hi, hist, changed, mode) -> GeometricView:
+    excluded = n_mask == 0
+    acc = None if excluded else n_in / n_mask
+    return GeometricView(acc, excluded, threshold, split, lo, hi, np.asarray(hist, np.int64), changed, n_mask, n_in, mode)
+
+
+def acc_depth(views: list[GeometricView]) -> tuple[float | None, int]:
+    """Mean acc_depth^v over the scored views, and the number of excluded views.
+
+    Returns (None, n) when every view is excluded.
+    """
+    scored = [v.acc_depth for v in views if not v.excluded]
+    excluded = len(views) - len(scored)
+    return (float(np.mean(scored)) if scored else None, excluded)

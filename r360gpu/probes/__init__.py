@@ -1,0 +1,1 @@
+"""Probes: semantic (prompted) and structural (prompt-free) mask predictors."""

@@ -1,0 +1,1 @@
+"""3DGS renderer: project -> bin -> sort -> tile ranges -> rasterise (WGSL kernels)."""

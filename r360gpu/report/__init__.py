@@ -1,0 +1,1 @@
+"""Reports: tables in Markdown/LaTeX, pictures, HTML."""

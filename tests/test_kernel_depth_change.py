@@ -1,0 +1,120 @@
+"""Depth-change kernel (dD, histogram, changed pixels) against its numpy oracle."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+
+from r360gpu.errors import InputError
+from r360gpu.kernels import depth_change as K
+
+from oracles import depth_change_oracle
+
+
+def _run(ctx, pre, post, mask, t):
+    stage = K.delta_histogram(pre, post, ctx=ctx)
+    res = K.changed_in_mask(stage, mask, t, ctx=ctx)
+    d, lo, hi, hist, changed, n_in, n_m = depth_change_oracle(pre, post, mask, t)
+    assert (stage.lo, stage.hi) == (lo, hi)
+    np.testing.assert_array_equal(stage.hist, hist)
+    np.testing.assert_array_equal(res.changed, changed)
+    assert (res.n_changed_in_mask, res.n_mask) == (n_in, n_m)
+    return stage, res
+
+
+def _scene(rng, h, w):
+    pre = rng.uniform(0.5, 8.0, (h, w)).astype(np.float32)
+    post = pre.copy()
+    sel = rng.random((h, w)) < 0.3
+    post[sel] += rng.uniform(0.0, 3.0, sel.sum()).astype(np.float32)
+    return pre, post, rng.random((h, w)) < 0.4
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 33), (5, 7), (48, 64), (45, 67), (129, 3)])
+def test_random_depths_match_oracle(ctx, shape):
+    rng = np.random.default_rng(sum(shape))
+    pre, post, mask = _scene(rng, *shape)
+    for t in (0.0, 17.5, 127.0, 254.0, 255.0):
+        _run(ctx, pre, post, mask, t)
+
+
+def test_missing_and_non_finite_depths_give_zero_change(ctx):
+    rng = np.random.default_rng(2)
+    pre, post, mask = _scene(rng, 31, 45)
+    pre[0, :10] = 0
+    post[1, :10] = np.nan
+    post[2, :10] = np.inf
+    pre[3, :10] = -np.inf
+    pre[4, :10] = -2.0
+    stage, res = _run(ctx, pre, post, mask, 3.0)
+    assert not res.changed[:5, :10].any()
+    assert np.isfinite(stage.lo) and np.isfinite(stage.hi)
+
+
+def test_constant_and_identical_depths(ctx):
+    d = np.full((9, 40), 2.5, np.float32)
+    stage, res = _run(ctx, d, d, np.ones_like(d, bool), 127.0)
+    assert stage.lo == stage.hi == 0.0 and stage.hist[0] == d.size and res.n_changed_in_mask == 0
+    empty = np.zeros((9, 40), np.float32)
+    _run(ctx, empty, empty, np.zeros_like(d, bool), 0.0)
+
+
+def test_empty_mask_counts_zero(ctx):
+    rng = np.random.default_rng(4)
+    pre, post, _ = _scene(rng, 20, 20)
+    _, res = _run(ctx, pre, post, np.zeros((20, 20), bool), 10.0)
+    assert res.n_mask == 0
+
+
+def test_shape_errors(ctx):
+    with pytest.raises(InputError, match="D_pre is 4x5 but D_post is 4x6"):
+        K.delta_histogram(np.ones((4, 5)), np.ones((4, 6)), ctx=ctx)
+    stage = K.delta_histogram(np.ones((4, 5)), np.ones((4, 5)), ctx=ctx)
+    with pytest.raises(InputError, match="target mask is 4x4"):
+        K.changed_in_mask(stage, np.ones((4, 4), bool), 1.0, ctx=ctx)
+    with pytest.raises(InputError, match=r"shape \(H, W\)"):
+        K.delta_histogram(np.ones((2, 4, 5)), np.ones((2, 4, 5)), ctx=ctx)
+
+
+def test_row_chunking(small_ctx):
+    """4 KiB bindings hold 1024 floats: a 70 x 50 view is split into 4 chunks."""
+    rng = np.random.default_rng(6)
+    pre, post, mask = _scene(rng, 70, 50)
+    post[69, 49] = 1e6  # the maximum sits in the last chunk
+    stage, _ = _run(small_ctx, pre, post, mask, 12.25)
+    assert len(stage.chunks) == 4
+
+
+def test_device_depth_inputs(ctx, small_ctx):
+    rng = np.random.default_rng(8)
+    pre, post, mask = _scene(rng, 33, 41)
+    for c in (ctx, small_ctx):
+        buf = c.buffer(np.concatenate([np.zeros(5, np.float32), pre.ravel(), post.ravel()]))
+        dp = K.DeviceDepth(buf, 33, 41, offset=20)
+        dq = K.DeviceDepth(buf, 33, 41, offset=20 + pre.nbytes)
+        stage = K.delta_histogram(dp, dq, ctx=c)
+        res = K.changed_in_mask(stage, mask, 40.0, ctx=c)
+        _, lo, hi, hist, changed, n_in, n_m = depth_change_oracle(pre, post, mask, 40.0)
+        np.testing.assert_array_equal(stage.hist, hist)
+        np.testing.assert_array_equal(res.changed, changed)
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    hnp.arrays(np.float32, st.tuples(st.integers(1, 9), st.integers(1, 40)),
+               elements=st.one_of(st.floats(-1, 1e4, width=32), st.sampled_from([0.0, np.nan, np.inf, -np.inf]))),
+    st.floats(0, 255),
+)
+def test_histogram_property(ctx, pre, t):
+    post = pre[::-1].copy()
+    stage, res = _run(ctx, pre, post, np.ones_like(pre, bool), t)
+    assert stage.hist.sum() == pre.size
+
+
+@pytest.mark.slow
+def test_4000x3000_view(ctx):
+    rng = np.random.default_rng(10)
+    pre, post, mask = _scene(rng, 3000, 4000)
+    _run(ctx, pre, post, mask, 100.0)

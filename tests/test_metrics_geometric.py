@@ -1,0 +1,73 @@
+"""Geometric axis per view: GPU path against a numpy + GHT oracle; compat path; exclusions."""
+from __future__ import annotations
+
+import numpy as np
+
+from r360gpu.metrics.compat import compat_changed, depth_delta
+from r360gpu.metrics.geometric import GhtParams, acc_depth, acc_depth_view
+from r360gpu.metrics.ght import ght
+
+from oracles import depth_change_oracle
+
+
+def _object_scene(rng, h=60, w=80):
+    """A box in front of a wall; 'removal' pushes most box pixels back to the wall."""
+    pre = np.full((h, w), 5.0, np.float32) + rng.normal(0, 0.01, (h, w)).astype(np.float32)
+    mask = np.zeros((h, w), bool)
+    mask[20:40, 30:60] = True
+    pre[mask] = 2.0
+    post = pre.copy()
+    post[20:40, 30:55] = 5.0  # five columns of the object stay
+    return pre, post, mask
+
+
+def test_float_mode_matches_oracle(ctx):
+    rng = np.random.default_rng(0)
+    pre, post, mask = _object_scene(rng)
+    v = acc_depth_view(pre, post, mask, ctx=ctx)
+    _, lo, hi, hist, _, _, _ = depth_change_oracle(pre, post, mask, 0)
+    split = ght(hist).threshold
+    _, _, _, _, changed, n_in, n_m = depth_change_oracle(pre, post, mask, split)
+    assert v.split == split and v.mode == "float" and not v.excluded
+    np.testing.assert_array_equal(v.changed, changed)
+    assert v.acc_depth == n_in / n_m
+    assert abs(v.acc_depth - 25 / 30) < 1e-9  # exactly the removed columns
+    assert lo < v.threshold < hi
+
+
+def test_compat_mode_matches_reference_arithmetic(ctx):
+    rng = np.random.default_rng(1)
+    pre, post, mask = _object_scene(rng)
+    v = acc_depth_view(pre, post, mask, compat=True)
+    ref = compat_changed(depth_delta(pre, post))
+    np.testing.assert_array_equal(v.changed, ref.changed)
+    assert v.mode == "compat" and v.threshold == ref.threshold
+    assert abs(v.acc_depth - 25 / 30) < 1e-9
+
+
+def test_empty_mask_is_excluded_not_scored(ctx):
+    rng = np.random.default_rng(2)
+    pre, post, _ = _object_scene(rng)
+    v = acc_depth_view(pre, post, np.zeros_like(pre, bool), ctx=ctx)
+    assert v.excluded and v.acc_depth is None
+    w = acc_depth_view(pre, post, np.ones_like(pre, bool), ctx=ctx)
+    mean, n_excl = acc_depth([v, w])
+    assert n_excl == 1 and mean == w.acc_depth
+    assert acc_depth([v]) == (None, 1)
+
+
+def test_identical_renders_change_nothing(ctx):
+    rng = np.random.default_rng(3)
+    pre, _, mask = _object_scene(rng)
+    v = acc_depth_view(pre, pre, mask, ctx=ctx)
+    assert v.acc_depth == 0.0 and not v.changed.any()
+
+
+def test_ght_parameters_are_passed_through(ctx):
+    rng = np.random.default_rng(4)
+    pre, post, mask = _object_scene(rng)
+    a = acc_depth_view(pre, post, mask, ctx=ctx)
+    b = acc_depth_view(pre, post, mask, ctx=ctx, ght_params=GhtParams(nu=0.0, tau=0.0))
+    _, _, _, hist, _, _, _ = depth_change_oracle(pre, post, mask, 0)
+    assert b.split == ght(hist, nu=0.0, tau=0.0).threshold
+    assert a.split == ght(hist).threshold
