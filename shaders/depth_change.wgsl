@@ -9,88 +9,114 @@
 // The same bin() is used for the histogram and for the changed test, so the
 // changed mask agrees with the histogram split exactly.
 //
+// Data are read as vec4 (four pixels of the chunk's flat row-major raster);
+// buffers are padded to whole vec4s and lanes at or past n_px are ignored.
+// The changed mask is written flat: bit b of word g is pixel 32 g + b.
+//
 // Entry points (one chunk of rows at a time):
-//   delta    dD per pixel -> delta[]; min/max of dD -> stats[0], stats[1]
-//            (as u32 bit patterns: dD >= 0, so u32 order = float order)
-//   histo    256-bin histogram of delta[] -> hist[] (workgroup-private
-//            histograms merged with atomics)
-//   changed  one invocation per packed word (32 px of a row): changed bits ->
-//            changed_words[]; |changed & M| -> stats[2]; |M| -> stats[3]
+//   delta_minmax   dD -> delta[]; min/max of dD -> stats[0], stats[1]
+//                  (u32 bit patterns: dD >= 0, so u32 order = float order)
+//   histo          256-bin histogram, workgroup-shared atomics (GPUs)
+//   histo_private  256-bin histogram, per-invocation private counts (CPU adapters)
+//   changed        changed bits -> changed_words[]; |changed & M| -> stats[2];
+//                  |M| -> stats[3]
 
 struct Params {
-    n_rows: u32,
-    width: u32,
-    row_words: u32,
+    n_px: u32,     // pixels in this chunk
     pad0: u32,
+    pad1: u32,
+    pad2: u32,
     lo: f32,
     scale: f32,
     t: f32,
-    pad1: u32,
+    pad3: u32,
 };
 
 @group(0) @binding(0) var<uniform> P: Params;
-@group(0) @binding(1) var<storage, read> d_pre: array<f32>;
-@group(0) @binding(2) var<storage, read> d_post: array<f32>;
-@group(0) @binding(3) var<storage, read_write> delta: array<f32>;
+@group(0) @binding(1) var<storage, read> d_pre: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> d_post: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> delta: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> stats: array<atomic<u32>>;
 @group(0) @binding(5) var<storage, read_write> hist: array<atomic<u32>>;
 @group(0) @binding(6) var<storage, read> m_words: array<u32>;
 @group(0) @binding(7) var<storage, read_write> changed_words: array<u32>;
 
-const WG: u32 = 256u;
 const F32_MAX: f32 = 3.40282347e38;
 
-var<workgroup> wg_min: atomic<u32>;
-var<workgroup> wg_max: atomic<u32>;
-var<workgroup> wg_hist: array<atomic<u32>, 256>;
-var<workgroup> wg_a: atomic<u32>;
-var<workgroup> wg_b: atomic<u32>;
-
-fn valid(d: f32) -> bool {
+fn valid4(d: vec4<f32>) -> vec4<bool> {
     // d > 0 is false for NaN; the upper bound rejects +Inf.
-    return d > 0.0 && d <= F32_MAX;
+    return (d > vec4<f32>(0.0)) & (d <= vec4<f32>(F32_MAX));
 }
 
-fn bin_of(x: f32) -> f32 {
-    return clamp(floor((x - P.lo) * P.scale), 0.0, 255.0);
+// Lanes of vec4 number q that hold pixels of this chunk.
+fn lanes(q: u32) -> vec4<bool> {
+    let first = 4u * q;
+    return vec4<u32>(first, first + 1u, first + 2u, first + 3u) < vec4<u32>(P.n_px);
 }
 
-@compute @workgroup_size(256)
-fn delta_minmax(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+fn bin4(x: vec4<f32>) -> vec4<u32> {
+    return vec4<u32>(clamp(floor((x - vec4<f32>(P.lo)) * P.scale), vec4<f32>(0.0), vec4<f32>(255.0)));
+}
+
+fn n_vec() -> u32 {
+    return (P.n_px + 3u) / 4u;
+}
+
+// delta_minmax: QV vec4s per invocation, WG apart, so neighbouring
+// invocations read neighbouring memory.  One global atomic pair per
+// invocation (a tree reduction's barriers cost more on CPU adapters).
+const WG: u32 = 64u;
+const QV: u32 = 4u;
+
+@compute @workgroup_size(64)
+fn delta_minmax(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                 @builtin(local_invocation_index) lid: u32) {
-    if (lid == 0u) {
-        atomicStore(&wg_min, 0xffffffffu);
-        atomicStore(&wg_max, 0u);
-    }
-    workgroupBarrier();
-    let p = gid.x + gid.y * nwg.x * WG;
-    if (p < P.n_rows * P.width) {
-        let a = d_pre[p];
-        let b = d_post[p];
-        var d: f32 = 0.0;
-        if (valid(a) && valid(b)) {
-            d = abs(a - b);
+    let base = (wid.x + wid.y * nwg.x) * WG * QV + lid;
+    var lo = vec4<f32>(F32_MAX);
+    var hi = vec4<f32>(0.0);
+    let nq = n_vec();
+    for (var k = 0u; k < QV; k = k + 1u) {
+        let q = base + k * WG;
+        if (q < nq) {
+            let a = d_pre[q];
+            let b = d_post[q];
+            let d = select(vec4<f32>(0.0), abs(a - b), valid4(a) & valid4(b));
+            delta[q] = d;
+            let inside = lanes(q);
+            lo = min(lo, select(vec4<f32>(F32_MAX), d, inside));
+            hi = max(hi, select(vec4<f32>(0.0), d, inside));
         }
-        delta[p] = d;
-        let bits = bitcast<u32>(d);
-        atomicMin(&wg_min, bits);
-        atomicMax(&wg_max, bits);
     }
-    workgroupBarrier();
-    if (lid == 0u) {
-        atomicMin(&stats[0], atomicLoad(&wg_min));
-        atomicMax(&stats[1], atomicLoad(&wg_max));
+    let l = min(min(lo.x, lo.y), min(lo.z, lo.w));
+    let h = max(max(hi.x, hi.y), max(hi.z, hi.w));
+    if (l < F32_MAX) {
+        atomicMin(&stats[0], bitcast<u32>(l));
+        atomicMax(&stats[1], bitcast<u32>(h));
     }
 }
 
+// Histogram, GPU flavour: a workgroup-shared histogram (one shared atomic
+// per pixel, cheap on GPUs), merged into `hist` with global atomics.
+var<workgroup> wg_hist: array<atomic<u32>, 256>;
+
 @compute @workgroup_size(256)
-fn histo(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+fn histo(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
          @builtin(local_invocation_index) lid: u32) {
     atomicStore(&wg_hist[lid], 0u);
     workgroupBarrier();
-    let p = gid.x + gid.y * nwg.x * WG;
-    if (p < P.n_rows * P.width) {
-        atomicAdd(&wg_hist[u32(bin_of(delta[p]))], 1u);
+    let nq = n_vec();
+    let base = (wid.x + wid.y * nwg.x) * 256u * QV + lid;
+    for (var k = 0u; k < QV; k = k + 1u) {
+        let q = base + k * 256u;
+        if (q < nq) {
+            let b = bin4(delta[q]);
+            let inside = lanes(q);
+            for (var i = 0u; i < 4u; i = i + 1u) {
+                if (inside[i]) {
+                    atomicAdd(&wg_hist[b[i]], 1u);
+                }
+            }
+        }
     }
     workgroupBarrier();
     let c = atomicLoad(&wg_hist[lid]);
@@ -99,39 +125,73 @@ fn histo(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     }
 }
 
-@compute @workgroup_size(256)
-fn changed(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+// Histogram, CPU flavour: each invocation counts HQ vec4s into its own
+// private histogram with plain increments, then merges its non-zero bins.
+// On CPU adapters (lavapipe) this beats shared-memory atomics.
+const HWG: u32 = 16u;
+const HQ: u32 = 256u;
+
+@compute @workgroup_size(16)
+fn histo_private(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+                 @builtin(local_invocation_index) lid: u32) {
+    var h: array<u32, 256>;
+    let nq = n_vec();
+    let base = (wid.x + wid.y * nwg.x) * HWG * HQ + lid;
+    for (var k = 0u; k < HQ; k = k + 1u) {
+        let q = base + k * HWG;
+        if (q < nq) {
+            let b = bin4(delta[q]);
+            let inside = lanes(q);
+            for (var i = 0u; i < 4u; i = i + 1u) {
+                if (inside[i]) {
+                    h[b[i]] = h[b[i]] + 1u;
+                }
+            }
+        }
+    }
+    for (var b = 0u; b < 256u; b = b + 1u) {
+        if (h[b] != 0u) {
+            atomicAdd(&hist[b], h[b]);
+        }
+    }
+}
+
+// changed: one invocation per output word (32 pixels = 8 vec4s).
+var<workgroup> wg_in: atomic<u32>;
+var<workgroup> wg_m: atomic<u32>;
+
+@compute @workgroup_size(64)
+fn changed(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
            @builtin(local_invocation_index) lid: u32) {
     if (lid == 0u) {
-        atomicStore(&wg_a, 0u);
-        atomicStore(&wg_b, 0u);
+        atomicStore(&wg_in, 0u);
+        atomicStore(&wg_m, 0u);
     }
     workgroupBarrier();
-    let g = gid.x + gid.y * nwg.x * WG;
-    if (g < P.n_rows * P.row_words) {
-        let r = g / P.row_words;
-        let c = g % P.row_words;
+    let g = (wid.x + wid.y * nwg.x) * 64u + lid;
+    let n_words = (P.n_px + 31u) / 32u;
+    if (g < n_words) {
         var v: u32 = 0u;
-        for (var b = 0u; b < 32u; b = b + 1u) {
-            let x = c * 32u + b;
-            if (x < P.width && bin_of(delta[r * P.width + x]) > P.t) {
-                v = v | (1u << b);
-            }
+        for (var k = 0u; k < 8u; k = k + 1u) {
+            let q = 8u * g + k;
+            let c = (vec4<f32>(bin4(delta[q])) > vec4<f32>(P.t)) & lanes(q);
+            let nib = select(0u, 1u, c.x) | select(0u, 2u, c.y) | select(0u, 4u, c.z) | select(0u, 8u, c.w);
+            v = v | (nib << (4u * k));
         }
         changed_words[g] = v;
         let m = m_words[g];
         let s_in = countOneBits(v & m);
         let s_m = countOneBits(m);
         if (s_in != 0u) {
-            atomicAdd(&wg_a, s_in);
+            atomicAdd(&wg_in, s_in);
         }
         if (s_m != 0u) {
-            atomicAdd(&wg_b, s_m);
+            atomicAdd(&wg_m, s_m);
         }
     }
     workgroupBarrier();
     if (lid == 0u) {
-        atomicAdd(&stats[2], atomicLoad(&wg_a));
-        atomicAdd(&stats[3], atomicLoad(&wg_b));
+        atomicAdd(&stats[2], atomicLoad(&wg_in));
+        atomicAdd(&stats[3], atomicLoad(&wg_m));
     }
 }

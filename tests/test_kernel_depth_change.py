@@ -13,6 +13,19 @@ from r360gpu.kernels import depth_change as K
 from oracles import depth_change_oracle
 
 
+@pytest.fixture(autouse=True, params=["histo", "histo_private"])
+def histogram_flavour(request, monkeypatch):
+    """Every test runs with both histogram entry points (GPU and CPU flavour)."""
+    monkeypatch.setenv("R360GPU_HISTOGRAM", request.param)
+    return request.param
+
+
+def test_flavour_is_chosen_by_adapter_type(ctx, monkeypatch):
+    monkeypatch.delenv("R360GPU_HISTOGRAM")
+    cpu = ctx.adapter_info["adapter_type"] == "CPU"
+    assert K.histogram_entry(ctx) == ("histo_private" if cpu else "histo")
+
+
 def _run(ctx, pre, post, mask, t):
     stage = K.delta_histogram(pre, post, ctx=ctx)
     res = K.changed_in_mask(stage, mask, t, ctx=ctx)

@@ -30,17 +30,37 @@ import numpy as np
 
 from ..errors import InputError
 from ..gpu.context import GpuContext, get_context
-from .mask_iou import pack_bits, row_words
 
 SHADER = "depth_change"
-WG = 256
+QV = 4  # vec4s per invocation in delta_minmax / histo (shader constant QV)
 N_BINS = 256
+_PX_PER_GROUP = {  # pixels one workgroup covers, per entry point
+    "delta_minmax": 64 * QV * 4,
+    "histo": 256 * QV * 4,
+    "histo_private": 16 * 256 * 4,
+    "changed": 64 * 32,
+}
+
+
+def histogram_entry(ctx: GpuContext) -> str:
+    """The histogram flavour for this adapter: shared-memory atomics are cheap
+    on GPUs but expensive on CPU adapters, where private per-invocation
+    histograms win (measured in bench/bench_depth.py).  The environment
+    variable ``R360GPU_HISTOGRAM`` (``histo`` or ``histo_private``) overrides
+    the choice."""
+    import os
+
+    forced = os.environ.get("R360GPU_HISTOGRAM")
+    if forced in ("histo", "histo_private"):
+        return forced
+    return "histo_private" if ctx.adapter_info.get("adapter_type") == "CPU" else "histo"
 
 
 @dataclass
 class DeviceDepth:
     """A depth image already on the device: ``height x width`` float32,
-    row-major, starting at byte ``offset`` of ``buffer`` (STORAGE usage)."""
+    row-major, starting at byte ``offset`` (a multiple of 4) of ``buffer``
+    (needs the STORAGE and COPY_SRC usages)."""
 
     buffer: object
     height: int
@@ -52,7 +72,7 @@ class DeviceDepth:
 class _Chunk:
     r0: int
     r1: int
-    delta: object  # GPUBuffer f32 (r1-r0) x width
+    delta: object  # GPUBuffer: dD of rows r0:r1, flat, padded to whole 32-pixel words
 
 
 @dataclass
@@ -66,7 +86,6 @@ class DeltaHistogram:
     scale: np.float32
     hist: np.ndarray  # (256,) int64
     chunks: list[_Chunk] = field(default_factory=list)
-    _stats: object = None
 
 
 def bin_scale(lo: float, hi: float) -> np.float32:
@@ -93,32 +112,36 @@ def _hw(d) -> tuple[int, int]:
 
 
 def _rows_per_chunk(ctx: GpuContext, width: int, height: int) -> int:
-    per_binding = ctx.max_binding_bytes // 4
+    # Padding adds up to 31 pixels per chunk; keep a word of slack.
+    per_binding = ctx.max_binding_bytes // 4 - 32
     if width > per_binding:
         raise InputError(f"depth rows of {width} pixels do not fit one GPU storage binding")
     rows = max(1, min(height, per_binding // width))
-    # One invocation per pixel: keep the dispatch within two dimensions.
-    max_px = ctx.max_workgroups * ctx.max_workgroups * WG
+    # Keep every dispatch within two dimensions of workgroups.
+    max_px = ctx.max_workgroups * ctx.max_workgroups * min(_PX_PER_GROUP.values())
     return max(1, min(rows, max_px // width))
 
 
-def _bind_rows(ctx: GpuContext, d, r0: int, r1: int):
-    """A buffer (or window) holding rows r0:r1 of depth image ``d``."""
-    from ..gpu.context import BufferRange
+def _padded(n_px: int, multiple: int = 32) -> int:
+    return -(-n_px // multiple) * multiple
 
+
+def _upload_rows(ctx: GpuContext, d, r0: int, r1: int):
+    """A buffer with rows r0:r1 of depth image ``d``, flat, padded to whole vec4s."""
+    n_px = (r1 - r0) * d.shape[1] if not isinstance(d, DeviceDepth) else (r1 - r0) * d.width
+    size = _padded(n_px, 4) * 4
     if isinstance(d, DeviceDepth):
-        start = d.offset + r0 * d.width * 4
-        size = (r1 - r0) * d.width * 4
-        align = ctx.storage_offset_alignment
-        if start % align:
-            # Unaligned window: copy the rows into a fresh buffer on the device.
-            buf = ctx.buffer(size)
-            enc = ctx.encoder()
-            enc.copy_buffer_to_buffer(d.buffer, start, buf, 0, size)
-            ctx.submit(enc)
-            return buf
-        return BufferRange(d.buffer, start, size)
-    return ctx.buffer(d[r0:r1], label="depth")
+        # Copy the window on the device: the caller's offset and size need not
+        # meet binding alignment or the vec4 stride.
+        buf = ctx.buffer(size, label="depth")
+        enc = ctx.encoder()
+        enc.copy_buffer_to_buffer(d.buffer, d.offset + r0 * d.width * 4, buf, 0, n_px * 4)
+        ctx.submit(enc)
+        return buf
+    rows = d[r0:r1].reshape(-1)
+    if n_px % 4:
+        rows = np.concatenate([rows, np.zeros(4 - n_px % 4, np.float32)])
+    return ctx.buffer(rows, label="depth")
 
 
 def delta_histogram(d_pre, d_post, *, ctx: GpuContext | None = None) -> DeltaHistogram:
@@ -140,12 +163,13 @@ def delta_histogram(d_pre, d_post, *, ctx: GpuContext | None = None) -> DeltaHis
     enc = ctx.encoder()
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)
-        delta = ctx.buffer((r1 - r0) * w * 4, label="delta")
-        params = ctx.uniform(r1 - r0, w, row_words(w), 0, 0.0, 0.0, 0.0, 0)
+        n_px = (r1 - r0) * w
+        delta = ctx.buffer(_padded(n_px) * 4, label="delta")
+        params = ctx.uniform(n_px, 0, 0, 0, 0.0, 0.0, 0.0, 0)
         ctx.dispatch(
             enc, pipe,
-            [params, _bind_rows(ctx, d_pre, r0, r1), _bind_rows(ctx, d_post, r0, r1), delta, stats],
-            ctx.grid(math.ceil((r1 - r0) * w / WG)),
+            [params, _upload_rows(ctx, d_pre, r0, r1), _upload_rows(ctx, d_post, r0, r1), delta, stats],
+            ctx.grid(math.ceil(n_px / _PX_PER_GROUP["delta_minmax"])),
         )
         res.chunks.append(_Chunk(r0, r1, delta))
     ctx.submit(enc)
@@ -154,14 +178,16 @@ def delta_histogram(d_pre, d_post, *, ctx: GpuContext | None = None) -> DeltaHis
     res.hi = float(np.uint32(hi_bits).view(np.float32))
     res.scale = bin_scale(res.lo, res.hi)
     hist = ctx.buffer(N_BINS * 4, label="hist")
-    pipe = ctx.pipeline(SHADER, "histo")
+    entry = histogram_entry(ctx)
+    pipe = ctx.pipeline(SHADER, entry)
     enc = ctx.encoder()
     for c in res.chunks:
-        params = ctx.uniform(c.r1 - c.r0, w, row_words(w), 0, np.float32(res.lo), res.scale, 0.0, 0)
-        ctx.dispatch(enc, pipe, [params, None, None, c.delta, None, hist], ctx.grid(math.ceil((c.r1 - c.r0) * w / WG)))
+        n_px = (c.r1 - c.r0) * w
+        params = ctx.uniform(n_px, 0, 0, 0, np.float32(res.lo), res.scale, 0.0, 0)
+        groups = ctx.grid(math.ceil(n_px / _PX_PER_GROUP[entry]))
+        ctx.dispatch(enc, pipe, [params, None, None, c.delta, None, hist], groups)
     ctx.submit(enc)
     res.hist = ctx.read(hist, np.uint32, N_BINS).astype(np.int64)
-    res._stats = stats
     return res
 
 
@@ -181,27 +207,30 @@ def changed_in_mask(stage: DeltaHistogram, mask, t: float, *, ctx: GpuContext | 
     m = np.asarray(mask)
     if m.shape != (h, w):
         raise InputError(f"target mask is {m.shape[0]}x{m.shape[1]} but the depth images are {h}x{w} (H x W)")
-    rw = row_words(w)
-    changed = np.zeros((h, rw), np.uint32)
+    changed = np.zeros((h, w), bool)
     if h * w == 0:
-        return ChangedResult(np.zeros((h, w), bool), 0, 0)
-    m_packed = pack_bits(m[None])[0]
+        return ChangedResult(changed, 0, 0)
     stats = ctx.buffer(np.zeros(4, np.uint32), label="changed_stats")
     pipe = ctx.pipeline(SHADER, "changed")
     outs = []
     enc = ctx.encoder()
     for c in stage.chunks:
-        nr = c.r1 - c.r0
-        words = ctx.buffer(nr * rw * 4, label="changed_words")
-        params = ctx.uniform(nr, w, rw, 0, np.float32(stage.lo), stage.scale, np.float32(t), 0)
-        mw = ctx.buffer(np.ascontiguousarray(m_packed[c.r0 : c.r1]), label="mask_words")
+        n_px = (c.r1 - c.r0) * w
+        n_words = _padded(n_px) // 32
+        words = ctx.buffer(n_words * 4, label="changed_words")
+        m_words = np.zeros(n_words * 4, np.uint8)
+        packed = np.packbits(m[c.r0 : c.r1].reshape(-1), bitorder="little")
+        m_words[: packed.size] = packed
+        params = ctx.uniform(n_px, 0, 0, 0, np.float32(stage.lo), stage.scale, np.float32(t), 0)
         ctx.dispatch(
-            enc, pipe, [params, None, None, c.delta, stats, None, mw, words], ctx.grid(math.ceil(nr * rw / WG))
+            enc, pipe,
+            [params, None, None, c.delta, stats, None, ctx.buffer(m_words.view(np.uint32)), words],
+            ctx.grid(math.ceil(n_words / 64)),
         )
-        outs.append((c, words))
+        outs.append((c, words, n_words))
     ctx.submit(enc)
-    for c, words in outs:
-        changed[c.r0 : c.r1] = ctx.read(words, np.uint32, (c.r1 - c.r0) * rw).reshape(c.r1 - c.r0, rw)
+    for c, words, n_words in outs:
+        bits = np.unpackbits(ctx.read(words, np.uint8, n_words * 4), bitorder="little")
+        changed[c.r0 : c.r1] = bits[: (c.r1 - c.r0) * w].reshape(c.r1 - c.r0, w).astype(bool)
     s = ctx.read(stats, np.uint32, 4)
-    bits = np.unpackbits(changed.view(np.uint8).reshape(h, rw * 4), axis=1, bitorder="little")[:, :w]
-    return ChangedResult(bits.astype(bool), int(s[2]), int(s[3]))
+    return ChangedResult(changed, int(s[2]), int(s[3]))
