@@ -1,0 +1,81 @@
+"""Adapter choice, the missing-driver error, caller devices, buffers and limits."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from r360gpu.errors import GpuUnavailableError
+from r360gpu.gpu import GpuContext, adapter as adapter_mod, get_context
+from r360gpu.kernels import mask_iou
+
+
+def test_cpu_adapter_is_found_by_name_and_kind():
+    a = adapter_mod.select_adapter("cpu")
+    assert a.info["adapter_type"] == "CPU" or "llvmpipe" in a.info["device"].lower()
+    assert adapter_mod.select_adapter("llvmpipe").info["device"] == a.info["device"]
+
+
+def test_environment_variable_chooses(monkeypatch):
+    monkeypatch.setenv(adapter_mod.ENV_VAR, "no-such-gpu-xyz")
+    with pytest.raises(GpuUnavailableError, match="no adapter matches .*no-such-gpu-xyz.*available: "):
+        adapter_mod.select_adapter()
+
+
+def test_no_adapter_says_how_to_install_the_driver(monkeypatch):
+    monkeypatch.setattr(adapter_mod, "list_adapters", lambda: [])
+    with pytest.raises(GpuUnavailableError, match="apt-get install -y mesa-vulkan-drivers"):
+        adapter_mod.select_adapter("auto")
+
+
+def test_auto_prefers_a_native_gpu(monkeypatch):
+    class Fake:
+        def __init__(self, kind, backend, name):
+            self.info = {"adapter_type": kind, "backend_type": backend, "device": name}
+
+    fakes = [Fake("CPU", "Vulkan", "llvmpipe"), Fake("DiscreteGPU", "OpenGL", "gl-gpu"), Fake("DiscreteGPU", "Vulkan", "vk-gpu")]
+    monkeypatch.setattr(adapter_mod, "list_adapters", lambda: fakes)
+    assert adapter_mod.select_adapter("auto").info["device"] == "vk-gpu"
+    assert adapter_mod.select_adapter("cpu").info["device"] == "llvmpipe"
+    monkeypatch.setattr(adapter_mod, "list_adapters", lambda: fakes[:2])
+    # a native CPU adapter beats a GPU that only has OpenGL
+    assert adapter_mod.select_adapter("auto").info["device"] == "llvmpipe"
+
+
+def test_context_describes_adapter(ctx):
+    d = ctx.describe()
+    assert d["name"] and d["backend"] in ("Vulkan", "Metal", "D3D12", "OpenGL")
+    assert d["max_binding_bytes"] >= 1 << 20 and d["max_workgroups_per_dimension"] >= 1
+
+
+def test_callers_device_is_used(ctx):
+    """Library use: wrap a device another pipeline already owns."""
+    mine = get_context(device=ctx.device)
+    assert mine.device is ctx.device and get_context(device=ctx.device) is mine
+    a = np.eye(8, dtype=bool)[None]
+    assert mask_iou.mask_iou(a, a, ctx=mine).iou[0, 0] == 1.0
+
+
+def test_buffers_round_trip(ctx):
+    x = np.arange(10, dtype=np.float32)
+    buf = ctx.buffer(x)
+    np.testing.assert_array_equal(ctx.read(buf, np.float32, 10), x)
+    odd = ctx.buffer(np.arange(5, dtype=np.uint8))  # padded to 8 bytes
+    np.testing.assert_array_equal(ctx.read(odd, np.uint8, 5), np.arange(5))
+    assert ctx.buffer(b"").size >= 4
+    ctx.write(buf, np.full(2, 7, np.float32), offset=8)
+    assert ctx.read(buf, np.float32, 4)[2] == 7
+
+
+def test_grid_folds_large_dispatches(ctx):
+    small = GpuContext(ctx.device, limit_workgroups=10)
+    assert small.grid(7) == (7, 1, 1)
+    x, y, z = small.grid(95)
+    assert x <= 10 and y <= 10 and x * y >= 95
+    with pytest.raises(ValueError, match="chunk"):
+        small.grid(101)
+
+
+def test_limits_can_only_be_lowered(ctx):
+    c = GpuContext(ctx.device, limit_binding_bytes=10**15)
+    assert c.max_binding_bytes == ctx.max_binding_bytes
+    assert GpuContext(ctx.device, limit_binding_bytes=1000).max_binding_bytes == 768
