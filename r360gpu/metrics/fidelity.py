@@ -1,0 +1,315 @@
+"""Pixel fidelity of I_post against I_ref: PSNR, SSIM, LPIPS (diagnostics only;
+never in RQS or ranks; PROTOCOL.md "Pixel fidelity vs I_ref").
+
+Images are (H, W, 3) or (H, W) RGB / gray, either uint8 (0..255, divided by
+255) or float in [0, 1]; values outside [0, 1] or non-finite values are an
+input error (clipping is the renderer's decision, not this module's).
+
+PSNR.  ``PSNR = 10 log10(1 / MSE)`` dB, MSE over all pixels and channels of
+the [0, 1] images.  Identical images (MSE = 0) give ``+inf``.  Over views,
+:func:`fidelity_summary` averages PSNR over the views with a finite value and
+reports the number of identical views beside it (``psnr_n_identical``); the
+mean is ``+inf`` only when every view is identical.  (Averaging an inf in would
+hide every other view; capping it at an arbitrary dB value would invent a
+number.)
+
+SSIM (Wang et al., IEEE TIP 2004).  11 x 11 Gaussian window, sigma = 1.5
+(normalised to sum 1), ``C1 = (0.01 L)^2``, ``C2 = (0.03 L)^2`` with data range
+L = 1, population (biased) local variances and covariance.  Border handling:
+the SSIM map is evaluated only where the window lies entirely inside the image
+(the "valid" region, (H - 10) x (W - 10) positions), and the mean is taken over
+those positions and over channels.  This equals Wang et al.'s MATLAB
+``ssim_index`` (``filter2(..., 'valid')``, without its optional downsampling)
+and ``skimage.metrics.structural_similarity(..., gaussian_weights=True,
+sigma=1.5, use_sample_covariance=False, data_range=1, channel_axis=-1)``, which
+filters with reflect padding and then crops the 5-pixel border, so the
+padding never enters the mean.  Images smaller than 11 pixels in either
+dimension are an input error.
+
+LPIPS.  Computed only with an LPIPS network exported to ONNX
+(:class:`LpipsModel`; AlexNet or VGG variant): two float32 NCHW inputs in
+[-1, 1] (their names are read from the model, in the model's order) and one
+output holding the distance.  The model file's name and SHA-256 go into the
+result.  Without a model LPIPS is *not computed*: ``lpips = None`` with a
+reason, never 0.
+"""
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..probes.base import file_sha256
+from . import _json
+
+SSIM_WIN = 11
+SSIM_SIGMA = 1.5
+SSIM_K1 = 0.01
+SSIM_K2 = 0.03
+
+#: Reason recorded when no LPIPS model is given.
+NO_LPIPS_MODEL = "no LPIPS model given"
+
+
+def as_image(img, what: str = "image") -> np.ndarray:
+    """float64 (H, W, C) in [0, 1] from uint8 or float (H, W[, C]) input."""
+    a = np.asarray(img)
+    if a.ndim == 2:
+        a = a[:, :, None]
+    if a.ndim != 3 or a.shape[2] not in (1, 3) or a.shape[0] < 1 or a.shape[1] < 1:
+        raise InputError(f"{what} must be (H, W, 3) RGB or (H, W) gray, got shape {np.shape(img)}")
+    if a.dtype == np.uint8:
+        return a.astype(np.float64) / 255.0
+    if not np.issubdtype(a.dtype, np.floating):
+        raise InputError(f"{what} must be uint8 or float in [0, 1], got dtype {a.dtype}")
+    out = a.astype(np.float64)
+    if not np.isfinite(out).all():
+        raise InputError(f"{what} contains NaN or infinite values")
+    lo, hi = float(out.min()), float(out.max())
+    if lo < 0.0 or hi > 1.0:
+        raise InputError(f"{what} has values in [{lo:.6g}, {hi:.6g}], outside [0, 1]")
+    return out
+
+
+def _pair(a, b) -> tuple[np.ndarray, np.ndarray]:
+    x = as_image(a, "I_post")
+    y = as_image(b, "I_ref")
+    if x.shape != y.shape:
+        raise InputError(f"I_post is {x.shape} but I_ref is {y.shape} (H, W, C)")
+    return x, y
+
+
+def mse(a, b) -> float:
+    """Mean squared error over pixels and channels of two [0, 1] images."""
+    x, y = _pair(a, b)
+    return float(np.mean((x - y) ** 2))
+
+
+def psnr_from_mse(err: float) -> float:
+    """10 log10(1 / MSE) dB; +inf for MSE = 0."""
+    return math.inf if err == 0.0 else float(10.0 * math.log10(1.0 / err))
+
+
+def psnr(a, b) -> float:
+    """PSNR (dB) of two images on [0, 1] (+inf when identical)."""
+    return psnr_from_mse(mse(a, b))
+
+
+def gaussian_window(size: int = SSIM_WIN, sigma: float = SSIM_SIGMA) -> np.ndarray:
+    """(size,) float64 1-D Gaussian taps summing to 1 (the 2-D window is the outer product)."""
+    x = np.arange(size, dtype=np.float64) - (size - 1) / 2.0
+    g = np.exp(-(x * x) / (2.0 * sigma * sigma))
+    return g / g.sum()
+
+
+def _filter_valid(img: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Separable correlation of (H, W, C) with g x g, valid region only."""
+    n = len(g)
+    h, w = img.shape[:2]
+    rows = sum(g[k] * img[k : h - n + 1 + k] for k in range(n))
+    return sum(g[k] * rows[:, k : w - n + 1 + k] for k in range(n))
+
+
+def ssim_map(a, b) -> np.ndarray:
+    """SSIM map (H - 10, W - 10, C) float64 of two [0, 1] images (valid region)."""
+    x, y = _pair(a, b)
+    if x.shape[0] < SSIM_WIN or x.shape[1] < SSIM_WIN:
+        raise InputError(f"SSIM needs images of at least {SSIM_WIN}x{SSIM_WIN} pixels, got {x.shape[0]}x{x.shape[1]}")
+    g = gaussian_window()
+    c1 = (SSIM_K1 * 1.0) ** 2
+    c2 = (SSIM_K2 * 1.0) ** 2
+    mx, my = _filter_valid(x, g), _filter_valid(y, g)
+    sxx = _filter_valid(x * x, g) - mx * mx
+    syy = _filter_valid(y * y, g) - my * my
+    sxy = _filter_valid(x * y, g) - mx * my
+    num = (2.0 * mx * my + c1) * (2.0 * sxy + c2)
+    den = (mx * mx + my * my + c1) * (sxx + syy + c2)
+    return num / den
+
+
+def ssim(a, b) -> float:
+    """Mean SSIM over the valid region and the channels (see the module docstring)."""
+    return float(np.mean(ssim_map(a, b)))
+
+
+class LpipsModel:
+    """An LPIPS network in ONNX form, run with onnxruntime on the CPU.
+
+    path: the .onnx file.  The model must have exactly two inputs of rank 4
+    (N, 3, H, W) (names and order read from the model) and at least one
+    output; its first output must hold one value per image pair.
+    """
+
+    def __init__(self, path: str | os.PathLike):
+        import onnxruntime as ort
+
+        self.path = os.fspath(path)
+        if not os.path.isfile(self.path):
+            raise InputError("LPIPS model file not found", self.path)
+        self.sha256 = file_sha256(self.path)
+        opts = ort.SessionOptions()
+        opts.log_severity_level = 3
+        try:
+            self._session = ort.InferenceSession(self.path, sess_options=opts, providers=["CPUExecutionProvider"])
+        except Exception as exc:  # onnxruntime raises its own exception types
+            raise InputError(f"not a loadable ONNX model ({type(exc).__name__}: {exc})", self.path) from None
+        inputs = self._session.get_inputs()
+        if len(inputs) != 2:
+            raise InputError(f"an LPIPS model needs two image inputs, this one has {len(inputs)}", self.path)
+        for i in inputs:
+            if len(i.shape) != 4:
+                raise InputError(f"LPIPS input {i.name!r} has shape {i.shape}, expected (N, 3, H, W)", self.path)
+            if isinstance(i.shape[1], int) and i.shape[1] != 3:
+                raise InputError(f"LPIPS input {i.name!r} has {i.shape[1]} channels, expected 3", self.path)
+        self.input_names = tuple(i.name for i in inputs)
+        self._input_shapes = tuple(tuple(i.shape) for i in inputs)
+        self.output_name = self._session.get_outputs()[0].name
+
+    @property
+    def file_name(self) -> str:
+        return os.path.basename(self.path)
+
+    def describe(self) -> dict:
+        """{"file", "sha256", "inputs", "output"} for the results."""
+        return {
+            "file": self.file_name,
+            "sha256": self.sha256,
+            "inputs": list(self.input_names),
+            "output": self.output_name,
+        }
+
+    def distance(self, a, b) -> float:
+        """LPIPS distance between two images ((H, W, 3) uint8 or [0, 1] float)."""
+        x, y = _pair(a, b)
+        h, w = x.shape[:2]
+        for name, shape in zip(self.input_names, self._input_shapes):
+            for dim, size in ((2, h), (3, w)):
+                if isinstance(shape[dim], int) and shape[dim] != size:
+                    raise InputError(
+                        f"LPIPS input {name!r} has a fixed shape {shape}, the images are {h}x{w}", self.path
+                    )
+        feeds = {n: _to_nchw(im) for n, im in zip(self.input_names, (x, y))}
+        try:
+            out = self._session.run([self.output_name], feeds)[0]
+        except Exception as exc:
+            raise InputError(f"LPIPS model failed on {h}x{w} images ({type(exc).__name__}: {exc})", self.path) from None
+        vals = np.asarray(out, np.float64).ravel()
+        if vals.size != 1:
+            raise InputError(f"LPIPS output {self.output_name!r} has {vals.size} values, expected one distance", self.path)
+        if not np.isfinite(vals[0]):
+            raise InputError(f"LPIPS output is not finite ({vals[0]})", self.path)
+        return float(vals[0])
+
+
+def _to_nchw(img: np.ndarray) -> np.ndarray:
+    """(H, W, C) [0, 1] -> float32 (1, 3, H, W) in [-1, 1] (gray repeated to 3 channels)."""
+    if img.shape[2] == 1:
+        img = np.repeat(img, 3, axis=2)
+    return np.ascontiguousarray((img * 2.0 - 1.0).transpose(2, 0, 1)[None].astype(np.float32))
+
+
+@dataclass(frozen=True)
+class FidelityView:
+    """Fidelity of I_post against I_ref on one view.
+
+    mse: mean squared error on [0, 1]; psnr: dB (+inf when identical);
+    ssim: mean SSIM (valid region); lpips: the distance, or None when not
+    computed, with ``lpips_reason`` saying why; lpips_model: {"file",
+    "sha256", ...} of the model used (None when not computed).
+    """
+
+    mse: float
+    psnr: float
+    ssim: float
+    lpips: float | None
+    lpips_reason: str | None
+    lpips_model: dict | None
+
+    def to_dict(self) -> dict:
+        return {
+            "mse": self.mse,
+            "psnr": _json.enc_float(self.psnr),
+            "ssim": self.ssim,
+            "lpips": self.lpips,
+            "lpips_reason": self.lpips_reason,
+            "lpips_model": None if self.lpips_model is None else dict(self.lpips_model),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "FidelityView":
+        what = "fidelity view record"
+        f = lambda k: _json.field(d, k, what)  # noqa: E731
+        lp = f("lpips")
+        return cls(
+            mse=_json.dec_float(f("mse"), what),
+            psnr=_json.dec_float(f("psnr"), what),
+            ssim=_json.dec_float(f("ssim"), what),
+            lpips=None if lp is None else _json.dec_float(lp, what),
+            lpips_reason=f("lpips_reason"),
+            lpips_model=None if f("lpips_model") is None else dict(f("lpips_model")),
+        )
+
+
+def fidelity_view(post, ref, lpips_model: LpipsModel | None = None) -> FidelityView:
+    """PSNR, SSIM and (with a model) LPIPS of I_post against I_ref."""
+    x, y = _pair(post, ref)
+    err = float(np.mean((x - y) ** 2))
+    if lpips_model is None:
+        lp, reason, desc = None, NO_LPIPS_MODEL, None
+    else:
+        lp, reason, desc = lpips_model.distance(x, y), None, lpips_model.describe()
+    return FidelityView(err, psnr_from_mse(err), ssim(x, y), lp, reason, desc)
+
+
+@dataclass(frozen=True)
+class FidelitySummary:
+    """Fidelity over views.
+
+    psnr: mean over the views with finite PSNR (+inf if all are identical,
+        None for no views); psnr_n_identical: views with PSNR = +inf.
+    ssim: mean SSIM (None for no views).
+    lpips: mean over the views where it was computed; None, with
+        ``lpips_reason``, when it was not computed for every view.
+    """
+
+    n_views: int
+    psnr: float | None
+    psnr_n_identical: int
+    ssim: float | None
+    lpips: float | None
+    lpips_reason: str | None
+
+    def to_dict(self) -> dict:
+        return {
+            "n_views": self.n_views,
+            "psnr": _json.enc_float(self.psnr),
+            "psnr_n_identical": self.psnr_n_identical,
+            "ssim": self.ssim,
+            "lpips": self.lpips,
+            "lpips_reason": self.lpips_reason,
+        }
+
+
+def fidelity_summary(views: Sequence[FidelityView]) -> FidelitySummary:
+    """Means over views (see the module docstring for PSNR's +inf)."""
+    n = len(views)
+    finite = [v.psnr for v in views if math.isfinite(v.psnr)]
+    n_ident = n - len(finite)
+    if finite:
+        ps = float(np.mean(finite))
+    else:
+        ps = math.inf if n else None
+    ss = float(np.mean([v.ssim for v in views])) if n else None
+    missing = [v for v in views if v.lpips is None]
+    if not n:
+        lp, reason = None, "no views"
+    elif missing:
+        reasons = sorted({v.lpips_reason or "not computed" for v in missing})
+        lp, reason = None, f"not computed for {len(missing)} of {n} views: " + "; ".join(reasons)
+    else:
+        lp, reason = float(np.mean([v.lpips for v in views])), None
+    return FidelitySummary(n, ps, n_ident, ss, lp, reason)
