@@ -1,0 +1,268 @@
+"""The render pipeline: project -> depth sort -> bin -> tile sort -> ranges -> rasterise.
+
+Per view the host waits for the device after the projection and depth sort
+(to read the per-row key bounds that plan the key windows), after counting
+each window's keys (to size its sort), and when the image is read back.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Iterable, Iterator
+
+import numpy as np
+
+from ..errors import InputError
+from ..gpu.context import GpuContext, get_context
+from .binning import TileWindow, plan_windows, record_counts, record_emit, record_ranges
+from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA
+from .project import Projected, camera_arrays, project, tile_grid
+from .rasterize import PLANES, plane_stride, planes_to_numpy, record_rasterize
+from .scene import DeviceScene
+from .scratch import Scratch
+from .sort import radix_sort
+
+#: Bits of the depth sort key (the float bits of the camera depth).
+DEPTH_BITS = 32
+
+
+@dataclass
+class Render:
+    """One rendered view (numpy).
+
+    rgb (H, W, 3) float32 (not clipped above), depth (H, W) float32 expected
+    camera-space depth, median_depth (H, W) float32, alpha (H, W) float32 in
+    [0, 1].  Both depths are 0 where ``alpha < NO_COVERAGE_ALPHA``.
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    median_depth: np.ndarray
+    alpha: np.ndarray
+
+
+@dataclass
+class DeviceRender:
+    """One rendered view left on the device.
+
+    ``buffer`` holds six float32 planes of ``plane_stride`` floats each, in
+    the order :data:`r360gpu.render.rasterize.PLANES` (r, g, b, alpha, depth,
+    median_depth); plane ``i`` starts at byte ``4 * i * plane_stride`` and is
+    row-major (``y * width + x``).  :meth:`to_numpy` reads it back.
+    """
+
+    buffer: object
+    width: int
+    height: int
+    plane_stride: int
+    planes: tuple = PLANES
+
+    def to_numpy(self, ctx: GpuContext) -> Render:
+        p = planes_to_numpy(ctx, self.buffer, self.width, self.height)
+        rgb = np.stack([p["r"], p["g"], p["b"]], axis=-1)
+        return Render(rgb=rgb, depth=p["depth"].copy(), median_depth=p["median_depth"].copy(), alpha=p["alpha"].copy())
+
+
+@dataclass
+class RenderStats:
+    """Work and (when timed) wall time per stage of the last view.
+
+    times: seconds per stage ("project", "sort", "rasterize") when the
+    renderer was created with ``timed=True`` (the host waits after each
+    stage), else empty.  keys: duplicated (tile, Gaussian) keys; windows: key
+    windows used; evaluated / blended: pixel-Gaussian pairs the rasteriser
+    evaluated / blended (counted only when ``count_work=True``, else 0).
+    """
+
+    times: dict = field(default_factory=dict)
+    keys: int = 0
+    windows: int = 0
+    evaluated: int = 0
+    blended: int = 0
+
+
+class Renderer:
+    """Renders views of one scene that stays on the device.
+
+    Parameters
+    ----------
+    scene : Gaussians (see :mod:`r360gpu.io.gaussians`)
+    ctx : GpuContext, optional (default: :func:`r360gpu.gpu.get_context`)
+    background : RGB in [0, 1] added with the remaining transmittance
+    near : near-plane depth (scene units) below which Gaussians are culled
+    timed : wait after every stage and record its wall time in :attr:`stats`
+    count_work : read back the rasteriser's work counters into :attr:`stats`
+    """
+
+    def __init__(self, scene, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0),
+                 near: float = NEAR_PLANE, timed: bool = False, count_work: bool = False):
+        self.ctx = ctx or get_context()
+        bg = np.asarray(background, dtype=np.float64).reshape(-1)
+        if bg.shape != (3,) or not np.isfinite(bg).all():
+            raise InputError(f"background must be 3 finite numbers, got {background!r}")
+        if not (math.isfinite(near) and near > 0):
+            raise InputError(f"near plane must be a positive number, got {near!r}")
+        self.background = tuple(float(v) for v in bg)
+        self.near = float(near)
+        self.timed = timed
+        self.count_work = count_work
+        self.scene = DeviceScene(self.ctx, scene)
+        self.scratch = Scratch(self.ctx)
+        self.stats = RenderStats()
+        limit = self.ctx.max_binding_bytes
+        if self.scene.n * 16 > limit or self.scene.n > 256 * self.ctx.max_workgroups**2:
+            raise InputError(
+                f"scene has {self.scene.n} Gaussians; this device's {limit}-byte storage bindings "
+                f"hold at most {limit // 16}"
+            )
+
+    # -- helpers ------------------------------------------------------------
+    def _sync(self, buffer) -> None:
+        self.ctx.read(buffer, np.uint32, 1)
+
+    def _mark(self, stage: str, t0: float, buffer) -> float:
+        if not self.timed:
+            return t0
+        self._sync(buffer)
+        now = time.perf_counter()
+        self.stats.times[stage] = self.stats.times.get(stage, 0.0) + (now - t0)
+        return now
+
+    # -- one view -----------------------------------------------------------
+    def render_device(self, camera, image=None) -> DeviceRender:
+        """Render ``camera`` into a device buffer (a new one unless ``image`` is given)."""
+        ctx, scratch, n = self.ctx, self.scratch, self.scene.n
+        cam = camera_arrays(camera)
+        width, height = cam["width"], cam["height"]
+        stride = plane_stride(width, height)
+        if stride * 4 > ctx.max_binding_bytes:
+            raise InputError(f"{cam['name']}: a {width}x{height} image plane exceeds one storage binding "
+                             f"({ctx.max_binding_bytes} bytes)")
+        gx, gy = tile_grid(width, height)
+        if image is None:
+            image = ctx.buffer(stride * len(PLANES) * 4, label="render.image")
+        self.stats = RenderStats()
+        t0 = time.perf_counter()
+
+        enc = ctx.encoder()
+        proj = project(ctx, enc, self.scene, cam, (gx, gy), self.near, scratch)
+        ctx.submit(enc)
+        t0 = self._mark("project", t0, proj.row_counts)
+
+        enc = ctx.encoder()
+        _, order = radix_sort(ctx, enc, proj.depth_key, proj.idx, n, DEPTH_BITS, scratch, "depth")
+        ctx.submit(enc)
+        row_counts = ctx.read(proj.row_counts, np.uint32, gy).astype(np.int64)
+        t0 = self._mark("sort", t0, proj.row_counts)
+
+        pending = plan_windows(row_counts, gx, self._key_capacity())
+        pending.reverse()
+        while pending:
+            window = pending.pop()
+            if window.end <= window.begin:
+                continue
+            window = self._render_window(proj, order, window, image, cam, gx, t0)
+            if isinstance(window, list):
+                pending.extend(reversed(window))
+            t0 = time.perf_counter()
+        return DeviceRender(buffer=image, width=width, height=height, plane_stride=stride)
+
+    def _key_capacity(self) -> int:
+        """Most keys one window may hold: one binding, and one dispatch of one thread per key."""
+        return min(self.ctx.max_binding_bytes // 4, 256 * self.ctx.max_workgroups**2)
+
+    def _render_window(self, proj: Projected, order, window: TileWindow, image, cam: dict, gx: int, t0: float):
+        """Bin, sort and rasterise one key window; returns halves if it had to be split."""
+        ctx, scratch, n = self.ctx, self.scratch, self.scene.n
+        num_tiles = window.end - window.begin
+        # One workgroup per tile in one dispatch; 8 bytes of ranges per tile in one binding.
+        if num_tiles > ctx.max_workgroups**2 or num_tiles * 8 > ctx.max_binding_bytes:
+            mid = (window.begin + window.end) // 2
+            return [TileWindow(window.begin, mid, None), TileWindow(mid, window.end, None)]
+        enc = ctx.encoder()
+        offsets, total = record_counts(ctx, enc, proj, order, n, gx, window, scratch)
+        ctx.submit(enc)
+        keys = int(ctx.read(total.buffer, np.uint32, 1, total.offset)[0])
+        if keys > self._key_capacity():
+            mid = (window.begin + window.end) // 2
+            return [TileWindow(window.begin, mid, None), TileWindow(mid, window.end, None)]
+        window = TileWindow(window.begin, window.end, keys)
+        enc = ctx.encoder()
+        k = window.keys
+        self.stats.keys += k
+        self.stats.windows += 1
+        keys = vals = scratch.get("bin.keys", 4)
+        if k > 0:
+            keys, vals = record_emit(ctx, enc, proj, order, offsets, n, gx, window, scratch)
+            bits = max(1, (num_tiles - 1).bit_length())
+            keys, vals = radix_sort(ctx, enc, keys, vals, k, bits if num_tiles > 1 else 0, scratch, "tiles")
+        ranges = record_ranges(ctx, enc, keys, k, num_tiles, scratch)
+        ctx.submit(enc)
+        t0 = self._mark("sort", t0, ranges.buffer)
+        enc = ctx.encoder()
+        work = scratch.window("render.work", num_tiles * 8)
+        record_rasterize(ctx, enc, ranges=ranges, vals=vals, num_keys=k, pos_op=proj.pos_op, conic=proj.conic,
+                         rgb=proj.rgb, n=n, image=image, width=cam["width"], height=cam["height"], tiles_x=gx,
+                         tile_begin=window.begin, num_tiles=num_tiles, background=self.background,
+                         min_alpha=NO_COVERAGE_ALPHA, work=work)
+        ctx.submit(enc)
+        self._mark("rasterize", t0, image)
+        if self.count_work:
+            counts = ctx.read(work.buffer, np.uint32, 2 * num_tiles).reshape(-1, 2).astype(np.int64)
+            self.stats.evaluated += int(counts[:, 0].sum())
+            self.stats.blended += int(counts[:, 1].sum())
+        return window
+
+    def render(self, camera) -> Render:
+        """Render ``camera`` and read the result back as numpy arrays."""
+        cam = camera_arrays(camera)
+        stride = plane_stride(cam["width"], cam["height"])
+        image = self.scratch.get("render.image", stride * len(PLANES) * 4)
+        out = self.render_device(camera, image=image)
+        return out.to_numpy(self.ctx)
+
+    def release(self) -> None:
+        """Free the scene and every intermediate buffer now."""
+        self.scene.release()
+        self.scratch.release()
+
+
+def render(scene, camera, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0), output: str = "numpy",
+           near: float = NEAR_PLANE):
+    """Render one view of ``scene`` (a :class:`~r360gpu.io.gaussians.Gaussians`).
+
+    camera: a :class:`~r360gpu.io.camera.Camera` (world-to-camera R, t; fx, fy,
+    cx, cy; width, height).  output: "numpy" -> :class:`Render`; "device" ->
+    :class:`DeviceRender` (buffers stay on ``ctx``'s device).
+    """
+    if output not in ("numpy", "device"):
+        raise InputError(f"output must be 'numpy' or 'device', got {output!r}")
+    renderer = Renderer(scene, ctx=ctx, background=background, near=near)
+    try:
+        if output == "device":
+            return renderer.render_device(camera)
+        return renderer.render(camera)
+    finally:
+        renderer.release()
+
+
+def render_views(scene, cameras: Iterable, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0),
+                 output: str = "numpy", near: float = NEAR_PLANE, progress: bool = False) -> Iterator:
+    """Render many views of one scene, uploading it once; yields one result per camera.
+
+    Results as :func:`render`.  ``progress`` shows a tqdm progress bar.
+    """
+    if output not in ("numpy", "device"):
+        raise InputError(f"output must be 'numpy' or 'device', got {output!r}")
+    renderer = Renderer(scene, ctx=ctx, background=background, near=near)
+    cams = cameras
+    if progress:
+        from tqdm import tqdm
+
+        cams = tqdm(cameras, desc="render", unit="view")
+    try:
+        for camera in cams:
+            yield renderer.render_device(camera) if output == "device" else renderer.render(camera)
+    finally:
+        renderer.release()

@@ -1,0 +1,111 @@
+"""Host side of ``shaders/radix_sort.wgsl``: a portable stable LSD radix sort.
+
+Sorts u32 keys with u32 values, 4 bits per pass.  Each pass is histogram ->
+exclusive scan of the (digit, block) histogram -> stable scatter, all separate
+dispatches: no subgroup operations, no decoupled look-back, nothing that needs
+forward progress between workgroups.  Inputs larger than one storage binding
+are processed in windows of one binding each (see the shader's header).
+"""
+from __future__ import annotations
+
+import math
+
+from ..gpu.context import BufferRange, GpuContext
+from .scan import exclusive_scan
+from .scratch import Scratch
+
+#: Elements per workgroup (64 threads x 32 items); must match the shader.
+BLOCK = 2048
+#: Bits per pass; must match the shader.
+DIGIT_BITS = 4
+RADIX = 1 << DIGIT_BITS
+
+
+def window_elements(ctx: GpuContext) -> int:
+    """Elements per input/output window: one storage binding, and few enough
+    blocks for one dispatch."""
+    return min(ctx.max_binding_bytes // 4, BLOCK * ctx.max_workgroups**2)
+
+
+def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scratch, tag: str = "sort"):
+    """Record a stable sort of the first ``n`` (key, value) u32 pairs by the low ``bits`` key bits.
+
+    ``keys``/``vals`` are buffers of at least ``n`` u32 each; only the low
+    ``bits`` bits of the keys take part (higher bits must be zero for a
+    meaningful order, they are carried along).  Equal keys keep their input
+    order.  Returns ``(keys_sorted, vals_sorted)`` buffers: either the inputs
+    (overwritten) or scratch buffers named after ``tag``; the inputs are
+    clobbered in any case.  Valid once ``enc`` has been submitted.
+    """
+    passes = math.ceil(bits / DIGIT_BITS)
+    if n <= 1 or passes == 0:
+        return keys, vals
+    per = window_elements(ctx)
+    # Blocks are numbered across windows in input order, so the histogram
+    # scan orders them like the input (windows need not hold whole blocks).
+    windows = []
+    total_blocks = 0
+    for start in range(0, n, per):
+        count = min(per, n - start)
+        nb = -(-count // BLOCK)
+        windows.append((start, count, total_blocks, nb))
+        total_blocks += nb
+    hist_bytes = RADIX * total_blocks * 4
+    if hist_bytes > ctx.max_binding_bytes:
+        raise ValueError(f"radix sort of {n} elements needs a {hist_bytes}-byte histogram binding")
+    hist = scratch.window(f"{tag}.hist", hist_bytes)
+    src = (keys, vals)
+    dst = (scratch.get(f"{tag}.keys", n * 4), scratch.get(f"{tag}.vals", n * 4))
+    pipe_hist = ctx.pipeline("radix_sort", "histogram")
+    pipe_scatter = ctx.pipeline("radix_sort", "scatter")
+    for p in range(passes):
+        shift = p * DIGIT_BITS
+        for start, count, block_base, nb in windows:
+            params = ctx.uniform(count, shift, block_base, total_blocks, 0, 0, nb)
+            ctx.dispatch(
+                enc, pipe_hist,
+                [params, BufferRange(src[0], start * 4, count * 4), None, None, None, hist],
+                ctx.grid(nb),
+            )
+        exclusive_scan(ctx, enc, hist, RADIX * total_blocks, scratch, f"{tag}.hscan")
+        for start, count, block_base, nb in windows:
+            for out_start, out_count, _, _ in windows:
+                params = ctx.uniform(count, shift, block_base, total_blocks, out_start, out_count, nb)
+                ctx.dispatch(
+                    enc, pipe_scatter,
+                    [
+                        params,
+                        BufferRange(src[0], start * 4, count * 4),
+                        BufferRange(src[1], start * 4, count * 4),
+                        BufferRange(dst[0], out_start * 4, out_count * 4),
+                        BufferRange(dst[1], out_start * 4, out_count * 4),
+                        hist,
+                    ],
+                    ctx.grid(nb),
+                )
+        src, dst = dst, src
+    return src
+
+
+def sort_pairs(ctx: GpuContext, keys, vals=None, bits: int = 32, scratch: Scratch | None = None):
+    """Sort host arrays on the device (convenience wrapper for tests and callers).
+
+    keys: (n,) uint32; vals: (n,) uint32 or None (then ``arange(n)``).
+    Returns ``(sorted_keys, sorted_vals)`` numpy uint32 arrays, stable by the
+    low ``bits`` bits of the keys.
+    """
+    import numpy as np
+
+    keys = np.ascontiguousarray(keys, dtype=np.uint32)
+    n = int(keys.shape[0])
+    vals = np.arange(n, dtype=np.uint32) if vals is None else np.ascontiguousarray(vals, dtype=np.uint32)
+    if vals.shape != keys.shape:
+        raise ValueError(f"keys {keys.shape} and values {vals.shape} differ in shape")
+    if n == 0:
+        return keys.copy(), vals.copy()
+    scratch = scratch or Scratch(ctx)
+    kb, vb = ctx.buffer(keys), ctx.buffer(vals)
+    enc = ctx.encoder()
+    ks, vs = radix_sort(ctx, enc, kb, vb, n, bits, scratch)
+    ctx.submit(enc)
+    return ctx.read(ks, np.uint32, n), ctx.read(vs, np.uint32, n)

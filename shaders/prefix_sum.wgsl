@@ -1,0 +1,104 @@
+// Exclusive prefix sum of a u32 array, one level of a multi-level scan.
+//
+// scan_blocks: each workgroup scans BLOCK = 256 * 8 consecutive elements in
+// place (exclusive) and writes the block's total to block_sums[block].  The
+// host scans block_sums the same way (recursively) and then add_block_sums
+// adds each block's exclusive offset to its elements.  No decoupled look-back
+// and no subgroup operations: every level is a separate dispatch, so the scan
+// needs no forward-progress guarantee between workgroups.
+
+struct Params {
+    n: u32,           // elements in `data`
+    num_blocks: u32,  // ceil(n / BLOCK)
+}
+
+const WG: u32 = 256u;
+const ITEMS: u32 = 8u;
+const BLOCK: u32 = 2048u;
+
+@group(0) @binding(0) var<uniform> p: Params;
+@group(0) @binding(1) var<storage, read_write> data: array<u32>;
+@group(0) @binding(2) var<storage, read_write> block_sums: array<u32>;
+
+var<workgroup> partial: array<u32, 256>;
+var<workgroup> seg: array<u32, 16>;
+
+// Exclusive scan of the threads' totals: two serial levels (16 segments of 16
+// threads, then the 16 segment totals) need three barriers, where a log-step
+// scan needs sixteen; on CPU implementations, which run a workgroup's SIMD
+// slices as coroutines, barriers dominate.  Every thread must call it.
+fn scan_threads(tid: u32, own: u32) -> u32 {
+    partial[tid] = own;
+    workgroupBarrier();
+    if (tid < 16u) {
+        var s = 0u;
+        for (var i = 16u * tid; i < 16u * tid + 16u; i++) {
+            let v = partial[i];
+            partial[i] = s;
+            s += v;
+        }
+        seg[tid] = s;
+    }
+    workgroupBarrier();
+    if (tid == 0u) {
+        var s = 0u;
+        for (var i = 0u; i < 16u; i++) {
+            let v = seg[i];
+            seg[i] = s;
+            s += v;
+        }
+    }
+    workgroupBarrier();
+    return partial[tid] + seg[tid / 16u];
+}
+
+@compute @workgroup_size(256)
+fn scan_blocks(@builtin(local_invocation_index) tid: u32,
+               @builtin(workgroup_id) wid: vec3<u32>,
+               @builtin(num_workgroups) nwg: vec3<u32>) {
+    let block = wid.x + wid.y * nwg.x;
+    if (block >= p.num_blocks) {
+        return;
+    }
+    // Each thread owns ITEMS consecutive elements, so a serial scan per thread
+    // followed by a scan over threads keeps the order.
+    let base = block * BLOCK + tid * ITEMS;
+    var vals: array<u32, 8>;
+    var s = 0u;
+    for (var k = 0u; k < ITEMS; k++) {
+        let i = base + k;
+        var v = 0u;
+        if (i < p.n) {
+            v = data[i];
+        }
+        vals[k] = s;
+        s += v;
+    }
+    let excl = scan_threads(tid, s);
+    for (var k = 0u; k < ITEMS; k++) {
+        let i = base + k;
+        if (i < p.n) {
+            data[i] = vals[k] + excl;
+        }
+    }
+    if (tid == WG - 1u) {
+        block_sums[block] = excl + s;
+    }
+}
+
+@compute @workgroup_size(256)
+fn add_block_sums(@builtin(local_invocation_index) tid: u32,
+                  @builtin(workgroup_id) wid: vec3<u32>,
+                  @builtin(num_workgroups) nwg: vec3<u32>) {
+    let block = wid.x + wid.y * nwg.x;
+    if (block >= p.num_blocks) {
+        return;
+    }
+    let add = block_sums[block];
+    for (var k = 0u; k < ITEMS; k++) {
+        let i = block * BLOCK + k * WG + tid;
+        if (i < p.n) {
+            data[i] = data[i] + add;
+        }
+    }
+}

@@ -1,0 +1,203 @@
+// One pass of a portable LSD radix sort of (u32 key, u32 value) pairs on a
+// 4-bit digit (16 buckets).
+//
+// Portability: no subgroup operations and no inter-workgroup communication
+// inside a dispatch (no decoupled look-back, no spin-waiting), so it runs on
+// any WebGPU implementation including software Vulkan, which gives no
+// forward-progress guarantee between workgroups.  A pass is three dispatches:
+//
+//   histogram       per-block digit counts -> hist[digit * total_blocks + block]
+//   (prefix_sum)    exclusive scan of hist -> global start of each (digit, block)
+//   scatter         each block re-counts its digits, ranks its elements stably
+//                   and writes them to their global positions.
+//
+// Stability: a thread owns ITEMS consecutive elements and counts them serially;
+// the per-thread counts are scanned across threads in thread order, so equal
+// digits keep their input order within a block, and blocks are ordered by the
+// scanned histogram (digit-major, then block).
+//
+// Inputs larger than one storage binding are processed in windows: the host
+// binds a window of the input (block_base = first global block of the window)
+// and a window of the output ([out_base, out_base + out_count) in global
+// element positions); the scatter writes only the elements that land inside
+// the bound output window, so the host repeats it for every output window.
+
+struct Params {
+    n: u32,             // elements in the bound input window
+    shift: u32,         // bit position of the digit
+    block_base: u32,    // global index of the window's first block
+    total_blocks: u32,  // blocks over the whole input
+    out_base: u32,      // global position of the bound output window's first element
+    out_count: u32,     // elements in the bound output window
+    num_blocks: u32,    // blocks in the bound input window
+}
+
+// 64 threads x 32 items: few SIMD slices per workgroup keeps barriers cheap on
+// CPU implementations (which run the slices as coroutines); 2048 per block.
+const WG: u32 = 64u;
+const ITEMS: u32 = 32u;
+const BLOCK: u32 = 2048u;
+const RADIX: u32 = 16u;
+const SEG: u32 = 8u;  // threads per segment of the two-level scan (SEG * SEG = WG)
+
+@group(0) @binding(0) var<uniform> p: Params;
+@group(0) @binding(1) var<storage, read> keys_in: array<u32>;
+@group(0) @binding(2) var<storage, read> vals_in: array<u32>;
+@group(0) @binding(3) var<storage, read_write> keys_out: array<u32>;
+@group(0) @binding(4) var<storage, read_write> vals_out: array<u32>;
+@group(0) @binding(5) var<storage, read_write> hist: array<u32>;
+
+// Digit counts are packed so they stay in registers (dynamically indexed
+// arrays are slow on CPU implementations): while a thread counts its 32 items,
+// 8-bit fields in a vec4 (digit d in component d / 4, bits 8 * (d % 4));
+// across threads, 16-bit fields in two vec4 (digit d in word d / 2 of lo (d < 8)
+// or hi, bits 16 * (d % 2)), which cannot overflow with 2048 per block.
+struct Packed {
+    lo: vec4<u32>,  // digits 0-7
+    hi: vec4<u32>,  // digits 8-15
+}
+
+var<workgroup> scan_lo: array<vec4<u32>, 64>;
+var<workgroup> scan_hi: array<vec4<u32>, 64>;
+var<workgroup> seg_lo: array<vec4<u32>, 8>;
+var<workgroup> seg_hi: array<vec4<u32>, 8>;
+
+fn digit_of(key: u32) -> u32 {
+    return (key >> p.shift) & 15u;
+}
+
+// 8-bit fields -> 16-bit fields.
+fn widen(c: vec4<u32>) -> Packed {
+    var out: Packed;
+    for (var w = 0u; w < 4u; w++) {
+        // Word w of lo holds digits 2w, 2w + 1; digit d sits in c[d / 4] at 8 * (d % 4).
+        let d = 2u * w;
+        out.lo[w] = ((c[d >> 2u] >> (8u * (d & 3u))) & 255u) | (((c[(d + 1u) >> 2u] >> (8u * ((d + 1u) & 3u))) & 255u) << 16u);
+        let e = d + 8u;
+        out.hi[w] = ((c[e >> 2u] >> (8u * (e & 3u))) & 255u) | (((c[(e + 1u) >> 2u] >> (8u * ((e + 1u) & 3u))) & 255u) << 16u);
+    }
+    return out;
+}
+
+fn field16(v: Packed, d: u32) -> u32 {
+    let word = select(v.lo, v.hi, d >= 8u)[(d >> 1u) & 3u];
+    return (word >> (16u * (d & 1u))) & 0xffffu;
+}
+
+// Adds one to digit d's 8-bit field; returns the field's old value.
+fn bump(c: ptr<function, vec4<u32>>, d: u32) -> u32 {
+    let sh = 8u * (d & 3u);
+    let w = d >> 2u;
+    let old = ((*c)[w] >> sh) & 255u;
+    (*c)[w] += 1u << sh;
+    return old;
+}
+
+// Packed digit counts (8-bit fields) of the ITEMS elements from `base` (within the window).
+fn count_items(base: u32) -> vec4<u32> {
+    var c = vec4<u32>(0u);
+    for (var k = 0u; k < ITEMS; k++) {
+        let i = base + k;
+        if (i < p.n) {
+            bump(&c, digit_of(keys_in[i]));
+        }
+    }
+    return c;
+}
+
+// Inclusive scan of the threads' packed counters over the workgroup; every
+// thread must call it.  Two serial levels (8 segments of 8 threads, then the
+// 8 segment totals) need only three barriers.
+fn scan_threads(tid: u32, own: Packed) -> Packed {
+    scan_lo[tid] = own.lo;
+    scan_hi[tid] = own.hi;
+    workgroupBarrier();
+    if (tid < SEG) {
+        var lo = vec4<u32>(0u);
+        var hi = vec4<u32>(0u);
+        for (var i = SEG * tid; i < SEG * tid + SEG; i++) {
+            lo += scan_lo[i];
+            hi += scan_hi[i];
+            scan_lo[i] = lo;
+            scan_hi[i] = hi;
+        }
+        seg_lo[tid] = lo;
+        seg_hi[tid] = hi;
+    }
+    workgroupBarrier();
+    if (tid == 0u) {
+        var lo = vec4<u32>(0u);
+        var hi = vec4<u32>(0u);
+        for (var i = 0u; i < SEG; i++) {
+            let l = seg_lo[i];
+            let h = seg_hi[i];
+            seg_lo[i] = lo;
+            seg_hi[i] = hi;
+            lo += l;
+            hi += h;
+        }
+    }
+    workgroupBarrier();
+    var out: Packed;
+    out.lo = scan_lo[tid] + seg_lo[tid / SEG];
+    out.hi = scan_hi[tid] + seg_hi[tid / SEG];
+    return out;
+}
+
+@compute @workgroup_size(64)
+fn histogram(@builtin(local_invocation_index) tid: u32,
+             @builtin(workgroup_id) wid: vec3<u32>,
+             @builtin(num_workgroups) nwg: vec3<u32>) {
+    let block = wid.x + wid.y * nwg.x;
+    if (block >= p.num_blocks) {
+        return;
+    }
+    let incl = scan_threads(tid, widen(count_items(block * BLOCK + tid * ITEMS)));
+    // The last thread's inclusive counts are the block's totals.
+    if (tid == WG - 1u) {
+        for (var d = 0u; d < RADIX; d++) {
+            hist[d * p.total_blocks + p.block_base + block] = field16(incl, d);
+        }
+    }
+}
+
+@compute @workgroup_size(64)
+fn scatter(@builtin(local_invocation_index) tid: u32,
+           @builtin(workgroup_id) wid: vec3<u32>,
+           @builtin(num_workgroups) nwg: vec3<u32>) {
+    let block = wid.x + wid.y * nwg.x;
+    if (block >= p.num_blocks) {
+        return;
+    }
+    let base = block * BLOCK + tid * ITEMS;
+    let own = widen(count_items(base));
+    let incl = scan_threads(tid, own);
+    // Global position of this thread's first element of each digit: the
+    // block's scanned histogram plus the elements of that digit in earlier threads.
+    let gblock = p.block_base + block;
+    var start: array<vec4<u32>, 4>;
+    for (var d = 0u; d < RADIX; d++) {
+        start[d >> 2u][d & 3u] = hist[d * p.total_blocks + gblock] + field16(incl, d) - field16(own, d);
+    }
+    let s0 = start[0];
+    let s1 = start[1];
+    let s2 = start[2];
+    let s3 = start[3];
+    // Second pass over the thread's items (re-read rather than kept in a
+    // dynamically indexed array), ranking each within its digit.
+    var c = vec4<u32>(0u);
+    for (var k = 0u; k < ITEMS; k++) {
+        let i = base + k;
+        if (i < p.n) {
+            let key = keys_in[i];
+            let d = digit_of(key);
+            let q = d >> 2u;
+            let sv = select(select(s0, s1, q == 1u), select(s2, s3, q == 3u), q >= 2u);
+            let dest = sv[d & 3u] + bump(&c, d);
+            if (dest >= p.out_base && dest - p.out_base < p.out_count) {
+                keys_out[dest - p.out_base] = key;
+                vals_out[dest - p.out_base] = vals_in[i];
+            }
+        }
+    }
+}

@@ -1,0 +1,88 @@
+"""The portable radix sort and prefix sum against numpy."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from r360gpu.gpu import GpuContext
+from r360gpu.render.scan import exclusive_scan
+from r360gpu.render.scratch import Scratch
+from r360gpu.render.sort import BLOCK, sort_pairs
+
+
+def _check(ctx, keys, bits=32):
+    keys = np.asarray(keys, dtype=np.uint32)
+    vals = np.arange(keys.size, dtype=np.uint32)[::-1].copy()  # values differ from positions
+    ks, vs = sort_pairs(ctx, keys, vals, bits=bits)
+    masked = keys & np.uint32((1 << bits) - 1) if bits < 32 else keys
+    order = np.argsort(masked, kind="stable")
+    np.testing.assert_array_equal(vs, vals[order])
+    np.testing.assert_array_equal(ks, keys[order])
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 255, 256, 257, BLOCK - 1, BLOCK, BLOCK + 1, 3 * BLOCK + 77])
+def test_random_keys(ctx, n):
+    rng = np.random.default_rng(n)
+    _check(ctx, rng.integers(0, 2**32, n, dtype=np.uint64).astype(np.uint32))
+
+
+def test_duplicates_and_all_equal(ctx):
+    rng = np.random.default_rng(1)
+    _check(ctx, rng.integers(0, 7, 9000).astype(np.uint32))
+    _check(ctx, np.full(5000, 123456789, np.uint32))
+    _check(ctx, np.full(3000, 0xFFFFFFFF, np.uint32))
+
+
+def test_partial_bits_and_float_keys(ctx):
+    rng = np.random.default_rng(2)
+    # Keys above the sorted bits: only the low 13 bits order, the rest rides along.
+    _check(ctx, rng.integers(0, 2**13, 7000).astype(np.uint32), bits=13)
+    # Positive float32 bit patterns sort like the floats (the depth keys).
+    z = rng.lognormal(0.0, 2.0, 6000).astype(np.float32)
+    z[::5] = z[0]
+    ks, vs = sort_pairs(ctx, z.view(np.uint32))
+    np.testing.assert_array_equal(vs, np.argsort(z, kind="stable"))
+
+
+def test_sorted_and_reversed(ctx):
+    _check(ctx, np.arange(5000, dtype=np.uint32))
+    _check(ctx, np.arange(5000, dtype=np.uint32)[::-1].copy())
+
+
+@pytest.mark.parametrize("n", [1024, 1025, 4096 + 3, 20000])
+def test_over_one_binding(ctx, n):
+    """Inputs larger than a (lowered) storage binding are sorted in windows."""
+    small = GpuContext(ctx.device, limit_binding_bytes=4096, limit_workgroups=7)
+    assert n * 4 > small.max_binding_bytes or n == 1024
+    rng = np.random.default_rng(n)
+    keys = rng.integers(0, 2**32, n, dtype=np.uint64).astype(np.uint32)
+    keys[::3] = keys[1]
+    _check(small, keys)
+
+
+@pytest.mark.parametrize("n", [0, 1, 2047, 2048, 2049, 3 * 2048 * 2 + 5])
+def test_exclusive_scan(ctx, n):
+    rng = np.random.default_rng(n)
+    data = rng.integers(0, 1000, n).astype(np.uint32)
+    buf = ctx.buffer(data if n else 4)
+    scratch = Scratch(ctx)
+    enc = ctx.encoder()
+    total = exclusive_scan(ctx, enc, buf, n, scratch)
+    ctx.submit(enc)
+    got = ctx.read(buf, np.uint32, n)
+    expect = np.concatenate([[0], np.cumsum(data)[:-1]]).astype(np.uint32) if n else data
+    np.testing.assert_array_equal(got, expect)
+    assert int(ctx.read(total.buffer, np.uint32, 1, total.offset)[0]) == int(data.sum())
+
+
+@pytest.mark.slow
+def test_exclusive_scan_three_levels(ctx):
+    n = BLOCK * BLOCK + 5
+    data = np.random.default_rng(0).integers(0, 3, n).astype(np.uint32)
+    buf = ctx.buffer(data)
+    enc = ctx.encoder()
+    total = exclusive_scan(ctx, enc, buf, n, Scratch(ctx))
+    ctx.submit(enc)
+    got = ctx.read(buf, np.uint32, n)
+    np.testing.assert_array_equal(got[1:], np.cumsum(data)[:-1].astype(np.uint32))
+    assert int(ctx.read(total.buffer, np.uint32, 1, total.offset)[0]) == int(data.sum())
