@@ -1,0 +1,631 @@
+"""Load and check scene bundles: :func:`load_bundle`, :func:`check_bundle`, :func:`inspect_bundle`.
+
+A bundle is a folder holding ``scene.toml`` (format in the package
+docstring), or a folder in the public Remove360 evaluation layout
+(:mod:`.remove360_layout`).  Checking collects EVERY problem before giving
+up, so one run of ``r360gpu check`` lists all there is to fix.
+
+What is checked:
+
+* scene.toml: TOML syntax, required keys, unknown keys (with a suggestion),
+  types and values, method names (not "pre"/"reference", no duplicates even
+  ignoring case, usable as file names);
+* cameras: loaded in full (every camera loader's own checks); view names
+  (camera image stems) must be unique;
+* masks: one ``<view>.png`` per evaluation view, with the camera's size;
+  masks of views without a camera; ``check_bundle`` also decodes every mask,
+  ``load_bundle`` reads only the PNG headers (the pipeline decodes them
+  anyway, with the same errors);
+* views: the selection is not empty, explicit names and patterns match;
+* splat scenes: the file exists and its header is a 3DGS PLY / compressed
+  PLY with Gaussians and a size that matches the header, or a ``.splat`` of
+  whole 32-byte records; the Gaussians themselves are not decoded (big
+  scenes take seconds to minutes);
+* renderings: an RGB (and, for pre and the methods, a depth) file for every
+  evaluation view, whose header gives the view's size; pixel data are not
+  decoded.
+"""
+from __future__ import annotations
+
+import difflib
+import fnmatch
+import math
+import os
+import re
+from dataclasses import replace
+from pathlib import Path
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
+from ..errors import InputError
+from ..io.camera import Camera
+from ..io.compressed_ply import is_compressed_ply
+from ..io.inria_ply import is_inria_ply
+from ..io.load import _latest_inria_iteration, load_cameras
+from ..io.masks import load_mask
+from ..io.ply import read_ply_header
+from ..io.renders import RendersReader, image_size
+from .model import (DEPTH_MODES, RESERVED_METHOD_NAMES, Bundle, BundleError, BundleOptions, Draft, Problem,
+                    SourceSpec)
+from .remove360_layout import is_remove360_folder, remove360_draft
+
+CONFIG_NAME = "scene.toml"
+TOP_KEYS = ("name", "prompt", "cameras", "masks", "views", "pre", "reference", "methods", "options")
+SOURCE_KEYS = ("scene", "renders", "rgb", "depth", "depth_scale")
+OPTION_KEYS = ("background", "depth", "reference_free")
+# Extensions stripped from camera image names to get view names.
+_IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".bmp", ".webp")
+_SPLAT_RECORD_BYTES = 32
+_PLY_MAGIC = (b"ply\n", b"ply\r\n")
+# Beyond this many problems of one kind in one folder, the rest is summarised in one line.
+_MAX_LISTED = 10
+_DUPLICATE_TABLE = re.compile(r"Cannot declare \('methods', '((?:[^'\\]|\\.)*)'\) twice(.*)")
+
+
+def load_bundle(path: str | os.PathLike, *, views: list[str] | None = None, prompt: str | None = None,
+                method_name: str | None = None) -> Bundle:
+    """Load a bundle folder (or its scene.toml); raise :class:`BundleError` listing every problem.
+
+    views: glob patterns over view names replacing scene.toml's ``views``.
+    prompt: replaces scene.toml's ``prompt`` (for the Remove360 layout: instead
+    of prompt.txt).  method_name: name of the Remove360 layout's method
+    (default "after"); not used for scene.toml bundles.
+    Masks are checked from their PNG headers (see the module docstring).
+    """
+    bundle, problems = inspect_bundle(path, views=views, prompt=prompt, method_name=method_name, deep=False)
+    if problems:
+        raise BundleError(path, problems)
+    return bundle
+
+
+def check_bundle(path: str | os.PathLike, *, views: list[str] | None = None, prompt: str | None = None,
+                 method_name: str | None = None) -> list[Problem]:
+    """Every problem of a bundle ([] when it is valid); arguments as :func:`load_bundle`.
+    Unlike :func:`load_bundle`, decodes every mask."""
+    return inspect_bundle(path, views=views, prompt=prompt, method_name=method_name, deep=True)[1]
+
+
+def inspect_bundle(path: str | os.PathLike, *, views: list[str] | None = None, prompt: str | None = None,
+                   method_name: str | None = None, deep: bool = True) -> tuple[Bundle | None, list[Problem]]:
+    """``(bundle, problems)``: the bundle (None when there is any problem) and every problem found.
+
+    deep: also decode every mask (else only PNG headers are read).
+    """
+    problems: list[Problem] = []
+    located = _locate(Path(path), problems)
+    if located is None:
+        return None, problems
+    root, config = located
+    if config is not None:
+        draft = _draft_from_config(root, config, problems, views=views, prompt=prompt)
+    else:
+        draft = remove360_draft(root, prompt=prompt, method_name=method_name, problems=problems)
+        if views is not None:
+            draft.view_patterns, draft.patterns_origin = list(views), "--views"
+    if draft is None:
+        return None, problems
+    bundle = _resolve(draft, problems, deep=deep)
+    return (None if problems else bundle), problems
+
+
+# --- locating the bundle ------------------------------------------------------------------------
+
+def _locate(path: Path, problems: list[Problem]) -> tuple[Path, Path | None] | None:
+    if path.is_file() and path.suffix.lower() == ".toml":
+        return path.parent, path
+    if not path.exists():
+        problems.append(Problem(str(path), "no such bundle folder"))
+        return None
+    if not path.is_dir():
+        problems.append(Problem(str(path), f"not a bundle: expected a folder with {CONFIG_NAME} (or the "
+                                           f"{CONFIG_NAME} itself)"))
+        return None
+    if (path / CONFIG_NAME).is_file():
+        return path, path / CONFIG_NAME
+    if is_remove360_folder(path):
+        return path, None
+    problems.append(Problem(str(path), f"not a bundle: no {CONFIG_NAME}, and not a Remove360 evaluation folder "
+                                       f"(rgb/before, rgb/after, depth/before, depth/after, masks/)"))
+    return None
+
+
+# --- scene.toml ---------------------------------------------------------------------------------
+
+def _draft_from_config(root: Path, config: Path, problems: list[Problem], *, views: list[str] | None,
+                       prompt: str | None) -> Draft | None:
+    cfg = str(config)
+
+    def bad(message: str) -> None:
+        problems.append(Problem(cfg, message))
+
+    try:
+        data = tomllib.loads(config.read_text(encoding="utf-8"))
+    except OSError as e:
+        bad(f"cannot read: {e.strerror or e}")
+        return None
+    except UnicodeDecodeError:
+        bad("not UTF-8 text")
+        return None
+    except tomllib.TOMLDecodeError as e:
+        m = _DUPLICATE_TABLE.match(str(e))
+        if m:
+            bad(f"duplicate method: [methods.{m.group(1)}] is declared twice{m.group(2)}")
+        else:
+            bad(f"invalid TOML: {e}")
+        return None
+
+    d = Draft(root=root, layout="scene.toml", config=config)
+    _unknown_keys(data, TOP_KEYS, None, bad)
+
+    d.name = _default_name(root)
+    if "name" in data:
+        if isinstance(data["name"], str) and data["name"].strip():
+            d.name = data["name"]
+        else:
+            bad("'name' must be a non-empty string")
+    reason = _bad_file_name(d.name)
+    if reason:
+        bad(f"scene name {d.name!r} {reason} (it names output folders); set name = \"...\"")
+
+    if prompt is not None:
+        if prompt.strip():
+            d.prompt = prompt.strip()
+        else:
+            problems.append(Problem(None, "the prompt given is empty"))
+    elif "prompt" not in data:
+        bad("missing required key 'prompt': the category of the removed object, e.g. prompt = \"sofa\"")
+    elif isinstance(data["prompt"], str) and data["prompt"].strip():
+        d.prompt = data["prompt"].strip()
+    else:
+        bad("'prompt' must be a non-empty string")
+
+    if "cameras" in data:
+        if isinstance(data["cameras"], str) and data["cameras"].strip():
+            d.cameras_path = root / data["cameras"]
+        else:
+            bad("'cameras' must be a path (a non-empty string)")
+    if "masks" not in data:
+        bad("missing required key 'masks': the folder of target-mask PNGs, e.g. masks = \"masks\"")
+    elif isinstance(data["masks"], str) and data["masks"].strip():
+        d.masks_dir = root / data["masks"]
+    else:
+        bad("'masks' must be a folder path (a non-empty string)")
+
+    if views is not None:
+        d.view_patterns, d.patterns_origin = list(views), "--views"
+    elif "views" in data:
+        v = data["views"]
+        if isinstance(v, list) and all(isinstance(p, str) and p for p in v):
+            d.view_patterns, d.patterns_origin = list(v), f"views in {CONFIG_NAME}"
+        else:
+            bad("'views' must be a list of view names or glob patterns, e.g. views = [\"frame_0*\"]")
+
+    if "pre" not in data:
+        bad("missing required table [pre]: the original reconstruction, e.g. [pre] scene = \"pre.ply\"")
+    else:
+        d.pre = _parse_source(data["pre"], "[pre]", root, bad, depth_required=True)
+    if "reference" in data:
+        d.reference = _parse_source(data["reference"], "[reference]", root, bad, depth_required=False)
+    methods = data.get("methods")
+    if methods is None:
+        bad("missing required table [methods.NAME]: one per evaluated method, e.g. [methods.mine] "
+            "scene = \"mine.ply\"")
+    elif not isinstance(methods, dict) or not methods:
+        bad("'methods' must hold one table per method, e.g. [methods.mine] scene = \"mine.ply\"")
+    else:
+        for name, table in methods.items():
+            d.methods[name] = _parse_source(table, f"[methods.{name}]", root, bad, depth_required=True)
+
+    if "options" in data:
+        d.options = _parse_options(data["options"], bad)
+    return d
+
+
+def _default_name(root: Path) -> str:
+    return root.resolve().name
+
+
+def _unknown_keys(table: dict, allowed: tuple[str, ...], where: str | None, bad) -> None:
+    for key in table:
+        if key in allowed:
+            continue
+        close = difflib.get_close_matches(key, allowed, n=1, cutoff=0.6)
+        hint = f"did you mean '{close[0]}'?" if close else f"known keys: {', '.join(allowed)}"
+        bad(f"unknown key '{key}'{f' in {where}' if where else ''} ({hint})")
+
+
+def _parse_source(table, label: str, root: Path, bad, *, depth_required: bool) -> SourceSpec | None:
+    if not isinstance(table, dict):
+        bad(f"{label} must be a table, e.g. {label} scene = \"FILE.ply\" or renders = \"FOLDER\"")
+        return None
+    _unknown_keys(table, SOURCE_KEYS, label, bad)
+    given = [k for k in ("scene", "renders", "rgb") if k in table]
+    if len(given) != 1:
+        found = f" (found {', '.join(given)})" if given else ""
+        bad(f"{label} needs exactly one of 'scene' (a splat file) or 'renders' (a folder with rgb/ and "
+            f"depth/){found}")
+        return None
+    key = given[0]
+    value = table[key]
+    if not (isinstance(value, str) and value.strip()):
+        bad(f"{label} '{key}' must be a path (a non-empty string)")
+        return None
+    ok = True
+    scale = 1.0
+    if "depth_scale" in table:
+        s = table["depth_scale"]
+        if key == "scene":
+            bad(f"{label} 'depth_scale' applies to renders only (a splat scene's depth is in scene units)")
+            ok = False
+        elif isinstance(s, bool) or not isinstance(s, (int, float)) or not math.isfinite(s) or s <= 0:
+            bad(f"{label} 'depth_scale' must be a positive number, got {s!r}")
+            ok = False
+        else:
+            scale = float(s)
+    if "depth" in table and key != "rgb":
+        bad(f"{label} 'depth' goes with 'rgb' (explicit folders); a renders folder's depth is its depth/ "
+            f"sub-folder and a splat scene's depth is rendered")
+        ok = False
+    if not ok:
+        return None
+    if key == "scene":
+        return SourceSpec("scene", root / value)
+    if key == "renders":
+        folder = root / value
+        depth = folder / "depth"
+        if not depth_required and not depth.exists():
+            depth = None
+        return SourceSpec("renders", folder, scale, folder / "rgb", depth)
+    rgb = root / value
+    depth = table.get("depth")
+    if depth is not None and not (isinstance(depth, str) and depth.strip()):
+        bad(f"{label} 'depth' must be a folder path (a non-empty string)")
+        return None
+    return SourceSpec("renders", rgb, scale, rgb, None if depth is None else root / depth)
+
+
+def _parse_options(table, bad) -> BundleOptions:
+    opts = BundleOptions()
+    if not isinstance(table, dict):
+        bad("[options] must be a table")
+        return opts
+    _unknown_keys(table, OPTION_KEYS, "[options]", bad)
+    if "background" in table:
+        bg = table["background"]
+        if (isinstance(bg, list) and len(bg) == 3
+                and all(isinstance(c, (int, float)) and not isinstance(c, bool) and 0 <= c <= 1 for c in bg)):
+            opts.background = tuple(float(c) for c in bg)
+        else:
+            bad(f"[options] 'background' must be three numbers in [0, 1] (RGB), got {bg!r}")
+    if "depth" in table:
+        mode = table["depth"]
+        if mode in DEPTH_MODES:
+            opts.depth = mode
+        else:
+            close = difflib.get_close_matches(str(mode), DEPTH_MODES, n=1, cutoff=0.6)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            bad(f"[options] 'depth' must be {' or '.join(map(repr, DEPTH_MODES))}, got {mode!r}{hint}")
+    if "reference_free" in table:
+        if isinstance(table["reference_free"], bool):
+            opts.reference_free = table["reference_free"]
+        else:
+            bad(f"[options] 'reference_free' must be true or false, got {table['reference_free']!r}")
+    return opts
+
+
+def _bad_file_name(name: str) -> str | None:
+    """Why ``name`` cannot name an output folder, or None when it can."""
+    if not name.strip():
+        return "is empty"
+    if name in (".", ".."):
+        return "is not a usable name"
+    if "/" in name or "\\" in name:
+        return "contains a path separator"
+    if any(ord(c) < 32 for c in name):
+        return "contains control characters"
+    if name != name.strip():
+        return "has leading or trailing spaces"
+    return None
+
+
+# --- resolving and checking the files ------------------------------------------------------------
+
+def _label(draft: Draft, role: str, name: str | None = None) -> str:
+    if draft.layout == "scene.toml":
+        return f"[methods.{name}]" if role == "method" else f"[{role}]"
+    return f"method {name!r}" if role == "method" else role
+
+
+def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | None:
+    where = str(draft.config) if draft.config is not None else str(draft.root)
+
+    _check_method_names(draft, where, problems)
+    # (role, method name, source): methods may not shadow pre/reference even when misnamed.
+    entries = [("pre", None, draft.pre), ("reference", None, draft.reference)]
+    entries += [("method", name, spec) for name, spec in draft.methods.items()]
+    entries = [(role, name, spec) for role, name, spec in entries if spec is not None]
+
+    scene_labels = [_label(draft, role, name) for role, name, spec in entries if spec.kind == "scene"]
+    if draft.cameras_path is None and scene_labels:
+        problems.append(Problem(where, f"missing key 'cameras': needed to render the splat scene of "
+                                       f"{', '.join(scene_labels)}"))
+    cameras = _load_cameras(draft.cameras_path, problems) if draft.cameras_path is not None else None
+    masks = _list_masks(draft.masks_dir, problems) if draft.masks_dir is not None else None
+
+    views = _select_views(draft, where, cameras, masks, problems)
+    sizes = _check_masks(views, cameras, masks or {}, draft, problems, deep=deep)
+
+    resolved: dict[tuple[str, str | None], SourceSpec | None] = {}
+    for role, name, spec in entries:
+        label = _label(draft, role, name)
+        if spec.kind == "scene":
+            resolved[role, name] = _check_scene(spec, label, problems)
+        else:
+            _check_renders(spec, label, views, sizes, depth_required=role != "reference", where=where,
+                           problems=problems)
+            resolved[role, name] = spec
+    if problems or draft.prompt is None or draft.pre is None:
+        return None
+    return Bundle(
+        root=draft.root, name=draft.name, prompt=draft.prompt, views=views,
+        cameras=None if cameras is None else {v: cameras[v] for v in views},
+        masks={v: masks[v] for v in views}, pre=resolved["pre", None],
+        reference=resolved.get(("reference", None)),
+        methods={name: resolved["method", name] for name in draft.methods}, options=draft.options,
+        layout=draft.layout, config=draft.config, cameras_path=draft.cameras_path)
+
+
+def _check_method_names(draft: Draft, where: str, problems: list[Problem]) -> None:
+    seen: dict[str, str] = {}
+    for name in draft.methods:
+        if name.lower() in RESERVED_METHOD_NAMES:
+            problems.append(Problem(where, f"method name {name!r} is reserved (the bundle's "
+                                           f"{', '.join(RESERVED_METHOD_NAMES)} sources); rename it"))
+        reason = _bad_file_name(name)
+        if reason:
+            problems.append(Problem(where, f"method name {name!r} {reason} (it names output folders)"))
+        key = name.casefold()
+        if key in seen:
+            problems.append(Problem(where, f"duplicate method name: {seen[key]!r} and {name!r} differ only in "
+                                           f"case (their output folders would collide)"))
+        else:
+            seen[key] = name
+
+
+def view_name(camera_name: str) -> str:
+    """The view name of a camera: its image file name without folders and image extension."""
+    base = camera_name.replace("\\", "/").rsplit("/", 1)[-1]
+    stem, dot, ext = base.rpartition(".")
+    return stem if dot and stem and f".{ext.lower()}" in _IMAGE_EXTENSIONS else base
+
+
+def _load_cameras(path: Path, problems: list[Problem]) -> dict[str, Camera] | None:
+    try:
+        cams = load_cameras(path)
+    except InputError as e:
+        problems.append(Problem(e.path or str(path), e.problem))
+        return None
+    out: dict[str, Camera] = {}
+    owners: dict[str, str] = {}
+    for cam in cams:
+        v = view_name(cam.name)
+        if v in out:
+            problems.append(Problem(str(path), f"cameras {owners[v]!r} and {cam.name!r} have the same view name "
+                                               f"{v!r} (views are named by image stem)"))
+            continue
+        out[v], owners[v] = cam, cam.name
+    if not out:
+        problems.append(Problem(str(path), "no cameras"))
+    return out
+
+
+def _list_masks(folder: Path, problems: list[Problem]) -> dict[str, Path] | None:
+    if not folder.is_dir():
+        problems.append(Problem(str(folder), "masks folder does not exist" if not folder.exists()
+                                else "masks must be a folder of <view>.png files"))
+        return None
+    masks: dict[str, Path] = {}
+    other: list[str] = []
+    try:
+        entries = sorted(folder.iterdir())
+    except OSError as e:
+        problems.append(Problem(str(folder), f"cannot list masks folder: {e.strerror or e}"))
+        return None
+    for p in entries:
+        if p.name.startswith(".") or not p.is_file():
+            continue
+        if p.suffix.lower() == ".png":
+            if p.stem in masks:
+                problems.append(Problem(str(folder), f"several masks for view {p.stem!r}: "
+                                                     f"{masks[p.stem].name}, {p.name}"))
+                continue
+            masks[p.stem] = p
+        elif p.suffix.lower() in _IMAGE_EXTENSIONS:
+            other.append(p.name)
+    if not masks:
+        found = f" (found {len(other)} other images, e.g. {other[0]}: masks must be PNG)" if other else ""
+        problems.append(Problem(str(folder), f"masks folder has no <view>.png masks{found}"))
+    return masks
+
+
+def _has_glob(pattern: str) -> bool:
+    return any(c in pattern for c in "*?[")
+
+
+def _names(views: list[str]) -> str:
+    listed = ", ".join(repr(v) for v in views[:_MAX_LISTED])
+    return listed + (f" and {len(views) - _MAX_LISTED} more" if len(views) > _MAX_LISTED else "")
+
+
+def _select_views(draft: Draft, where: str, cameras: dict[str, Camera] | None, masks: dict[str, Path] | None,
+                  problems: list[Problem]) -> list[str]:
+    if masks is None:  # no usable masks folder: already reported
+        return []
+    if draft.view_patterns is None:
+        selected = set(masks)
+    else:
+        universe = set(masks) | set(cameras or ())
+        selected = set()
+        for pat in draft.view_patterns:
+            if _has_glob(pat):
+                matched = fnmatch.filter(universe, pat)
+                if not matched:
+                    problems.append(Problem(where, f"pattern {pat!r} ({draft.patterns_origin}) matches no view"))
+            else:
+                matched = [pat] if pat in universe else []
+                if not matched:
+                    what = "no camera and no mask" if cameras is not None else "no mask"
+                    problems.append(Problem(where, f"view {pat!r} ({draft.patterns_origin}) has {what}"))
+            selected.update(matched)
+        missing = sorted(v for v in selected if v not in masks)
+        if missing:
+            problems.append(Problem(str(draft.masks_dir), f"missing masks for {len(missing)} selected view(s): "
+                                                          f"{_names(missing)} (expected <view>.png)"))
+    if cameras is not None:
+        orphans = sorted(v for v in selected if v in masks and v not in cameras)
+        if orphans:
+            problems.append(Problem(str(draft.masks_dir), f"masks for {len(orphans)} view(s) with no camera in "
+                                                          f"{draft.cameras_path}: {_names(orphans)}"))
+    views = sorted(v for v in selected if v in masks and (cameras is None or v in cameras))
+    if not views and masks:  # (an empty masks folder is reported by _list_masks)
+        why = (f"no view matches {draft.patterns_origin}" if draft.view_patterns is not None
+               else "no mask has a matching camera" if cameras else "no masks")
+        problems.append(Problem(where, f"no evaluation views ({why})"))
+    return views
+
+
+def _check_masks(views: list[str], cameras: dict[str, Camera] | None, masks: dict[str, Path], draft: Draft,
+                 problems: list[Problem], *, deep: bool) -> dict[str, tuple[int, int]]:
+    """(H, W) of every evaluation view whose mask could be read; reports unreadable masks and
+    masks whose size differs from the camera's."""
+    sizes: dict[str, tuple[int, int]] = {}
+    listed: list[Problem] = []
+    for v in views:
+        path = masks[v]
+        try:
+            hw = load_mask(path).shape if deep else image_size(path)
+        except InputError as e:
+            listed.append(Problem(str(path), e.problem))
+            continue
+        if cameras is not None:
+            cam = cameras[v]
+            if tuple(hw) != (cam.height, cam.width):
+                listed.append(Problem(str(path), f"mask is {hw[1]}x{hw[0]}, the camera of view {v!r} is "
+                                                 f"{cam.width}x{cam.height}"))
+                continue
+        sizes[v] = (int(hw[0]), int(hw[1]))
+    _add_capped(problems, listed, str(draft.masks_dir), "masks")
+    return sizes
+
+
+def _add_capped(problems: list[Problem], listed: list[Problem], folder: str, what: str) -> None:
+    problems.extend(listed[:_MAX_LISTED])
+    if len(listed) > _MAX_LISTED:
+        problems.append(Problem(folder, f"... and {len(listed) - _MAX_LISTED} more {what} with problems"))
+
+
+def _check_scene(spec: SourceSpec, label: str, problems: list[Problem]) -> SourceSpec | None:
+    p = Path(spec.path)
+    try:
+        if not p.exists():
+            raise InputError("no such file", p)
+        if p.is_dir():
+            p = _latest_inria_iteration(p)
+        suffix = p.suffix.lower()
+        if suffix == ".splat":
+            _check_splat(p)
+        elif suffix == ".ply" or _starts_with(p, _PLY_MAGIC):
+            _check_ply(p)
+        else:
+            raise InputError("unknown Gaussian-splat format; expected an INRIA 3DGS .ply, a .compressed.ply "
+                             "or a .splat file", p)
+    except InputError as e:
+        problems.append(Problem(e.path or str(p), f"{e.problem} (scene of {label})"))
+        return None
+    return replace(spec, path=p)
+
+
+def _starts_with(p: Path, prefixes: tuple[bytes, ...]) -> bool:
+    try:
+        with open(p, "rb") as f:
+            return f.read(8).startswith(prefixes)
+    except OSError as e:
+        raise InputError(f"cannot read file: {e.strerror or e}", p) from None
+
+
+def _check_splat(p: Path) -> None:
+    size = p.stat().st_size
+    if size == 0:
+        raise InputError("empty .splat file (contains no Gaussians)", p)
+    if size % _SPLAT_RECORD_BYTES:
+        raise InputError(f"truncated .splat file: {size} bytes is not a multiple of the "
+                         f"{_SPLAT_RECORD_BYTES}-byte record", p)
+
+
+def _check_ply(p: Path) -> None:
+    ply = read_ply_header(p)
+    if not (is_inria_ply(ply) or is_compressed_ply(ply)):
+        raise InputError("PLY file is not a Gaussian-splat scene (no 'vertex' element with x and rot_0, "
+                         "and not a .compressed.ply)", p)
+    if ply.element("vertex").count == 0:
+        raise InputError("scene has no Gaussians (vertex count 0)", p)
+    if ply.format == "ascii" or any(el.has_lists for el in ply.elements):
+        return
+    with open(p, "rb") as f:
+        head = f.read(1 << 20)
+    end = head.find(b"end_header")
+    offset = end + len(b"end_header")
+    offset += 2 if head[offset:offset + 2] == b"\r\n" else 1
+    expected = offset + sum(el.count * el.dtype().itemsize for el in ply.elements)
+    size = p.stat().st_size
+    if size < expected:
+        raise InputError(f"truncated PLY file: {size} bytes, the header declares {expected}", p)
+    if size > expected:
+        raise InputError(f"PLY file has {size - expected} bytes more than the header declares", p)
+
+
+def _check_renders(spec: SourceSpec, label: str, views: list[str], sizes: dict[str, tuple[int, int]], *,
+                   depth_required: bool, where: str, problems: list[Problem]) -> None:
+    rgb_ok = spec.rgb_dir is not None and spec.rgb_dir.is_dir()
+    if not rgb_ok:
+        problems.append(Problem(str(spec.rgb_dir or spec.path), f"RGB folder of {label} does not exist"))
+    depth_dir = spec.depth_dir
+    if depth_dir is None:
+        if depth_required:
+            problems.append(Problem(where, f"{label} has no depth: the geometric axis needs depth renderings "
+                                           f"for pre and every method (a depth/ folder, or depth = \"FOLDER\")"))
+    elif not depth_dir.is_dir():
+        problems.append(Problem(str(depth_dir), f"depth folder of {label} does not exist"))
+        depth_dir = None
+    if not rgb_ok:
+        return
+    try:
+        reader = RendersReader.from_dirs(spec.rgb_dir, depth_dir, spec.depth_scale)
+    except InputError as e:
+        problems.append(Problem(e.path, e.problem))
+        return
+    kinds = [("RGB image", spec.rgb_dir, set(reader.views()), reader.rgb_path)]
+    if reader.has_depth:
+        kinds.append(("depth image", depth_dir, set(reader.depth_views()), reader.depth_path))
+    for what, folder, available, lookup in kinds:
+        missing = [v for v in views if v not in available]
+        if missing:
+            problems.append(Problem(str(folder), f"missing {what}s of {label} for {len(missing)} of {len(views)} "
+                                                 f"views: {_names(missing)}"))
+        listed: list[Problem] = []
+        for v in views:
+            if v not in available:
+                continue
+            try:
+                path = lookup(v)
+                hw = image_size(path)
+            except InputError as e:
+                listed.append(Problem(e.path, e.problem))
+                continue
+            if v in sizes and tuple(hw) != sizes[v]:
+                listed.append(Problem(str(path), f"{what} is {hw[1]}x{hw[0]}, the mask of view {v!r} is "
+                                                 f"{sizes[v][1]}x{sizes[v][0]} ({label})"))
+        _add_capped(problems, listed, str(folder), f"{what}s")

@@ -1,0 +1,232 @@
+"""What a scene bundle is once loaded: :class:`Bundle` and its parts, :class:`Problem`, :class:`BundleError`.
+
+A bundle gathers everything r360gpu needs to score the methods of one scene:
+the evaluation views (cameras and/or renderings), the target mask of each
+view, the category prompt, the original reconstruction ("pre"), an optional
+reference reconstruction of the physical post-removal capture, and one
+source per evaluated method.  :mod:`.load` builds it from a folder.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from ..errors import InputError
+from ..io.camera import Camera
+from ..io.renders import RendersReader
+
+# Names of the non-method sources; a method may not use them (case-insensitive):
+# outputs and records key methods and these sources in one namespace.
+RESERVED_METHOD_NAMES = ("pre", "reference")
+SOURCE_KINDS = ("scene", "renders")
+DEPTH_MODES = ("expected", "median")
+LAYOUTS = ("scene.toml", "remove360")
+
+
+@dataclass(frozen=True)
+class SourceSpec:
+    """Where one reconstruction's views come from.
+
+    kind "scene": ``path`` is the Gaussian-splat file (an INRIA output folder
+    is resolved to its latest ``point_cloud.ply`` when the bundle is loaded),
+    rendered by r360gpu at the bundle's cameras.
+    kind "renders": ``path`` is the renders folder; ``rgb_dir`` holds
+    ``<view>.png|jpg`` and ``depth_dir`` (None: no depth) ``<view>.png|exr|npy|tiff``,
+    depth values multiplied by ``depth_scale`` (see :mod:`r360gpu.io.renders`).
+    """
+
+    kind: str
+    path: Path
+    depth_scale: float = 1.0
+    rgb_dir: Path | None = None
+    depth_dir: Path | None = None
+
+    def reader(self) -> RendersReader:
+        """A :class:`RendersReader` for a renders source (ValueError for a scene source)."""
+        if self.kind != "renders":
+            raise ValueError(f"a {self.kind!r} source has no renders reader")
+        return RendersReader(self)
+
+
+@dataclass
+class BundleOptions:
+    """Per-bundle evaluation options.
+
+    background: render background colour, RGB in [0, 1] (splat scenes only).
+    depth: rendered depth of a splat scene, "expected" (sum w z / sum w) or
+    "median" (z where the accumulated opacity reaches 0.5).
+    reference_free: score s_str = 1 - sim(I_pre, I_post) even when a
+    reference exists.
+    """
+
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    depth: str = "expected"
+    reference_free: bool = False
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One thing wrong with a bundle: the file it concerns (None: the bundle as a whole) and what."""
+
+    path: str | None
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.path}: {self.message}" if self.path else self.message
+
+
+class BundleError(InputError):
+    """A bundle that cannot be used; ``problems`` lists every problem found, the message one per line."""
+
+    def __init__(self, root: str | os.PathLike, problems: list[Problem]):
+        self.problems = list(problems)
+        n = len(self.problems)
+        lines = [f"invalid bundle {os.fspath(root)} ({n} problem{'s' if n != 1 else ''}):"]
+        lines += [f"  {p}" for p in self.problems]
+        super().__init__("\n".join(lines))
+        self.path = os.fspath(root)
+
+
+@dataclass
+class Bundle:
+    """A loaded, validated scene bundle.
+
+    views: evaluation view names, sorted.  cameras: the Camera of each
+    evaluation view (None for renders-only bundles without cameras).  masks: the target-mask
+    PNG of each view.  methods: in the order of the bundle file.
+    layout: "scene.toml" or "remove360" (a public Remove360 evaluation
+    folder); config: the scene.toml (None for the Remove360 layout);
+    cameras_path: what ``cameras`` named (None without cameras).
+    """
+
+    root: Path
+    name: str
+    prompt: str
+    views: list[str]
+    cameras: dict[str, Camera] | None
+    masks: dict[str, Path]
+    pre: SourceSpec
+    reference: SourceSpec | None
+    methods: dict[str, SourceSpec]
+    options: BundleOptions = field(default_factory=BundleOptions)
+    layout: str = "scene.toml"
+    config: Path | None = None
+    cameras_path: Path | None = None
+
+    def sources(self) -> dict[str, SourceSpec]:
+        """Every source by name: "pre", "reference" (when present), then the methods."""
+        out = {"pre": self.pre}
+        if self.reference is not None:
+            out["reference"] = self.reference
+        out.update(self.methods)
+        return out
+
+    def fingerprint(self) -> str:
+        """A hex SHA-256 that changes when anything the scores depend on may have changed.
+
+        Hashed: the resolved settings (name, prompt, views, sources, options,
+        layout), the bytes of scene.toml, and the path, size and modification
+        time (ns) of every file the bundle reads: camera files, the masks and
+        renderings of the evaluation views, the splat files.  File contents
+        other than scene.toml are not read (a cache key must be cheap);
+        touching a file changes the fingerprint, a missing file is hashed as
+        missing.  Paths are taken relative to the bundle root when inside it.
+        """
+        h = hashlib.sha256()
+
+        def add(*item) -> None:
+            h.update(json.dumps(item, sort_keys=True, default=str).encode())
+            h.update(b"\n")
+
+        settings = {
+            "name": self.name, "prompt": self.prompt, "views": self.views, "layout": self.layout,
+            "options": asdict(self.options),
+            "sources": {k: self._source_settings(s) for k, s in self.sources().items()},
+            "cameras": self._rel(self.cameras_path) if self.cameras_path else None,
+        }
+        add("settings", settings)
+        if self.config is not None:
+            try:
+                add("config", hashlib.sha256(self.config.read_bytes()).hexdigest())
+            except OSError:
+                add("config", None)
+        for f in self._referenced_files():
+            try:
+                st = f.stat()
+                add("file", self._rel(f), st.st_size, st.st_mtime_ns)
+            except OSError:
+                add("file", self._rel(f), None, None)
+        return h.hexdigest()
+
+    def _rel(self, p: Path) -> str:
+        try:
+            return Path(p).relative_to(self.root).as_posix()
+        except ValueError:
+            return Path(p).as_posix()
+
+    def _source_settings(self, s: SourceSpec) -> dict:
+        return {"kind": s.kind, "path": self._rel(s.path), "depth_scale": s.depth_scale,
+                "rgb_dir": s.rgb_dir and self._rel(s.rgb_dir), "depth_dir": s.depth_dir and self._rel(s.depth_dir)}
+
+    def _referenced_files(self) -> list[Path]:
+        files: list[Path] = []
+        if self.cameras_path is not None:
+            files += _camera_files(self.cameras_path)
+        files += [self.masks[v] for v in self.views if v in self.masks]
+        for spec in self.sources().values():
+            if spec.kind == "scene":
+                files.append(spec.path)
+                continue
+            try:
+                reader = spec.reader()
+            except InputError:
+                files.append(spec.rgb_dir or spec.path)  # hashed as missing
+                continue
+            for v in self.views:
+                for lookup in (reader.rgb_path, reader.depth_path) if reader.has_depth else (reader.rgb_path,):
+                    try:
+                        files.append(lookup(v))
+                    except InputError:
+                        files.append(Path(spec.path) / f"<missing {v}>")
+        return files
+
+
+def _camera_files(path: Path) -> list[Path]:
+    """The files a camera loader may read for ``path``: itself, or the plain files of the
+    folder and of its sparse/ and sparse/0 sub-folders."""
+    path = Path(path)
+    if not path.is_dir():
+        return [path]
+    out = []
+    for d in (path, path / "sparse", path / "sparse" / "0"):
+        if d.is_dir():
+            out += sorted(f for f in d.iterdir() if f.is_file())
+    return out
+
+
+@dataclass
+class Draft:
+    """A bundle as declared, before its files are checked (built by :mod:`.load` from
+    scene.toml and by :mod:`.remove360_layout` from a public Remove360 folder).
+
+    ``view_patterns`` None means "every view with a mask"; ``patterns_origin``
+    names where explicit patterns came from (for messages).  Sources that
+    could not be parsed are None (their problems are already reported).
+    """
+
+    root: Path
+    layout: str
+    config: Path | None = None
+    name: str = ""
+    prompt: str | None = None
+    cameras_path: Path | None = None
+    masks_dir: Path | None = None
+    view_patterns: list[str] | None = None
+    patterns_origin: str = "views"
+    pre: SourceSpec | None = None
+    reference: SourceSpec | None = None
+    methods: dict[str, SourceSpec | None] = field(default_factory=dict)
+    options: BundleOptions = field(default_factory=BundleOptions)
