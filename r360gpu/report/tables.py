@@ -55,6 +55,10 @@ class Table:
         rows: body rows, each as long as ``header``.
         rule_before: body-row indices preceded by a horizontal rule.
         notes: sentences appended to the caption.
+        vrule_before: column indices preceded by a vertical rule (LaTeX only,
+            e.g. the bar between the removal axes and pixel fidelity).
+        label_columns: how many leading columns hold labels (left-aligned);
+            the others hold numbers (right-aligned in Markdown, centred in LaTeX).
     """
 
     key: str
@@ -63,6 +67,8 @@ class Table:
     rows: Sequence[Sequence[Cell]]
     rule_before: frozenset[int] = frozenset()
     notes: Sequence[str] = field(default_factory=tuple)
+    vrule_before: frozenset[int] = frozenset()
+    label_columns: int = 1
 
 
 def _fmt(x: float | None, decimals: int) -> str:
@@ -313,7 +319,8 @@ def render_markdown(table: Table) -> str:
     """
     lines = [f"**{table.title}**", ""]
     lines.append("| " + " | ".join(_md_cell(c) for c in table.header) + " |")
-    lines.append("|" + "|".join([":---"] + ["---:"] * (len(table.header) - 1)) + "|")
+    n_label = min(table.label_columns, len(table.header))
+    lines.append("|" + "|".join([":---"] * n_label + ["---:"] * (len(table.header) - n_label)) + "|")
     for i, row in enumerate(table.rows):
         if i in table.rule_before:
             lines.append("| " + " | ".join([""] * len(table.header)) + " |")
@@ -324,6 +331,17 @@ def render_markdown(table: Table) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _latex_colspec(table: Table) -> str:
+    """``l`` per label column, ``c`` per number column, ``|`` before the columns in ``vrule_before``."""
+    n_label = min(table.label_columns, len(table.header))
+    spec = ""
+    for j in range(len(table.header)):
+        if j in table.vrule_before and j > 0:
+            spec += "|"
+        spec += "l" if j < n_label else "c"
+    return spec
+
+
 def render_latex(table: Table) -> str:
     """The table as a LaTeX ``table`` float (needs ``\\usepackage{booktabs}``)."""
     caption = " ".join([_latex_escape(table.title)] + [_latex_escape(n) for n in table.notes])
@@ -332,7 +350,7 @@ def render_latex(table: Table) -> str:
         r"\centering",
         rf"\caption{{{caption}}}",
         rf"\label{{tab:r360_{table.key}}}",
-        r"\begin{tabular}{l" + "c" * (len(table.header) - 1) + "}",
+        r"\begin{tabular}{" + _latex_colspec(table) + "}",
         r"\toprule",
         " & ".join(_latex_cell(c) for c in table.header) + r" \\",
         r"\midrule",

@@ -1,0 +1,366 @@
+"""Per-view pictures: panels (RGB, depth change, changed mask, probe masks) and contact sheets.
+
+Every panel is a uint8 (h, w, 3) RGB image.  The helpers take full-resolution
+inputs and return a panel ``width`` pixels wide (aspect kept; shrinking uses
+area averaging, enlarging nearest neighbour, masks always nearest neighbour),
+so lines and labels are drawn at the final resolution.  A contact sheet lays
+titled panels out on a grid and is written as PNG (OpenCV only; text with the
+Hershey font, ASCII).
+
+Colours: target outline green; semantic prediction magenta; structural
+masks random colours from a seeded generator (same input -> same picture);
+depth change with the "inferno" colour map over a colour bar whose cyan
+tick marks the GHT threshold xi_depth.
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+from ..util.atomic import write_bytes
+
+#: Default panel width (px): keeps the report light.
+PANEL_WIDTH = 320
+TARGET_RGB = (0, 230, 0)
+SEMANTIC_RGB = (255, 0, 255)
+THRESHOLD_RGB = (0, 255, 255)
+CHANGED_IN_TARGET_RGB = (255, 215, 0)
+CHANGED_OUTSIDE_RGB = (165, 165, 165)
+MISSED_IN_TARGET_RGB = (110, 25, 25)
+BACKGROUND_RGB = (35, 35, 35)
+
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
+_TITLE_SCALE = 0.42
+_TITLE_H = 18
+_PAD = 4
+
+
+# -- conversion ----------------------------------------------------------------
+
+def as_rgb8(image, what: str = "image") -> np.ndarray:
+    """uint8 (H, W, 3) RGB from uint8 / float [0, 1] RGB, gray (H, W) or a bool mask.
+
+    Float values are clipped to [0, 1] (non-finite -> 0); bool masks become
+    white on black.
+    """
+    a = np.asarray(image)
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[:, :, 0]
+    if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] not in (3, 4)) or a.shape[0] < 1 or a.shape[1] < 1:
+        raise InputError(f"{what}: expected an (H, W) or (H, W, 3) image, got shape {a.shape}")
+    if a.ndim == 3 and a.shape[2] == 4:
+        a = a[:, :, :3]
+    if a.dtype == bool:
+        a = a.astype(np.uint8) * 255
+    elif a.dtype != np.uint8:
+        if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
+            raise InputError(f"{what}: unsupported dtype {a.dtype}")
+        f = np.nan_to_num(a.astype(np.float32), nan=0.0, posinf=1.0, neginf=0.0)
+        a = np.rint(np.clip(f, 0.0, 1.0) * 255.0).astype(np.uint8)
+    if a.ndim == 2:
+        a = np.repeat(a[:, :, None], 3, axis=2)
+    return np.ascontiguousarray(a)
+
+
+def _mask(m, what: str) -> np.ndarray:
+    a = np.asarray(m)
+    if a.ndim != 2:
+        raise InputError(f"{what}: expected an (H, W) mask, got shape {a.shape}")
+    return a != 0
+
+
+def _stack(masks, what: str) -> np.ndarray:
+    """bool (K, H, W) from (K, H, W) / (H, W) masks or an object with a ``masks`` attribute."""
+    if masks is None:
+        return np.zeros((0, 1, 1), bool)
+    a = np.asarray(getattr(masks, "masks", masks))
+    if a.ndim == 2:
+        a = a[None]
+    if a.ndim != 3:
+        raise InputError(f"{what}: expected (K, H, W) masks, got shape {a.shape}")
+    return a != 0
+
+
+def _size_for(shape: tuple[int, int], width: int) -> tuple[int, int]:
+    """(w, h) for cv2.resize: ``width`` wide, aspect kept (height at least 1)."""
+    h, w = shape
+    return int(width), max(1, int(round(h * width / w)))
+
+
+def _resize_rgb(rgb: np.ndarray, width: int) -> np.ndarray:
+    if rgb.shape[1] == width:
+        return rgb
+    interp = cv2.INTER_AREA if width < rgb.shape[1] else cv2.INTER_NEAREST
+    return cv2.resize(rgb, _size_for(rgb.shape[:2], width), interpolation=interp)
+
+
+def _resize_mask(mask: np.ndarray, size_wh: tuple[int, int]) -> np.ndarray:
+    if mask.shape[1] == size_wh[0] and mask.shape[0] == size_wh[1]:
+        return mask
+    return cv2.resize(mask.astype(np.uint8), size_wh, interpolation=cv2.INTER_NEAREST) != 0
+
+
+def _check_width(width: int) -> int:
+    w = int(width)
+    if w < 16:
+        raise InputError(f"panel width must be at least 16 px, got {width!r}")
+    return w
+
+
+def _outline(img: np.ndarray, mask: np.ndarray, rgb: tuple[int, int, int], thickness: int = 1) -> None:
+    """Draw the outer and hole boundaries of ``mask`` on ``img`` in place."""
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
+    if contours:
+        cv2.drawContours(img, contours, -1, tuple(int(c) for c in rgb), thickness, lineType=cv2.LINE_8)
+
+
+def _ascii(text: str) -> str:
+    return "".join(ch if 32 <= ord(ch) < 127 else "?" for ch in str(text))
+
+
+def _put_text(img: np.ndarray, text: str, org: tuple[int, int], rgb=(0, 0, 0), scale: float = _TITLE_SCALE,
+              max_width: int | None = None) -> None:
+    """Draw one line of text (ASCII; shortened with '..' to fit ``max_width``)."""
+    t = _ascii(text)
+    if max_width is not None:
+        while t and cv2.getTextSize(t, _FONT, scale, 1)[0][0] > max_width:
+            t = t[:-3] + ".." if len(t) > 3 else ""
+    cv2.putText(img, t, org, _FONT, scale, tuple(int(c) for c in rgb), 1, cv2.LINE_AA)
+
+
+# -- panels --------------------------------------------------------------------
+
+def rgb_panel(image, width: int = PANEL_WIDTH, *, target=None) -> np.ndarray:
+    """An RGB rendering as a panel ``width`` px wide, optionally with the target outline (green)."""
+    width = _check_width(width)
+    img = _resize_rgb(as_rgb8(image, "RGB panel"), width).copy()
+    if target is not None:
+        t = _mask(target, "target mask")
+        _outline(img, _resize_mask(t, (img.shape[1], img.shape[0])), TARGET_RGB)
+    return img
+
+
+def depth_change_panel(delta, threshold: float | None, width: int = PANEL_WIDTH, *,
+                       vmax: float | None = None) -> np.ndarray:
+    """Heat map of the depth change |dD| above a colour bar that marks the threshold.
+
+    delta: float (H, W) |D_pre - D_post| (non-finite values shown as 0).
+    threshold: xi_depth in the units of ``delta``: a cyan tick on the colour
+        bar (pixels above it count as changed); None draws no tick.
+    width: panel width in px (heat map and bar).
+    vmax: top of the colour scale (default: the largest finite |dD|; 1 when
+        that is 0).
+
+    Returns uint8 (h, width, 3) RGB: the heat map, then a 26 px strip with the
+    colour bar (0 on the left, vmax on the right) and its labels.
+    """
+    width = _check_width(width)
+    d = np.asarray(delta, dtype=np.float64)
+    if d.ndim != 2:
+        raise InputError(f"depth change: expected an (H, W) array, got shape {d.shape}")
+    d = np.abs(np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0))
+    top = float(vmax) if vmax is not None else float(d.max(initial=0.0))
+    if not top > 0:
+        top = 1.0
+    level = np.rint(np.clip(d / top, 0.0, 1.0) * 255.0).astype(np.uint8)
+    heat = _resize_rgb(cv2.cvtColor(cv2.applyColorMap(level, cv2.COLORMAP_INFERNO), cv2.COLOR_BGR2RGB), width)
+    strip_h, bar_h = 26, 8
+    panel = np.full((heat.shape[0] + strip_h, width, 3), 255, np.uint8)
+    panel[: heat.shape[0]] = heat
+    y0 = heat.shape[0] + 3
+    ramp = np.linspace(0, 255, width).astype(np.uint8)[None, :]
+    bar = cv2.cvtColor(cv2.applyColorMap(np.repeat(ramp, bar_h, axis=0), cv2.COLORMAP_INFERNO), cv2.COLOR_BGR2RGB)
+    panel[y0 : y0 + bar_h] = bar
+    ty = y0 + bar_h + 12
+    _put_text(panel, "0", (1, ty), scale=0.33)
+    top_text = f"{top:.3g}"
+    tw = cv2.getTextSize(top_text, _FONT, 0.33, 1)[0][0]
+    _put_text(panel, top_text, (width - tw - 1, ty), scale=0.33)
+    if threshold is not None and np.isfinite(threshold):
+        x = int(round(min(max(float(threshold) / top, 0.0), 1.0) * (width - 1)))
+        cv2.line(panel, (x, y0 - 3), (x, y0 + bar_h + 1), THRESHOLD_RGB, 2)
+        label = f"xi {float(threshold):.3g}"
+        lw = cv2.getTextSize(label, _FONT, 0.33, 1)[0][0]
+        # Beside the tick, on the side with room, clear of the "0" and vmax labels.
+        lx = max(x + 5, 12)
+        if lx + lw > width - tw - 4:
+            lx = max(12, x - lw - 5)
+        _put_text(panel, label, (lx, ty), rgb=(0, 120, 140), scale=0.33)
+    return panel
+
+
+def changed_panel(changed, target, width: int = PANEL_WIDTH) -> np.ndarray:
+    """The changed-pixel mask against the target.
+
+    changed: (H, W) bool, |dD| > xi_depth.  target: (H, W) target mask M
+    (non-zero = target).  Colours: changed inside M yellow (what acc_depth
+    counts), unchanged inside M dark red (missed), changed outside M grey,
+    the rest dark; the outline of M in green.
+    """
+    width = _check_width(width)
+    c = _mask(changed, "changed mask")
+    t = _mask(target, "target mask")
+    if c.shape != t.shape:
+        raise InputError(f"changed mask is {c.shape[0]}x{c.shape[1]} but the target is {t.shape[0]}x{t.shape[1]}")
+    size = _size_for(c.shape, width)
+    c, t = _resize_mask(c, size), _resize_mask(t, size)
+    img = np.empty((size[1], size[0], 3), np.uint8)
+    img[:] = BACKGROUND_RGB
+    img[c & ~t] = CHANGED_OUTSIDE_RGB
+    img[~c & t] = MISSED_IN_TARGET_RGB
+    img[c & t] = CHANGED_IN_TARGET_RGB
+    _outline(img, t, TARGET_RGB)
+    return img
+
+
+def mask_colors(n: int, seed: int = 0) -> np.ndarray:
+    """uint8 (n, 3) bright random RGB colours from ``default_rng(seed)``."""
+    rng = np.random.default_rng(seed)
+    hsv = np.stack([rng.integers(0, 180, n), rng.integers(150, 256, n), rng.integers(170, 256, n)], axis=1)
+    return cv2.cvtColor(hsv.astype(np.uint8)[None], cv2.COLOR_HSV2RGB)[0] if n else np.zeros((0, 3), np.uint8)
+
+
+def mask_overlay(rgb, masks, width: int = PANEL_WIDTH, *, color: tuple[int, int, int] | None = None,
+                 alpha: float = 0.45, target=None, seed: int = 0) -> np.ndarray:
+    """Probe masks blended over an RGB rendering, each with its outline.
+
+    rgb: the rendering ((H, W, 3) uint8 or float [0, 1]).
+    masks: (H, W) mask or (K, H, W) stack (or an object with ``.masks``), or None.
+    color: one RGB colour for every mask (e.g. the semantic prediction);
+        None gives each mask its own random colour (seeded by ``seed``).
+    alpha: blend weight of the mask colour.
+    target: optional (H, W) target mask, outlined in green on top.
+    """
+    width = _check_width(width)
+    full = as_rgb8(rgb, "overlay image")
+    img = _resize_rgb(full, width).astype(np.float32)
+    size = (img.shape[1], img.shape[0])
+    stack = _stack(masks, "overlay masks")
+    if stack.shape[0] and stack.shape[1:] != full.shape[:2]:
+        raise InputError(f"overlay masks are {stack.shape[1]}x{stack.shape[2]} but the image is "
+                         f"{full.shape[0]}x{full.shape[1]}")
+    colors = (np.tile(np.array(color, np.uint8), (stack.shape[0], 1)) if color is not None
+              else mask_colors(stack.shape[0], seed))
+    small = [_resize_mask(m, size) for m in stack]
+    for m, col in zip(small, colors):
+        img[m] = (1.0 - alpha) * img[m] + alpha * col.astype(np.float32)
+    out = np.rint(img).astype(np.uint8)
+    for m, col in zip(small, colors):
+        _outline(out, m, tuple(int(c) for c in col))
+    if target is not None:
+        _outline(out, _resize_mask(_mask(target, "target mask"), size), TARGET_RGB)
+    return out
+
+
+# -- sheets ----------------------------------------------------------------------
+
+def encode_png(image) -> bytes:
+    """PNG bytes of an RGB (or gray) image (compression level 6; no metadata)."""
+    rgb = as_rgb8(image, "PNG image")
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 6])
+    if not ok:
+        raise RuntimeError("OpenCV could not encode a PNG")
+    return buf.tobytes()
+
+
+def sheet_image(panels: Sequence[tuple[str, np.ndarray]], *, columns: int = 4, panel_width: int = PANEL_WIDTH,
+                title: str | None = None) -> np.ndarray:
+    """Titled panels on a white grid, as uint8 (H, W, 3) RGB.
+
+    panels: (title, image) pairs; images of any size / kind accepted by
+        :func:`as_rgb8`, each resized to ``panel_width``.
+    columns: panels per row.  title: optional line above the grid.
+    """
+    if not panels:
+        raise InputError("a contact sheet needs at least one panel")
+    width = _check_width(panel_width)
+    cols = max(1, min(int(columns), len(panels)))
+    imgs = [(t, _resize_rgb(as_rgb8(p, f"panel {t!r}"), width)) for t, p in panels]
+    rows = [imgs[i : i + cols] for i in range(0, len(imgs), cols)]
+    row_h = [_TITLE_H + max(im.shape[0] for _, im in r) for r in rows]
+    head = _TITLE_H + 4 if title else 0
+    sheet_w = _PAD + cols * (width + _PAD)
+    sheet_h = head + _PAD + sum(h + _PAD for h in row_h)
+    sheet = np.full((sheet_h, sheet_w, 3), 255, np.uint8)
+    if title:
+        _put_text(sheet, title, (_PAD, _TITLE_H - 2), scale=0.5, max_width=sheet_w - 2 * _PAD)
+    y = head + _PAD
+    for r, h in zip(rows, row_h):
+        for i, (t, im) in enumerate(r):
+            x = _PAD + i * (width + _PAD)
+            _put_text(sheet, t, (x + 1, y + _TITLE_H - 5), max_width=width - 2)
+            sheet[y + _TITLE_H : y + _TITLE_H + im.shape[0], x : x + width] = im
+        y += h + _PAD
+    return sheet
+
+
+def contact_sheet(path: str | os.PathLike, panels: Sequence[tuple[str, np.ndarray]], *, columns: int = 4,
+                  panel_width: int = PANEL_WIDTH, title: str | None = None) -> Path:
+    """Write :func:`sheet_image` of ``panels`` as a PNG (atomically); returns the path."""
+    path = Path(path)
+    write_bytes(path, encode_png(sheet_image(panels, columns=columns, panel_width=panel_width, title=title)))
+    return path
+
+
+def view_panels(
+    *,
+    pre,
+    post,
+    target,
+    ref=None,
+    delta=None,
+    threshold: float | None = None,
+    changed=None,
+    semantic_post=None,
+    semantic_pre=None,
+    structural: Sequence[tuple[str, object, object]] = (),
+    width: int = PANEL_WIDTH,
+    seed: int = 0,
+) -> list[tuple[str, np.ndarray]]:
+    """The standard panels of one view, in the report's order.
+
+    pre, post, ref: RGB renderings I_pre, I_post, I_ref (ref optional).
+    target: (H, W) target mask M (outlined in green on every panel but the heat map).
+    delta, threshold: |dD| and xi_depth in the same units for the heat map
+        (skipped when delta is None).  In compat mode pass the 8-bit
+        normalised |dD| and the gray-level threshold.
+    changed: (H, W) bool changed mask; pass ``GeometricView.changed`` to show
+        exactly the pixels acc_depth counted; default ``delta > threshold``
+        when both are given.
+    semantic_post, semantic_pre: the semantic probe's predicted (union) masks
+        on I_post / I_pre, drawn in magenta (skipped when None).
+    structural: (title, rgb, masks) per structural panel, e.g.
+        ("SAM masks on I_post", post, masks_a); masks in random colours.
+    """
+    out = [("I_pre (target outlined)", rgb_panel(pre, width, target=target)),
+           ("I_post (target outlined)", rgb_panel(post, width, target=target))]
+    if ref is not None:
+        out.append(("I_ref", rgb_panel(ref, width, target=target)))
+    if delta is not None:
+        label = "|dD|" if threshold is None else f"|dD|, xi_depth = {float(threshold):.3g}"
+        out.append((label, depth_change_panel(delta, threshold, width)))
+        if changed is None and threshold is not None:
+            changed = np.abs(np.nan_to_num(np.asarray(delta, np.float64))) > float(threshold)
+    if changed is not None:
+        out.append(("changed (yellow: in M)", changed_panel(changed, target, width)))
+    if semantic_pre is not None:
+        out.append(("semantic probe on I_pre",
+                    mask_overlay(pre, semantic_pre, width, color=SEMANTIC_RGB, target=target)))
+    if semantic_post is not None:
+        out.append(("semantic probe on I_post",
+                    mask_overlay(post, semantic_post, width, color=SEMANTIC_RGB, target=target)))
+    for i, (t, rgb, masks) in enumerate(structural):
+        out.append((t, mask_overlay(rgb, masks, width, target=target, seed=seed + i)))
+    return out
+
+
+def view_contact_sheet(path: str | os.PathLike, *, title: str | None = None, columns: int = 4,
+                       width: int = PANEL_WIDTH, **panels) -> Path:
+    """Write the contact sheet of one view (panels from :func:`view_panels`, same keyword
+    arguments); returns the path."""
+    return contact_sheet(path, view_panels(width=width, **panels), columns=columns, panel_width=width, title=title)

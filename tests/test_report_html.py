@@ -1,0 +1,247 @@
+"""report.html: self-contained, every picture a valid embedded PNG, escaped text,
+and a real browser renders it (headless Chromium)."""
+from __future__ import annotations
+
+import base64
+import json
+import shutil
+import subprocess
+import warnings
+from html.parser import HTMLParser
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from r360gpu.errors import R360Warning
+from r360gpu.report.html import best_per_axis, low_axis_warnings, pick_views, table_html, write_html
+from r360gpu.report.results_tables import write_tables
+from r360gpu.report.results_tables import main_table
+
+from report_fake import METHODS, SCENES, VIEWS, fake_results
+
+
+class _Page(HTMLParser):
+    """Collects tags, <img> sources and visible text; checks nesting of the container tags."""
+
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.imgs: list[str] = []
+        self.tags: list[str] = []
+        self.text: list[str] = []
+        self.stack: list[str] = []
+        self.attrs_with_urls: list[str] = []
+
+    def handle_starttag(self, tag, attrs):
+        self.tags.append(tag)
+        a = dict(attrs)
+        if tag == "img":
+            self.imgs.append(a.get("src", ""))
+        for k in ("href", "src"):
+            if k in a and tag != "img":
+                self.attrs_with_urls.append(a[k])
+        if tag in ("section", "details", "table", "div", "figure", "ul"):
+            self.stack.append(tag)
+
+    def handle_endtag(self, tag):
+        if tag in ("section", "details", "table", "div", "figure", "ul"):
+            assert self.stack and self.stack[-1] == tag, f"</{tag}> closes <{self.stack[-1] if self.stack else None}>"
+            self.stack.pop()
+
+    def handle_data(self, data):
+        self.text.append(data)
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    results = fake_results(out)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", R360Warning)  # every picture must embed
+        path = write_html(results, out)
+    return results, out, path
+
+
+def _decode(uri: str) -> np.ndarray:
+    assert uri.startswith("data:image/png;base64,"), uri[:40]
+    data = base64.b64decode(uri.split(",", 1)[1], validate=True)
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    assert img is not None, "not a decodable PNG"
+    return img
+
+
+def test_page_is_self_contained_and_every_image_decodes(report):
+    results, out, path = report
+    assert path == out / "report.html"
+    text = path.read_text(encoding="utf-8")
+    page = _Page()
+    page.feed(text)
+    page.close()
+    assert page.stack == []
+    # overview chart + one plot per (scene, method) + one sheet per view
+    n_methods = len(SCENES) * len(METHODS)
+    assert len(page.imgs) == 1 + n_methods + n_methods * len(VIEWS)
+    for uri in page.imgs:
+        img = _decode(uri)
+        assert img.std() > 5  # not blank
+    # no external resources, no scripts
+    assert "script" not in page.tags and "link" not in page.tags and "iframe" not in page.tags
+    assert all(u.startswith("#") for u in page.attrs_with_urls)
+    assert "http://" not in text and "https://" not in text
+    # embedded sheets are the files written by the picture functions
+    rel = results["scenes"]["room"]["methods"]["ghost"]["pictures"]["01"]
+    want = base64.b64encode((out / rel).read_bytes()).decode()
+    assert want in text
+    assert text == write_html(results, out).read_text(encoding="utf-8")  # deterministic
+
+
+def test_summary_content(report):
+    results, out, path = report
+    text = path.read_text(encoding="utf-8")
+    page = _Page()
+    page.feed(text)
+    visible = " ".join(page.text)
+    assert "ghost: s_geo = 0.238 < 0.5 -- geometry barely changed inside the target region." in visible
+    assert "blurry: s_sem = 0.417 < 0.5" in visible
+    assert "clean: s" not in visible  # clean has no low axis
+    assert "weight-free built-in probes: builtin-appearance (semantic), builtin-graphseg (structural)" in visible
+    assert "Excluded views (empty target mask, not in the means): 02." in visible
+    best = {label: (ms, v) for label, ms, v, _ in best_per_axis(results)}
+    assert best["s_sem (acc_seg)"][0] == ["clean", "ghost"]
+    assert best["s_geo (acc_depth)"][0] == ["clean"] and best["AvgRank"][0] == ["clean"]
+    # the main table is the first table on the page, best values bold
+    first = text[text.index("<table"):text.index("</table>")]
+    assert '<td class="num"><strong>0.884</strong></td>' in first
+    assert '<td class="num"><u>0.556</u></td>' in first
+    assert first.count('class="num vr"') == 4  # the bar before PSNR: header + 3 rows
+    assert low_axis_warnings(results) == [
+        "blurry: s_sem = 0.417 < 0.5 -- the semantic probe still finds the object in many views.",
+        "ghost: s_geo = 0.238 < 0.5 -- geometry barely changed inside the target region."]
+    for key in ("llvmpipe", "builtin-appearance", "expected"):
+        assert key in visible
+
+
+def test_text_is_escaped(tmp_path):
+    evil = "gh<b>o</b>st & \"co\""
+    results = fake_results(tmp_path, methods=("clean", evil))
+    results["scenes"]["room"]["prompt"] = "<script>alert(1)</script>"
+    path = write_html(results, tmp_path)
+    text = path.read_text(encoding="utf-8")
+    assert "<script>" not in text and "<b>o</b>" not in text
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text
+    assert "gh&lt;b&gt;o&lt;/b&gt;st &amp; &quot;co&quot;" in text
+    assert '<td class="lab">gh&lt;b&gt;o&lt;/b&gt;st &amp; &quot;co&quot;</td>' in table_html(main_table(results))
+
+
+def test_missing_or_foreign_pictures_are_reported_not_embedded(tmp_path):
+    results = fake_results(tmp_path)
+    (tmp_path / "outside.png").write_bytes((tmp_path / results["scenes"]["room"]["methods"]["clean"]["plot"])
+                                           .read_bytes())
+    sub = tmp_path / "out"
+    sub.mkdir()
+    shutil.copytree(tmp_path / "pictures", sub / "pictures")
+    shutil.copytree(tmp_path / "plots", sub / "plots")
+    entry = results["scenes"]["room"]["methods"]["clean"]
+    entry["plot"] = "../outside.png"
+    entry["pictures"]["00"] = "pictures/none.png"
+    (sub / "fake.png").write_text("not a png")
+    entry["pictures"]["01"] = "fake.png"
+    with pytest.warns(R360Warning, match="3 picture"):
+        text = write_html(results, sub).read_text(encoding="utf-8")
+    assert "picture path &#x27;../outside.png&#x27; leaves the output folder; not embedded" in text
+    assert "picture &#x27;pictures/none.png&#x27; not found" in text
+    assert "picture &#x27;fake.png&#x27; is not a PNG; not embedded" in text
+
+
+def test_pick_views_and_limit(report, tmp_path):
+    names = [f"{i:03d}" for i in range(10)]
+    assert pick_views(names, None) == names and pick_views(names, 12) == names
+    assert pick_views(names, 4) == ["000", "003", "006", "009"]
+    assert pick_views(names, 1) == ["000"] and pick_views(names, 0) == []
+    results, out, _ = report
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    text = write_html(results, copy, max_views=2).read_text(encoding="utf-8")
+    assert text.count("<img") == 1 + 6 + 6 * 2
+    assert "Per-view pictures (2 of 3 views)" in text
+    assert "every view's picture is in the pictures/room/clean folder" in text
+
+
+def test_minimal_results_render(tmp_path):
+    """No aggregate, no sensitivity, no pictures, no probes: tables and page still render."""
+    results = fake_results(None)
+    for key in ("aggregate", "sensitivity", "probes", "adapter", "options"):
+        del results[key]
+    md, tex = write_tables(results, tmp_path)
+    assert "aggregate tables omitted" in md.read_text()
+    assert "| clean | -- | -- |" in md.read_text()
+    text = write_html(results, tmp_path).read_text(encoding="utf-8")
+    page = _Page()
+    page.feed(text)
+    assert page.stack == [] and page.imgs == []
+    assert "No probe descriptions in the results." in text
+
+
+def _chromium() -> str | None:
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        found = shutil.which(name)
+        if found:
+            return found
+    return None
+
+
+_CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                   "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                   "--hide-scrollbars"]
+
+# Test instrumentation only (the report itself has no JavaScript): after load,
+# record every image's decode state and its box on the page.
+_PROBE = """<script>
+window.addEventListener('load', function () {
+  var r = Array.prototype.map.call(document.images, function (i) {
+    var b = i.getBoundingClientRect();
+    return {ok: i.complete && i.naturalWidth > 0, w: i.naturalWidth, x: b.left + window.scrollX,
+            y: b.top + window.scrollY, bw: b.width, bh: b.height};
+  });
+  var p = document.createElement('pre'); p.id = 'r360-probe'; p.textContent = JSON.stringify(r);
+  document.body.appendChild(p);
+});
+</script>"""
+
+
+def _run_chromium(exe: str, args: list[str], tmp: Path) -> subprocess.CompletedProcess:
+    cmd = [exe, *_CHROMIUM_FLAGS, f"--user-data-dir={tmp / 'profile'}", *args]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+
+
+def test_renders_in_headless_chromium(report, tmp_path):
+    exe = _chromium()
+    if exe is None:
+        pytest.skip("Chromium is not installed (Debian package 'chromium'); the browser check needs it")
+    _, out, path = report
+    shot = tmp_path / "shot.png"
+    res = _run_chromium(exe, [f"--screenshot={shot}", "--window-size=1280,2000", path.as_uri()], tmp_path)
+    assert res.returncode == 0, res.stderr[-2000:]
+    img = cv2.imread(str(shot), cv2.IMREAD_COLOR)
+    assert img is not None and img.shape == (2000, 1280, 3)
+    assert img.std() > 10  # not blank
+
+    probe_page = tmp_path / "probe.html"
+    probe_page.write_text(path.read_text(encoding="utf-8").replace("</body>", _PROBE + "</body>"), encoding="utf-8")
+    res = _run_chromium(exe, ["--dump-dom", "--virtual-time-budget=5000", "--window-size=1280,2000",
+                              probe_page.as_uri()], tmp_path)
+    assert res.returncode == 0, res.stderr[-2000:]
+    dom = res.stdout
+    start = dom.index('<pre id="r360-probe">') + len('<pre id="r360-probe">')
+    boxes = json.loads(dom[start:dom.index("</pre>", start)].replace("&quot;", '"').replace("&amp;", "&"))
+    assert len(boxes) == 1 + len(SCENES) * len(METHODS) * (1 + len(VIEWS))
+    broken = [b for b in boxes if not b["ok"]]
+    assert broken == []
+    # every image laid out inside the screenshot shows content, not a blank box
+    visible = [b for b in boxes if b["bw"] > 20 and b["bh"] > 20 and b["y"] + b["bh"] <= 2000]
+    assert visible, "no image in the first 2000 px of the page"
+    for b in visible:
+        x0, y0 = int(b["x"]) + 2, int(b["y"]) + 2
+        crop = img[y0 : int(b["y"] + b["bh"]) - 2, x0 : int(b["x"] + b["bw"]) - 2]
+        assert crop.size and crop.std() > 10, b

@@ -1,0 +1,167 @@
+"""Panels, contact sheets and plots: sizes, content, determinism."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from r360gpu.errors import InputError
+from r360gpu.report.pictures import (
+    CHANGED_IN_TARGET_RGB,
+    MISSED_IN_TARGET_RGB,
+    SEMANTIC_RGB,
+    TARGET_RGB,
+    THRESHOLD_RGB,
+    as_rgb8,
+    changed_panel,
+    contact_sheet,
+    depth_change_panel,
+    mask_colors,
+    mask_overlay,
+    sheet_image,
+    view_contact_sheet,
+    view_panels,
+)
+from r360gpu.report.plots import axes_overview_png, view_axes_plot, view_axes_png, view_series
+
+from report_fake import VIEWS, images, view_record
+
+H, W = 120, 160
+
+
+def _count(img, rgb):
+    return int(np.all(img == np.array(rgb, np.uint8), axis=2).sum())
+
+
+@pytest.fixture(scope="module")
+def scene():
+    yy, xx = np.mgrid[0:H, 0:W]
+    target = (np.abs(yy - 60) < 30) & (np.abs(xx - 80) < 40)
+    delta = np.where(target, 1.0, 0.05) + 0.01 * (xx / W)
+    rgb = np.dstack([xx / W, yy / H, np.full((H, W), 0.5)]).astype(np.float32)
+    return rgb, target, delta
+
+
+def test_as_rgb8_conversions():
+    assert as_rgb8(np.ones((2, 3), bool)).tolist() == [[[255] * 3] * 3] * 2
+    f = as_rgb8(np.array([[[0.0, 0.5, 2.0]]], np.float32))
+    assert f.dtype == np.uint8 and f.tolist() == [[[0, 128, 255]]]
+    assert as_rgb8(np.zeros((4, 5, 4), np.uint8)).shape == (4, 5, 3)
+    with pytest.raises(InputError, match="expected an"):
+        as_rgb8(np.zeros((4, 5, 2)))
+
+
+def test_depth_change_panel_marks_threshold(scene):
+    _, _, delta = scene
+    p = depth_change_panel(delta, 0.5, width=200)
+    assert p.dtype == np.uint8 and p.shape == (150 + 26, 200, 3)  # heat map 200 x 150, then the bar strip
+    heat = p[:150]
+    assert heat.std() > 20  # not blank
+    # the threshold tick is drawn in the bar strip, about half-way along the bar
+    cols = np.nonzero(np.all(p[150:] == np.array(THRESHOLD_RGB, np.uint8), axis=2).any(axis=0))[0]
+    assert cols.size and abs(cols.mean() - 0.5 / delta.max() * 199) < 3
+    assert _count(depth_change_panel(delta, None, width=200), THRESHOLD_RGB) == 0
+    np.testing.assert_array_equal(p, depth_change_panel(delta, 0.5, width=200))
+    flat = depth_change_panel(np.zeros((10, 10)), 0.0, width=40)
+    assert flat.shape == (40 + 26, 40, 3)
+    with pytest.raises(InputError):
+        depth_change_panel(np.zeros((2, 2, 2)), 0.1)
+
+
+def test_changed_panel_colours_and_outline(scene):
+    _, target, delta = scene
+    changed = delta > 0.5
+    changed[60:, :] = False  # half of the target missed
+    p = changed_panel(changed, target, width=W)
+    assert p.shape == (H, W, 3)
+    assert _count(p, TARGET_RGB) > 200  # the outline of the 80 x 60 target
+    inside_changed = _count(p, CHANGED_IN_TARGET_RGB)
+    missed = _count(p, MISSED_IN_TARGET_RGB)
+    # interior pixels split about evenly between counted and missed (the outline covers the border)
+    assert inside_changed > 1000 and missed > 1000 and abs(inside_changed - missed) < 200
+    with pytest.raises(InputError, match="changed mask is"):
+        changed_panel(changed[:10], target)
+
+
+def test_mask_overlay_is_seeded_and_outlined(scene):
+    rgb, target, _ = scene
+    masks = np.stack([target, np.roll(target, 30, axis=1)])
+    a = mask_overlay(rgb, masks, width=W, seed=3)
+    np.testing.assert_array_equal(a, mask_overlay(rgb, masks, width=W, seed=3))
+    assert not np.array_equal(a, mask_overlay(rgb, masks, width=W, seed=4))
+    assert not np.array_equal(a, as_rgb8(rgb))
+    sem = mask_overlay(rgb, target, width=W, color=SEMANTIC_RGB)
+    assert _count(sem, SEMANTIC_RGB) > 200  # its outline
+    with_t = mask_overlay(rgb, np.roll(target, 30, axis=1), width=W, color=SEMANTIC_RGB, target=target)
+    assert _count(with_t, TARGET_RGB) > 200
+    assert mask_colors(5, 1).shape == (5, 3) and mask_colors(0).shape == (0, 3)
+    assert np.array_equal(mask_colors(5, 1), mask_colors(5, 1))
+    with pytest.raises(InputError, match="overlay masks are"):
+        mask_overlay(rgb, masks[:, :10], width=W)
+
+
+def test_contact_sheet_layout_and_png(tmp_path, scene):
+    rgb, target, delta = scene
+    panels = [("a", rgb), ("b", target), ("c", depth_change_panel(delta, 0.5, 100)), ("d", rgb), ("e", rgb)]
+    img = sheet_image(panels, columns=3, panel_width=100, title="sheet")
+    # 3 columns of 100 px plus 4 px gaps; rows: title line + 2 rows of (title strip + panel)
+    assert img.shape[1] == 4 + 3 * 104
+    path = contact_sheet(tmp_path / "sub" / "s.png", panels, columns=3, panel_width=100, title="sheet")
+    back = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    assert back is not None and back.shape == img.shape
+    np.testing.assert_array_equal(cv2.cvtColor(back, cv2.COLOR_BGR2RGB), img)
+    first = path.read_bytes()
+    contact_sheet(path, panels, columns=3, panel_width=100, title="sheet")
+    assert path.read_bytes() == first  # deterministic bytes
+    with pytest.raises(InputError, match="at least one panel"):
+        sheet_image([])
+    with pytest.raises(InputError, match="at least 16 px"):
+        sheet_image(panels, panel_width=4)
+
+
+def test_view_contact_sheet_from_fake_view(tmp_path):
+    pre, post, ref, d_pre, d_post, t = images("room", "ghost", "01")
+    panels = view_panels(pre=pre, post=post, ref=ref, target=t, delta=np.abs(d_pre - d_post), threshold=0.25,
+                         semantic_post=t, structural=[("masks", post, np.stack([t, ~t]))], width=96)
+    assert [p[0] for p in panels] == ["I_pre (target outlined)", "I_post (target outlined)", "I_ref",
+                                      "|dD|, xi_depth = 0.25", "changed (yellow: in M)", "semantic probe on I_post",
+                                      "masks"]
+    assert all(p[1].shape[1] == 96 for p in panels)
+    path = view_contact_sheet(tmp_path / "v.png", pre=pre, post=post, ref=ref, target=t,
+                              delta=np.abs(d_pre - d_post), threshold=0.25, semantic_post=t, width=96, title="v")
+    img = cv2.imread(str(path))
+    assert img.shape[1] == 4 + 4 * 100 and img.shape[1] <= 4 + 4 * (320 + 4)
+    assert img.std() > 20
+
+
+def test_view_series_and_plot(tmp_path):
+    recs = [view_record("garden", "blurry", v) for v in VIEWS]
+    s = view_series(recs)
+    assert s["names"] == list(VIEWS) and s["excluded"] == [False, False, True]
+    assert s["mode"] == "reference"
+    assert np.isnan(s["acc_depth"][2]) and s["acc_depth"][:2] == [0.95, 0.95]
+    assert s["iou_post"]["builtin-appearance"][:2] == pytest.approx([0.2, 0.3])
+    assert np.isnan(s["iou_post"]["builtin-appearance"][2]) and np.isnan(s["sim_sam"]["builtin-graphseg"][2])
+    assert s["sim_sam"]["builtin-graphseg"][:2] == [0.5, 0.5]
+    d = view_series([r.to_dict() for r in recs])  # dicts and records both accepted
+    assert (d["names"], d["excluded"], d["iou_post"], d["sim_sam"]) == (s["names"], s["excluded"], s["iou_post"],
+                                                                         s["sim_sam"])
+    png = view_axes_png(recs, title="garden / blurry")
+    img = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+    assert img.shape == (300, 800, 3) and img.std() > 10
+    assert png == view_axes_png([r.to_dict() for r in recs], title="garden / blurry")  # deterministic
+    assert b"tEXt" not in png and b"iTXt" not in png  # no metadata (no version, no timestamp)
+    # marking the excluded view changes the picture
+    plain = [view_record("room", "blurry", v) for v in VIEWS]
+    assert view_axes_png(plain) != view_axes_png(recs)
+    path = view_axes_plot(tmp_path / "p" / "plot.png", recs)
+    assert path.read_bytes() == view_axes_png(recs)
+
+
+def test_axes_overview_png():
+    overall = {"a": {"s_sem": 0.9, "s_geo": 0.3, "s_str": 0.6, "rqs": 0.55},
+               "b": {"s_sem": 0.7, "s_geo": None, "s_str": 0.5, "rqs": None}}
+    png = axes_overview_png(overall, title="t")
+    img = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+    assert img is not None and img.shape[0] == 280 and img.std() > 10
+    assert png == axes_overview_png(overall, title="t")
