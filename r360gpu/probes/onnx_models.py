@@ -1,0 +1,562 @@
+"""onnxruntime sessions for the model probes, and the SAM / SAM2 encoder-decoder pair.
+
+Execution providers (``device``): ``"cpu"`` (default), ``"cuda"``,
+``"directml"``, ``"coreml"`` -- each only when the installed onnxruntime
+build has it (``onnxruntime.get_available_providers()``) -- or ``"auto"``
+(the first of cuda, directml, coreml that is available, else cpu).  The CPU
+provider always backs the chosen one for operators it lacks.
+
+Supported SAM exports (detected from the models' input / output names and
+shapes; anything else is an InputError listing what was found):
+
+``sam`` -- SAM ViT-B/L/H and MobileSAM:
+
+* encoder: one input, either ``(N, 3, S, S)`` float (segment-anything's
+  ``export_onnx_model.py`` encoder ``x``, samexporter without
+  ``--use-preprocess``, ...: we resize the longest side to S, normalise with
+  SAM's pixel mean / std on 0..255 and zero-pad bottom / right), or
+  ``(H, W, 3)`` float (samexporter ``--use-preprocess``, input
+  ``input_image``: the graph normalises and pads; we feed the resized image
+  on the 0..255 scale); output ``image_embeddings`` ``(1, 256, 64, 64)``.
+* decoder (segment-anything ``SamOnnxModel``): inputs ``image_embeddings,
+  point_coords (1, N, 2), point_labels (1, N), mask_input (1, 1, 256, 256),
+  has_mask_input (1,), orig_im_size (2,)`` -> ``masks, iou_predictions,
+  low_res_masks``.  Points are in the frame of the resized (longest side S)
+  image.  Without ``--return-single-mask`` the decoder returns all four mask
+  tokens (token 0 is the single-mask output, 1..3 the multimask outputs).
+  We upscale ``low_res_masks`` ourselves (to S x S, drop the padding, resize
+  to the image): the traced ``masks`` output can have the crop of the
+  export's dummy image size baked in.  A decoder without ``low_res_masks``
+  must return ``masks`` at ``orig_im_size``.  The point batch dimension is
+  fixed to 1 in these exports, so prompts run one at a time unless the
+  model declares it dynamic.
+
+``sam2`` -- SAM 2 / 2.1 (samexporter ``export_sam2.py``, the
+ONNX-SAM2-Segment-Anything notebook):
+
+* encoder: input ``(1, 3, S, S)`` (plain resize to S x S, ImageNet mean /
+  std on 0..1) -> ``high_res_feats_0, high_res_feats_1, image_embed``.
+* decoder: inputs ``image_embed, high_res_feats_0, high_res_feats_1,
+  point_coords (B, N, 2), point_labels (B, N), mask_input (B, 1, 256, 256),
+  has_mask_input`` and optionally ``orig_im_size`` -> ``masks,
+  iou_predictions``.  Points are in the S x S frame (x / W * S, y / H * S);
+  the graph appends SAM2's padding point itself.  ``masks`` are 256 x 256
+  logits (upsampled bilinearly to the image here) or, with
+  ``orig_im_size``, already at the image size.  samexporter's decoder
+  returns the three multimask outputs.
+
+Model hashes (``describe()``) cover the ``.onnx`` file and any external-data
+files it names (large encoders keep their weights beside the graph).
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+
+from r360gpu.errors import InputError, R360Warning
+from r360gpu.probes.base import file_sha256
+from r360gpu.probes.preprocess import (
+    as_rgb01,
+    resize_logits,
+    sam2_encoder_input,
+    sam_encoder_input,
+    sam_logits_to_image,
+    sam_resized_image,
+)
+
+__all__ = [
+    "DEVICES",
+    "available_providers",
+    "providers_for",
+    "TensorInfo",
+    "OnnxModel",
+    "external_data_files",
+    "SamEmbedding",
+    "Decoded",
+    "SamModels",
+]
+
+#: device name -> onnxruntime execution provider.
+DEVICES = {
+    "cpu": "CPUExecutionProvider",
+    "cuda": "CUDAExecutionProvider",
+    "directml": "DmlExecutionProvider",
+    "coreml": "CoreMLExecutionProvider",
+}
+_AUTO_ORDER = ("cuda", "directml", "coreml")
+
+_NP_TYPES = {
+    "tensor(float)": np.float32,
+    "tensor(float16)": np.float16,
+    "tensor(double)": np.float64,
+    "tensor(int64)": np.int64,
+    "tensor(int32)": np.int32,
+    "tensor(bool)": np.bool_,
+}
+
+_SAM_DECODER_INPUTS = frozenset(
+    {"image_embeddings", "point_coords", "point_labels", "mask_input", "has_mask_input", "orig_im_size"}
+)
+_SAM2_DECODER_INPUTS = frozenset(
+    {
+        "image_embed",
+        "high_res_feats_0",
+        "high_res_feats_1",
+        "point_coords",
+        "point_labels",
+        "mask_input",
+        "has_mask_input",
+    }
+)
+_SAM2_FEATURES = ("image_embed", "high_res_feats_0", "high_res_feats_1")
+
+
+def _ort():
+    import onnxruntime
+
+    return onnxruntime
+
+
+def available_providers() -> list[str]:
+    """Execution providers of the installed onnxruntime build."""
+    return list(_ort().get_available_providers())
+
+
+def providers_for(device: str = "cpu") -> list[str]:
+    """onnxruntime provider list for a device name (see module docstring).
+
+    Raises InputError for an unknown device or one the installed
+    onnxruntime lacks, naming the available providers.
+    """
+    name = str(device).strip().lower()
+    available = available_providers()
+    if name == "auto":
+        for candidate in _AUTO_ORDER:
+            if DEVICES[candidate] in available:
+                return [DEVICES[candidate], DEVICES["cpu"]]
+        return [DEVICES["cpu"]]
+    if name not in DEVICES:
+        raise InputError(f"unknown device {device!r}; use one of {sorted(DEVICES)} or 'auto'")
+    provider = DEVICES[name]
+    if provider not in available:
+        raise InputError(
+            f"device {name!r} needs onnxruntime's {provider}, which the installed onnxruntime lacks "
+            f"(available: {', '.join(available)})"
+        )
+    return [provider] if name == "cpu" else [provider, DEVICES["cpu"]]
+
+
+@dataclass(frozen=True)
+class TensorInfo:
+    """One model input or output: name, shape (ints; str or None for dynamic axes), element type."""
+
+    name: str
+    shape: tuple
+    type: str
+
+    def __str__(self) -> str:
+        dims = ", ".join("?" if d is None else str(d) for d in self.shape)
+        return f"{self.name} {self.type.replace('tensor(', '').rstrip(')')}[{dims}]"
+
+    def fixed(self, axis: int) -> int | None:
+        """The size of ``axis`` when the model fixes it, else None."""
+        if axis >= len(self.shape):
+            return None
+        dim = self.shape[axis]
+        return int(dim) if isinstance(dim, (int, np.integer)) and int(dim) > 0 else None
+
+
+_LOCATION_KEY = b"\x0a\x08location\x12"
+_MAX_VARINT = 5  # bytes of a 32-bit length
+_MAX_NAME = 4096  # longest external-data file name taken as one
+_SCAN_BLOCK = 1 << 22  # bytes read at a time when scanning a model file
+
+
+def external_data_files(path: str | os.PathLike) -> list[Path]:
+    """External-data files an ONNX model names, resolved beside it, sorted, existing ones only.
+
+    Scans the protobuf bytes for the ``location`` entries of external tensors
+    (``key: "location"`` followed by the length-prefixed relative file name)
+    without parsing the whole model.
+    """
+    path = Path(path)
+    found: set[str] = set()
+    tail = b""
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(_SCAN_BLOCK), b""):
+            data = tail + block
+            # A key cut by the block end is searched again, whole, with the next block.
+            keep_from = max(len(data) - len(_LOCATION_KEY) - _MAX_VARINT, 0)
+            start = 0
+            while True:
+                i = data.find(_LOCATION_KEY, start)
+                if i < 0:
+                    break
+                j = i + len(_LOCATION_KEY)
+                length, shift, complete = 0, 0, False
+                while j < len(data) and shift < 7 * _MAX_VARINT:
+                    byte = data[j]
+                    length |= (byte & 0x7F) << shift
+                    j += 1
+                    shift += 7
+                    if not byte & 0x80:
+                        complete = True
+                        break
+                if complete and length > _MAX_NAME:
+                    start = i + 1  # not a file name: some other bytes that happen to match
+                    continue
+                if not complete or j + length > len(data):
+                    keep_from = min(keep_from, i)
+                    break
+                try:
+                    found.add(data[j : j + length].decode("utf-8"))
+                except UnicodeDecodeError:
+                    pass
+                start = j + length
+            tail = data[keep_from:]
+    out = []
+    for name in sorted(found):
+        candidate = path.parent / name
+        if candidate.is_file():
+            out.append(candidate)
+    return out
+
+
+class OnnxModel:
+    """One ONNX model file opened in an onnxruntime session.
+
+    path: the ``.onnx`` file; device: see :func:`providers_for`; role: what
+    the model is, for messages (e.g. "SAM image encoder").  A file that does
+    not exist or that onnxruntime cannot load raises InputError naming it.
+    """
+
+    def __init__(self, path: str | os.PathLike, device: str = "cpu", role: str = "model"):
+        self.path = Path(path)
+        self.role = role
+        if not self.path.is_file():
+            raise InputError(f"{role} model file does not exist", self.path)
+        providers = providers_for(device)
+        ort = _ort()
+        options = ort.SessionOptions()
+        options.log_severity_level = 3
+        try:
+            self.session = ort.InferenceSession(str(self.path), sess_options=options, providers=providers)
+        except Exception as exc:  # noqa: BLE001 - onnxruntime raises several unrelated types
+            raise InputError(f"cannot load the {role} as an ONNX model ({_first_line(exc)})", self.path) from None
+        active = self.session.get_providers()
+        if providers[0] not in active:
+            warnings.warn(
+                f"{self.path}: onnxruntime could not start {providers[0]} for the {role}; running on {active[0]}",
+                R360Warning,
+                stacklevel=2,
+            )
+        self.provider = active[0]
+        self.inputs = {i.name: TensorInfo(i.name, tuple(i.shape), i.type) for i in self.session.get_inputs()}
+        self.outputs = {o.name: TensorInfo(o.name, tuple(o.shape), o.type) for o in self.session.get_outputs()}
+        self._digests: dict[str, str] | None = None
+
+    def signature(self) -> str:
+        """ "inputs: ...; outputs: ..." with names, types and shapes (for error messages)."""
+        ins = ", ".join(str(t) for t in self.inputs.values())
+        outs = ", ".join(str(t) for t in self.outputs.values())
+        return f"inputs: {ins}; outputs: {outs}"
+
+    def run(self, feeds: dict[str, np.ndarray], outputs: list[str] | None = None) -> dict[str, np.ndarray]:
+        """Run the model; returns output name -> array.
+
+        Each feed is cast to the element type the model declares.  A failure
+        inside onnxruntime (e.g. a shape the model does not accept) raises
+        InputError naming the model file.
+        """
+        cast = {}
+        for name, value in feeds.items():
+            info = self.inputs[name]
+            dtype = _NP_TYPES.get(info.type)
+            cast[name] = np.ascontiguousarray(value if dtype is None else np.asarray(value).astype(dtype, copy=False))
+        names = list(self.outputs) if outputs is None else outputs
+        try:
+            values = self.session.run(names, cast)
+        except Exception as exc:  # noqa: BLE001
+            shapes = ", ".join(f"{k}{tuple(v.shape)}" for k, v in cast.items())
+            raise InputError(
+                f"the {self.role} failed to run on inputs {shapes} ({_first_line(exc)})", self.path
+            ) from None
+        return dict(zip(names, values))
+
+    def digests(self) -> dict[str, str]:
+        """File name -> SHA-256 of the model file and its external-data files (memoised)."""
+        if self._digests is None:
+            digests = {self.path.name: file_sha256(self.path)}
+            for extra in external_data_files(self.path):
+                digests[extra.name] = file_sha256(extra)
+            self._digests = digests
+        return dict(self._digests)
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip() or type(exc).__name__
+    return text.splitlines()[0][:500]
+
+
+@dataclass(frozen=True, eq=False)
+class SamEmbedding:
+    """Encoder output for one image (or crop).
+
+    features: decoder input name -> array (``image_embeddings`` for SAM;
+    ``image_embed``, ``high_res_feats_0/1`` for SAM2).
+    image_size: (H, W) of the encoded image, pixels.
+    model_size: (H', W') of the image inside the model frame -- the resized,
+    unpadded size for SAM, the full input size for SAM2.
+    """
+
+    features: dict
+    image_size: tuple[int, int]
+    model_size: tuple[int, int]
+
+
+@dataclass(frozen=True, eq=False)
+class Decoded:
+    """Decoder output for B prompts.
+
+    logits: float32 (B, M, h, w) mask logits; low-resolution (to be passed
+    through :meth:`SamModels.logits_to_image`) when ``low_res`` is True, else
+    already at the image size.  iou: float32 (B, M) predicted IoU.
+    M is 4 (SAM decoders: single-mask token then the three multimask
+    tokens), 3 (multimask tokens only) or 1 (a single-mask export).
+    """
+
+    logits: np.ndarray
+    iou: np.ndarray
+    low_res: bool
+
+    @property
+    def masks_per_prompt(self) -> int:
+        return int(self.logits.shape[1])
+
+    def multimask(self) -> tuple[np.ndarray, np.ndarray]:
+        """(logits (B, M', h, w), iou (B, M')) of the multimask outputs
+        (``multimask_output=True``): tokens 1..3 of a 4-token decoder, every
+        output otherwise."""
+        if self.masks_per_prompt == 4:
+            return self.logits[:, 1:], self.iou[:, 1:]
+        return self.logits, self.iou
+
+    def single(self) -> tuple[np.ndarray, np.ndarray]:
+        """(logits (B, h, w), iou (B,)) of one mask per prompt
+        (``multimask_output=False``): token 0 of a 4-token decoder; with
+        multimask-only decoders, the output with the highest predicted IoU."""
+        if self.masks_per_prompt == 4:
+            return self.logits[:, 0], self.iou[:, 0]
+        best = np.argmax(self.iou, axis=1)
+        rows = np.arange(self.logits.shape[0])
+        return self.logits[rows, best], self.iou[rows, best]
+
+
+class SamModels:
+    """A SAM-family image encoder + prompt decoder pair (see module docstring).
+
+    Attributes after loading: ``variant`` ("sam" or "sam2"),
+    ``encoder_layout`` ("nchw": we preprocess; "hwc": preprocessing inside
+    the encoder), ``input_size`` (H, W) of the model frame, ``batched``
+    (whether the decoder takes several prompts per run).
+    """
+
+    def __init__(self, encoder: str | os.PathLike, decoder: str | os.PathLike, device: str = "cpu"):
+        self.encoder = OnnxModel(encoder, device, "SAM image encoder")
+        self.decoder = OnnxModel(decoder, device, "SAM prompt decoder")
+        self.device = device
+        self._detect()
+
+    # -- signature detection -------------------------------------------------
+    def _reject(self, model: OnnxModel, why: str) -> NoReturn:
+        raise InputError(
+            f"not a supported SAM {model.role.split()[-1]} export: {why}; found {model.signature()}", model.path
+        )
+
+    def _detect(self) -> None:
+        enc, dec = self.encoder, self.decoder
+        enc_out = set(enc.outputs)
+        if set(_SAM2_FEATURES) <= enc_out:
+            variant = "sam2"
+        elif "image_embeddings" in enc_out:
+            variant = "sam"
+        else:
+            self._reject(
+                enc,
+                "expected outputs 'image_embeddings' (SAM, MobileSAM) or 'high_res_feats_0', "
+                "'high_res_feats_1', 'image_embed' (SAM2)",
+            )
+        if len(enc.inputs) != 1:
+            self._reject(enc, f"expected one image input, got {len(enc.inputs)}")
+        image_in = next(iter(enc.inputs.values()))
+        rank = len(image_in.shape)
+        if rank == 4 and image_in.fixed(1) in (None, 3):
+            layout = "nchw"
+            size = (image_in.fixed(2) or 1024, image_in.fixed(3) or 1024)
+        elif rank == 3 and variant == "sam" and image_in.fixed(2) in (None, 3):
+            layout = "hwc"
+            size = (1024, 1024)
+        else:
+            self._reject(enc, f"image input {image_in} is neither (N, 3, H, W) nor (for SAM) (H, W, 3)")
+        if variant == "sam" and size[0] != size[1]:
+            self._reject(enc, f"SAM encoders take a square input, got {size[0]}x{size[1]}")
+
+        names = set(dec.inputs)
+        if variant == "sam":
+            if names != _SAM_DECODER_INPUTS:
+                self._reject(dec, f"a SAM encoder needs a SAM decoder with inputs {sorted(_SAM_DECODER_INPUTS)}")
+        else:
+            if not (_SAM2_DECODER_INPUTS <= names <= _SAM2_DECODER_INPUTS | {"orig_im_size"}):
+                self._reject(
+                    dec,
+                    f"a SAM2 encoder needs a SAM2 decoder with inputs {sorted(_SAM2_DECODER_INPUTS)} "
+                    "(and optionally 'orig_im_size')",
+                )
+        for needed in ("masks", "iou_predictions"):
+            if needed not in dec.outputs:
+                self._reject(dec, f"the decoder has no output {needed!r}")
+        self.variant = variant
+        self.encoder_layout = layout
+        self.input_size = (int(size[0]), int(size[1]))
+        self.batched = dec.inputs["point_coords"].fixed(0) is None
+        mask_in = dec.inputs["mask_input"]
+        self._mask_input_size = (
+            mask_in.fixed(2) or self.input_size[0] // 4,
+            mask_in.fixed(3) or self.input_size[1] // 4,
+        )
+        self._mask_input_batched = mask_in.fixed(0) is None
+
+    # -- public API ----------------------------------------------------------
+    @property
+    def provider(self) -> str:
+        """The execution provider the decoder runs on."""
+        return self.decoder.provider
+
+    def digests(self) -> dict[str, str]:
+        """ "encoder:<file>" / "decoder:<file>" -> SHA-256 of every model file."""
+        out = {f"encoder:{k}": v for k, v in self.encoder.digests().items()}
+        out.update({f"decoder:{k}": v for k, v in self.decoder.digests().items()})
+        return out
+
+    def describe_models(self) -> dict:
+        """Variant and layout facts for ``describe()``."""
+        return {"variant": self.variant, "encoder_layout": self.encoder_layout, "input_size": list(self.input_size)}
+
+    def embed(self, image) -> SamEmbedding:
+        """Encode one RGB (H, W, 3) image, uint8 0..255 or float 0..1."""
+        image01 = as_rgb01(image)
+        h, w = image01.shape[:2]
+        image_name = next(iter(self.encoder.inputs))
+        if self.variant == "sam":
+            if self.encoder_layout == "hwc":
+                tensor = sam_resized_image(image01, self.input_size[0])
+                model_size = tensor.shape[:2]
+            else:
+                tensor, model_size = sam_encoder_input(image01, self.input_size[0])
+            out = self.encoder.run({image_name: tensor}, ["image_embeddings"])
+        else:
+            tensor = sam2_encoder_input(image01, self.input_size)
+            model_size = self.input_size
+            out = self.encoder.run({image_name: tensor}, list(_SAM2_FEATURES))
+        return SamEmbedding(out, (int(h), int(w)), (int(model_size[0]), int(model_size[1])))
+
+    def to_model_coords(self, embedding: SamEmbedding, xy: np.ndarray) -> np.ndarray:
+        """float32 (..., 2): image pixel (x, y) -> the decoder's coordinate frame.
+
+        SAM: scaled by (W'/W, H'/H) into the resized image
+        (``ResizeLongestSide.apply_coords``); SAM2: x / W * S_w, y / H * S_h.
+        """
+        h, w = embedding.image_size
+        mh, mw = embedding.model_size
+        scale = np.array([mw / w, mh / h], np.float64)
+        return (np.asarray(xy, np.float64) * scale).astype(np.float32)
+
+    def predict_points(self, embedding: SamEmbedding, points_xy: np.ndarray) -> Decoded:
+        """One positive point prompt per row of ``points_xy`` (B, 2) (image pixels)."""
+        pts = np.asarray(points_xy, np.float64).reshape(-1, 2)
+        coords = self.to_model_coords(embedding, pts)[:, None, :]
+        labels = np.ones((len(pts), 1), np.float32)
+        if self.variant == "sam":
+            # SAM's prompt encoder appends a "not a point" when no box is given;
+            # SamOnnxModel leaves that to the caller.  SAM2 exports append it themselves.
+            coords = np.concatenate([coords, np.zeros((len(pts), 1, 2), np.float32)], axis=1)
+            labels = np.concatenate([labels, -np.ones((len(pts), 1), np.float32)], axis=1)
+        return self._decode(embedding, coords, labels)
+
+    def predict_boxes(self, embedding: SamEmbedding, boxes_xyxy: np.ndarray) -> Decoded:
+        """One box prompt per row of ``boxes_xyxy`` (B, 4) (image pixels): the two
+        corners with labels 2 (top-left) and 3 (bottom-right), no padding point."""
+        boxes = np.asarray(boxes_xyxy, np.float64).reshape(-1, 2, 2)
+        coords = self.to_model_coords(embedding, boxes)
+        labels = np.tile(np.array([[2.0, 3.0]], np.float32), (len(boxes), 1))
+        return self._decode(embedding, coords, labels)
+
+    def logits_to_image(self, embedding: SamEmbedding, logits: np.ndarray, low_res: bool) -> np.ndarray:
+        """float32 (K, H, W) mask logits at the image size from decoder logits (K, h, w)."""
+        logits = np.asarray(logits, np.float32)
+        if not low_res:
+            return logits
+        if self.variant == "sam":
+            return sam_logits_to_image(logits, self.input_size[0], embedding.model_size, embedding.image_size)
+        return resize_logits(logits, embedding.image_size)
+
+    # -- decoding ------------------------------------------------------------
+    def _decode(self, embedding: SamEmbedding, coords: np.ndarray, labels: np.ndarray) -> Decoded:
+        b = coords.shape[0]
+        if b == 0:
+            raise ValueError("no prompts to decode")
+        if self.batched:
+            return self._decode_batch(embedding, coords, labels)
+        parts = [self._decode_batch(embedding, coords[i : i + 1], labels[i : i + 1]) for i in range(b)]
+        return Decoded(
+            np.concatenate([p.logits for p in parts]), np.concatenate([p.iou for p in parts]), parts[0].low_res
+        )
+
+    def _decode_batch(self, embedding: SamEmbedding, coords: np.ndarray, labels: np.ndarray) -> Decoded:
+        b = coords.shape[0]
+        h, w = embedding.image_size
+        feeds = dict(embedding.features)
+        feeds["point_coords"] = coords
+        feeds["point_labels"] = labels
+        mh, mw = self._mask_input_size
+        feeds["mask_input"] = np.zeros((b if self._mask_input_batched else 1, 1, mh, mw), np.float32)
+        # Shape (1,): it broadcasts over any prompt batch in both export families.
+        feeds["has_mask_input"] = np.zeros(1, np.float32)
+        if "orig_im_size" in self.decoder.inputs:
+            feeds["orig_im_size"] = np.array([h, w])
+        wanted = ["masks", "iou_predictions"]
+        if self.variant == "sam" and "low_res_masks" in self.decoder.outputs:
+            wanted.append("low_res_masks")
+        out = self.decoder.run(feeds, wanted)
+        iou = np.asarray(out["iou_predictions"], np.float32)
+        low = out.get("low_res_masks")
+        if low is not None and low.ndim == 4:
+            logits, low_res = low, True
+        else:
+            logits = out["masks"]
+            if logits.ndim != 4:
+                self._bad_output(f"'masks' of shape {logits.shape} is not (B, M, H, W)")
+            full = logits.shape[2:] == (h, w)
+            if self.variant == "sam" and not full:
+                self._bad_output(
+                    f"without 'low_res_masks', 'masks' must come at orig_im_size {h}x{w}, got "
+                    f"{logits.shape[2]}x{logits.shape[3]}"
+                )
+            low_res = not full
+        logits = np.asarray(logits, np.float32)
+        if self.variant == "sam2":
+            logits = np.clip(logits, -32.0, 32.0)  # as SAM2ImagePredictor._predict
+        if logits.shape[0] != b or iou.reshape(-1).size != logits.shape[0] * logits.shape[1]:
+            self._bad_output(f"{b} prompts gave masks of shape {logits.shape} and iou_predictions of shape {iou.shape}")
+        return Decoded(logits, iou.reshape(logits.shape[:2]), low_res)
+
+    def _bad_output(self, why: str) -> NoReturn:
+        raise InputError(
+            f"unexpected SAM decoder output: {why}; the decoder is {self.decoder.signature()}", self.decoder.path
+        )

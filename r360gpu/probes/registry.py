@@ -1,0 +1,195 @@
+"""Build probes from command-line specs: :func:`parse_probe_spec`.
+
+Spec syntax: ``KIND:BODY``.
+
+* ``sam:encoder=PATH,decoder=PATH[,device=D][,name=N][,AMG_PARAM=VALUE...]``
+  -- :class:`~r360gpu.probes.sam_amg.SamAmgProbe` (structural).  AMG_PARAM is
+  any :class:`~r360gpu.probes.sam_amg.AmgParams` field, e.g.
+  ``points_per_side=16``, ``pred_iou_thresh=0.9``, ``crop_n_layers=1``,
+  ``min_mask_region_area=100``.
+* ``grounded:dino=PATH,tokenizer=PATH,sam-encoder=PATH,sam-decoder=PATH
+  [,device=D][,name=N][,box_threshold=F][,text_threshold=F][,size=I]
+  [,max_size=I][,phrase_match=true|false]`` --
+  :class:`~r360gpu.probes.grounded.GroundedSamProbe` (semantic).
+* ``gsam2-json:DIRS``, ``png:DIRS`` -- precomputed semantic masks
+  (:class:`~r360gpu.probes.precomputed.PrecomputedSemanticProbe`);
+  ``sam-json:DIRS`` -- precomputed SAM masks
+  (:class:`~r360gpu.probes.precomputed.PrecomputedStructuralProbe`).
+  DIRS is either ``pre=DIR,post=DIR[,ref=DIR][,name=N]`` or one directory
+  holding a sub-directory per rendering, named ``pre`` / ``before``,
+  ``post`` / ``after``, ``ref`` / ``reference`` (for ``png``, a ``mask``
+  folder inside it is used when present: the Remove360 layout
+  ``gsam2/before/mask``).
+
+Keys may use '-' or '_'.  Values cannot contain ','.  device is one of
+cpu (default), cuda, directml, coreml, auto.  Booleans: true/false, yes/no,
+1/0.  Any problem is an InputError naming the spec.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+from r360gpu.errors import InputError
+from r360gpu.probes.base import Probe
+
+__all__ = ["PROBE_KINDS", "PROBE_SPEC_HELP", "parse_probe_spec"]
+
+PROBE_KINDS = ("sam", "grounded", "gsam2-json", "png", "sam-json")
+
+PROBE_SPEC_HELP = (
+    "probe spec KIND:BODY -- sam:encoder=PATH,decoder=PATH[,device=cpu|cuda|directml|coreml|auto][,AMG params]; "
+    "grounded:dino=PATH,tokenizer=PATH,sam-encoder=PATH,sam-decoder=PATH[,box_threshold=0.35,text_threshold=0.25]; "
+    "gsam2-json:DIR, png:DIR, sam-json:DIR (DIR with pre/post/ref or before/after sub-folders) "
+    "or KIND:pre=DIR,post=DIR[,ref=DIR]"
+)
+
+_RENDERING_DIRS = {"pre": ("pre", "before"), "post": ("post", "after"), "ref": ("ref", "reference")}
+_TRUE = {"true", "yes", "1", "on"}
+_FALSE = {"false", "no", "0", "off"}
+
+
+def parse_probe_spec(spec: str) -> Probe:
+    """The probe a spec describes (see the module docstring)."""
+    text = str(spec).strip()
+    kind, sep, body = text.partition(":")
+    kind = kind.strip().lower()
+    if not sep or kind not in PROBE_KINDS:
+        raise InputError(f"probe spec {spec!r}: expected KIND:..., KIND one of {', '.join(PROBE_KINDS)}")
+    if not body.strip():
+        raise InputError(f"probe spec {spec!r}: nothing after '{kind}:'")
+    if kind == "sam":
+        return _sam(spec, _options(spec, body))
+    if kind == "grounded":
+        return _grounded(spec, _options(spec, body))
+    return _precomputed(spec, kind, body)
+
+
+def _key(raw: str) -> str:
+    return raw.strip().lower().replace("-", "_")
+
+
+def _options(spec: str, body: str) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for part in body.split(","):
+        if not part.strip():
+            continue
+        key, eq, value = part.partition("=")
+        if not eq or not key.strip():
+            raise InputError(f"probe spec {spec!r}: {part.strip()!r} is not KEY=VALUE")
+        key = _key(key)
+        if key in out:
+            raise InputError(f"probe spec {spec!r}: {key!r} is given twice")
+        out[key] = value.strip()
+    return out
+
+
+def _take_required(spec: str, opts: dict[str, str], keys: tuple[str, ...]) -> list[str]:
+    missing = [k for k in keys if not opts.get(k)]
+    if missing:
+        raise InputError(f"probe spec {spec!r}: missing {', '.join(k.replace('_', '-') for k in missing)}")
+    return [opts.pop(k) for k in keys]
+
+
+def _convert(spec: str, key: str, value: str, type_name: str) -> object:
+    """A spec value converted to a dataclass field's type.
+
+    type_name: the field's annotation text ("int", "float", "bool", "str", or
+    one of those with "| None", which also accepts "none" / "default").
+    """
+    kind = type_name.replace(" ", "")
+    if kind.endswith("|None"):
+        kind = kind[: -len("|None")]
+        if value.lower() in ("none", "default"):
+            return None
+    try:
+        if kind == "bool":
+            if value.lower() in _TRUE:
+                return True
+            if value.lower() in _FALSE:
+                return False
+        elif kind == "int":
+            return int(value)
+        elif kind == "float":
+            return float(value)
+        else:
+            return value
+    except ValueError:
+        pass
+    raise InputError(f"probe spec {spec!r}: {key}={value!r} is not a valid {kind}")
+
+
+def _dataclass_kwargs(spec: str, opts: dict[str, str], cls) -> dict:
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    kwargs = {}
+    for key in list(opts):
+        if key in fields:
+            annotation = fields[key].type
+            type_name = annotation if isinstance(annotation, str) else getattr(annotation, "__name__", str(annotation))
+            kwargs[key] = _convert(spec, key, opts.pop(key), type_name)
+    if opts:
+        allowed = ", ".join(sorted(fields))
+        raise InputError(f"probe spec {spec!r}: unknown option(s) {', '.join(sorted(opts))} (options: {allowed})")
+    return kwargs
+
+
+def _sam(spec: str, opts: dict[str, str]) -> Probe:
+    from r360gpu.probes.sam_amg import AmgParams, SamAmgProbe
+
+    encoder, decoder = _take_required(spec, opts, ("encoder", "decoder"))
+    device = opts.pop("device", "cpu") or "cpu"
+    name = opts.pop("name", None) or None
+    params = AmgParams(**_dataclass_kwargs(spec, opts, AmgParams))
+    return SamAmgProbe(encoder, decoder, params=params, device=device, name=name)
+
+
+def _grounded(spec: str, opts: dict[str, str]) -> Probe:
+    from r360gpu.probes.grounded import GroundedSamProbe, GroundingParams
+
+    dino, tokenizer, encoder, decoder = _take_required(spec, opts, ("dino", "tokenizer", "sam_encoder", "sam_decoder"))
+    device = opts.pop("device", "cpu") or "cpu"
+    name = opts.pop("name", None) or None
+    params = GroundingParams(**_dataclass_kwargs(spec, opts, GroundingParams))
+    return GroundedSamProbe(dino, tokenizer, encoder, decoder, params=params, device=device, name=name)
+
+
+def _rendering_dirs(spec: str, kind: str, body: str) -> tuple[dict[str, Path], str | None]:
+    first = body.split(",")[0]
+    key = _key(first.partition("=")[0]) if "=" in first else ""
+    if key in ("pre", "post", "ref", "name"):
+        opts = _options(spec, body)
+        name = opts.pop("name", None) or None
+        unknown = sorted(set(opts) - set(_RENDERING_DIRS))
+        if unknown:
+            raise InputError(f"probe spec {spec!r}: unknown key(s) {', '.join(unknown)} (use pre, post, ref, name)")
+        dirs = {r: Path(d) for r, d in opts.items() if d}
+        if not dirs:
+            raise InputError(f"probe spec {spec!r}: give at least one of pre=DIR, post=DIR, ref=DIR")
+        return dirs, name
+    root = Path(body.strip())
+    if not root.is_dir():
+        raise InputError(f"probe spec {spec!r}: mask directory does not exist", root)
+    dirs: dict[str, Path] = {}
+    for rendering, names in _RENDERING_DIRS.items():
+        for sub in names:
+            if (root / sub).is_dir():
+                dirs[rendering] = root / sub
+                break
+    if not dirs:
+        wanted = ", ".join("/".join(n) for n in _RENDERING_DIRS.values())
+        raise InputError(
+            f"probe spec {spec!r}: no per-rendering sub-folder ({wanted}); or name them: {kind}:pre=DIR,post=DIR", root
+        )
+    if kind == "png":
+        dirs = {r: (d / "mask" if (d / "mask").is_dir() else d) for r, d in dirs.items()}
+    return dirs, None
+
+
+def _precomputed(spec: str, kind: str, body: str) -> Probe:
+    from r360gpu.probes.precomputed import PrecomputedSemanticProbe, PrecomputedStructuralProbe
+
+    dirs, name = _rendering_dirs(spec, kind, body)
+    if kind == "sam-json":
+        return PrecomputedStructuralProbe.from_dirs(dirs, **({"name": name} if name else {}))
+    return PrecomputedSemanticProbe.from_dirs(dirs, format=kind, **({"name": name} if name else {}))
