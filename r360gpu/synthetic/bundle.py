@@ -1,0 +1,270 @@
+"""Writing synthetic scenes as scene bundles (the ``scene.toml`` format of r360gpu).
+
+One bundle folder per scene::
+
+    <out>/<scene>/
+        scene.toml              name, prompt, cameras, masks, [pre], [reference], [methods.*]
+        synthetic.json          how it was made: seed, sizes, Gaussian counts, view kinds, methods
+        cameras/                COLMAP binary model (cameras.bin, images.bin, points3D.bin)
+          (or transforms.json beside scene.toml with camera_format="transforms")
+        masks/<view>.png        target masks, 0 / 255
+        pre.ply                 original reconstruction (INRIA 3DGS .ply)
+        reference.ply           the scene without the target (hidden background present)
+        methods/<method>.ply    one per simulated method (see r360gpu.synthetic.methods)
+
+Every file is written atomically; ``scene.toml`` is written last (and
+removed first when a bundle is regenerated), so a folder holding one is
+complete.  The same arguments give byte-identical files on the same
+machine; masks come from renders, so another adapter may differ in a few
+boundary pixels.
+"""
+from __future__ import annotations
+
+import json
+import os
+import zlib
+from pathlib import Path
+from typing import Callable, Sequence
+
+import cv2
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError
+from ..io import Gaussians, save_colmap, save_ply, save_transforms_json
+from ..util.atomic import write_bytes, write_text
+from .garden import make_garden
+from .masks import target_masks
+from .methods import METHODS
+from .room import make_room
+from .scene import SyntheticScene
+
+#: Scene builders by name.
+SCENES: dict[str, Callable[..., SyntheticScene]] = {"room": make_room, "garden": make_garden}
+CAMERA_FORMATS = ("colmap", "transforms")
+#: Marker file of a synthetic bundle (a folder holding it may be overwritten).
+MARKER = "synthetic.json"
+
+
+def _rng(*keys) -> np.random.Generator:
+    """A generator seeded from the seed and names (stable across Python runs, unlike hash())."""
+    words = [k if isinstance(k, int) else zlib.crc32(str(k).encode("utf-8")) for k in keys]
+    return np.random.default_rng(np.random.SeedSequence(words))
+
+
+def _check_seed(seed) -> None:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"seed must be a non-negative integer, got {seed!r}")
+
+
+def _check_camera_format(camera_format) -> None:
+    if camera_format not in CAMERA_FORMATS:
+        raise InputError(f"camera_format must be one of {', '.join(CAMERA_FORMATS)}, got {camera_format!r}")
+
+
+def _check_args(seed, n_views, width, height, detail) -> None:
+    _check_seed(seed)
+    if isinstance(n_views, bool) or not isinstance(n_views, (int, np.integer)) or n_views < 1:
+        raise InputError(f"n_views must be a positive integer, got {n_views!r}")
+    for name, v in (("width", width), ("height", height)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 16 <= v <= 8192:
+            raise InputError(f"{name} must be an integer in 16..8192, got {v!r}")
+    if isinstance(detail, bool) or not isinstance(detail, (int, float, np.floating)) \
+            or not (np.isfinite(detail) and 0.01 <= detail <= 16):
+        raise InputError(f"detail must be a number in 0.01..16, got {detail!r}")
+
+
+def make_scene(name: str, *, seed: int = 0, n_views: int = 20, width: int = 480, height: int = 360,
+               detail: float = 1.0) -> SyntheticScene:
+    """Build scene ``name`` (see :data:`SCENES`) deterministically from ``seed``.
+
+    detail scales the number of Gaussians (1.0: 50k-80k per scene; 0.25: a
+    quarter, for tests).
+    """
+    if name not in SCENES:
+        raise InputError(f"unknown synthetic scene {name!r}; known: {', '.join(SCENES)}")
+    _check_args(seed, n_views, width, height, detail)
+    return SCENES[name](_rng(int(seed), "scene", name), n_views=int(n_views), width=int(width),
+                        height=int(height), detail=float(detail))
+
+
+def make_method(scene: SyntheticScene, method: str, *, seed: int = 0) -> Gaussians:
+    """The edited scene of simulated method ``method`` (see :data:`~r360gpu.synthetic.methods.METHODS`)."""
+    if method not in METHODS:
+        raise InputError(f"unknown synthetic method {method!r}; known: {', '.join(METHODS)}")
+    return METHODS[method](scene, _rng(int(seed), "method", scene.name, method))
+
+
+def encode_mask(mask: np.ndarray) -> bytes:
+    """(H, W) bool mask -> 8-bit grey PNG bytes (target = 255)."""
+    ok, buf = cv2.imencode(".png", np.where(np.asarray(mask, bool), 255, 0).astype(np.uint8))
+    if not ok:
+        raise RuntimeError("OpenCV could not encode a PNG")
+    return buf.tobytes()
+
+
+def _toml_str(s: str) -> str:
+    # A JSON string of printable text is a valid TOML basic string.
+    return json.dumps(s, ensure_ascii=True)
+
+
+def scene_toml(scene: SyntheticScene, methods: Sequence[str], *, seed: int, cameras: str) -> str:
+    """The text of the bundle's ``scene.toml`` (paths relative to the bundle folder)."""
+    lines = [
+        f"# Synthetic Remove360-style scene made by r360gpu.synthetic {__version__} (seed {seed}); "
+        "details in synthetic.json.",
+        f"name = {_toml_str(scene.name)}",
+        f"prompt = {_toml_str(scene.prompt)}",
+        f"cameras = {_toml_str(cameras)}",
+        'masks = "masks"',
+        "",
+        "[pre]",
+        'scene = "pre.ply"',
+        "",
+        "# The scene without the target, as a capture after the physical removal would give it.",
+        "[reference]",
+        'scene = "reference.ply"',
+    ]
+    for m in methods:
+        doc = (METHODS[m].__doc__ or "").strip().splitlines()[0]
+        lines += ["", f"# {m}: {doc}", f"[methods.{m}]", f"scene = {_toml_str(f'methods/{m}.ply')}"]
+    return "\n".join(lines) + "\n"
+
+
+def _prepare(folder: Path) -> None:
+    """Make ``folder`` ready to (re)write a bundle into; refuse to touch foreign folders."""
+    if folder.exists() and not folder.is_dir():
+        raise InputError("exists and is not a folder", folder)
+    if folder.is_dir() and any(folder.iterdir()) and not (folder / MARKER).is_file():
+        raise InputError(f"folder is not empty and holds no {MARKER} (not a synthetic bundle); "
+                         "refusing to overwrite it", folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    # Gone first, written last: a half-regenerated folder is never taken for a bundle.
+    (folder / "scene.toml").unlink(missing_ok=True)
+
+
+def _remove_stale(folder: Path, views: set[str], methods: set[str], camera_format: str) -> None:
+    """Delete files of an earlier generation that this one did not write (only our own names)."""
+    for p in (folder / "masks").glob("view_*.png"):
+        if p.stem not in views:
+            p.unlink()
+    for p in (folder / "methods").glob("*.ply"):
+        if p.stem not in methods:
+            p.unlink()
+    if camera_format == "colmap":
+        (folder / "transforms.json").unlink(missing_ok=True)
+    else:
+        for f in ("cameras.bin", "images.bin", "points3D.bin"):
+            (folder / "cameras" / f).unlink(missing_ok=True)
+        if (folder / "cameras").is_dir() and not any((folder / "cameras").iterdir()):
+            (folder / "cameras").rmdir()
+
+
+def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int = 0,
+                 methods: Sequence[str] | None = None, camera_format: str = "colmap", ctx=None,
+                 progress: bool = False) -> Path:
+    """Write ``scene`` as a bundle into ``folder`` (created; an earlier synthetic bundle there
+    is replaced) and return the folder.
+
+    seed: the seed of the method edits (use the scene's seed).  methods:
+    names from :data:`~r360gpu.synthetic.methods.METHODS` (default: all, in
+    that order).  camera_format: "colmap" (``cameras/`` binary model) or
+    "transforms" (``transforms.json``).  ctx: GPU context for the mask renders.
+    """
+    methods = list(METHODS) if methods is None else list(methods)
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown or not methods:
+        raise InputError(f"unknown or no methods {unknown}; known: {', '.join(METHODS)}")
+    _check_seed(seed)
+    _check_camera_format(camera_format)
+    folder = Path(folder)
+    _prepare(folder)
+
+    steps = ["masks", "cameras", "pre", "reference", *methods]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(steps), desc=scene.name, unit="file", leave=False)
+
+    def done(step: str) -> None:
+        if bar is not None:
+            bar.set_postfix_str(step)
+            bar.update(1)
+
+    try:
+        masks = target_masks(scene, ctx=ctx, progress=progress)
+        for name, mask in masks.items():
+            write_bytes(folder / "masks" / f"{name}.png", encode_mask(mask))
+        done("masks")
+        if camera_format == "colmap":
+            save_colmap(folder / "cameras", scene.cameras, binary=True)
+            cameras = "cameras"
+        else:
+            save_transforms_json(folder / "transforms.json", scene.cameras)
+            cameras = "transforms.json"
+        done("cameras")
+        save_ply(folder / "pre.ply", scene.pre)
+        done("pre")
+        save_ply(folder / "reference.ply", scene.background)
+        done("reference")
+        counts = {}
+        for m in methods:
+            g = make_method(scene, m, seed=seed)
+            save_ply(folder / "methods" / f"{m}.ply", g)
+            counts[m] = g.n
+            done(m)
+    finally:
+        if bar is not None:
+            bar.close()
+
+    _remove_stale(folder, set(masks), set(methods), camera_format)
+    cam0 = scene.cameras[0]
+    meta = {
+        "generator": "r360gpu.synthetic",
+        "r360gpu_version": __version__,
+        "scene": scene.name,
+        "prompt": scene.prompt,
+        "seed": int(seed),
+        "width": cam0.width,
+        "height": cam0.height,
+        "n_views": len(scene.cameras),
+        "gaussians": {"pre": scene.pre.n, "reference": scene.background.n, "target": scene.target.n,
+                      "hidden": int(scene.hidden.sum()), "neighbourhood": int(scene.in_neighbourhood().sum()),
+                      "methods": counts},
+        "view_kinds": dict(scene.view_kinds),
+        "mask_pixels": {name: int(m.sum()) for name, m in masks.items()},
+        "methods": {m: " ".join((METHODS[m].__doc__ or "").split()) for m in methods},
+    }
+    write_text(folder / MARKER, json.dumps(meta, indent=2) + "\n")
+    write_text(folder / "scene.toml", scene_toml(scene, methods, seed=seed, cameras=cameras))
+    return folder
+
+
+def generate_benchmark(out_dir: str | os.PathLike, *, seed: int = 0, n_views: int = 20, width: int = 480,
+                       height: int = 360, scenes: Sequence[str] = ("room", "garden"), detail: float = 1.0,
+                       methods: Sequence[str] | None = None, camera_format: str = "colmap", ctx=None,
+                       progress: bool = False) -> list[Path]:
+    """Generate the built-in synthetic benchmark: one bundle per scene under ``out_dir``.
+
+    Returns the bundle folders (``out_dir / scene``) in the order of
+    ``scenes``.  See :func:`make_scene` for seed, n_views, width, height and
+    detail, :func:`write_bundle` for methods, camera_format and ctx.
+    """
+    scenes = list(scenes)
+    unknown = [s for s in scenes if s not in SCENES]
+    if unknown or not scenes:
+        raise InputError(f"unknown or no scenes {unknown}; known: {', '.join(SCENES)}")
+    if len(set(scenes)) != len(scenes):
+        raise InputError(f"scenes listed twice: {scenes}")
+    _check_args(seed, n_views, width, height, detail)
+    _check_camera_format(camera_format)
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a folder", out)
+    folders = []
+    for name in scenes:
+        scene = make_scene(name, seed=seed, n_views=n_views, width=width, height=height, detail=detail)
+        folders.append(write_bundle(scene, out / name, seed=seed, methods=methods, camera_format=camera_format,
+                                    ctx=ctx, progress=progress))
+    return folders
