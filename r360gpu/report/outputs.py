@@ -1,0 +1,58 @@
+"""Everything ``r360gpu score`` writes to its output folder, in one call."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from .html import write_html
+from .plots import view_axes_plot
+from .results_io import write_results
+from .results_tables import write_tables
+
+
+def write_outputs(results: dict, out) -> dict[str, Path]:
+    """Write per-method plots, results.json, results.csv, tables.md/.tex and report.html.
+
+    The plot paths are recorded in ``results`` (relative to ``out``) before
+    results.json is written.  Returns {"json", "csv", "md", "tex", "html": path}.
+    """
+    from ..metrics.record import ViewRecord
+
+    out = Path(out)
+    for scene, s in results["scenes"].items():
+        for method, m in s["methods"].items():
+            rel = Path("plots") / scene / f"{method}.png"
+            records = [ViewRecord.from_dict(v) for v in m["views"]]
+            view_axes_plot(out / rel, records, title=f"{scene} / {method}: per-view axes")
+            m["plot"] = rel.as_posix()
+    js, csv = write_results(results, out)
+    md, tex = write_tables(results, out)
+    html = write_html(results, out)
+    return {"json": js, "csv": csv, "md": md, "tex": tex, "html": html}
+
+
+def summary_lines(results: dict) -> list[str]:
+    """A short plain-text summary for the terminal: overall axes, RQS and AvgRank per method."""
+    agg = results.get("aggregate") or {}
+    overall = agg.get("overall") or {}
+    ranks = agg.get("ranks") or {}
+    lines = []
+    if overall:
+        pooling = agg.get("overall_pooling", "")
+        lines.append(f"overall ({pooling}):")
+        lines.append(f"  {'method':<18}{'s_sem':>8}{'s_geo':>8}{'s_str':>8}{'RQS':>8}{'AvgRank':>9}")
+        for m, ax in overall.items():
+            def f(x):
+                return f"{x:8.3f}" if isinstance(x, (int, float)) else f"{'-':>8}"
+            r = ranks.get(m, {}).get("avg_rank")
+            lines.append(f"  {m:<18}{f(ax.get('s_sem'))}{f(ax.get('s_geo'))}{f(ax.get('s_str'))}{f(ax.get('rqs'))}"
+                         f"{(f'{r:9.2f}' if r is not None else f'{chr(45):>9}')}")
+    t = results.get("timing") or {}
+    if t:
+        stages = ", ".join(f"{k} {v:.1f} s" for k, v in t.get("stages_s", {}).items())
+        views = t.get("views", 0)
+        total = t.get("total_s", 0.0) or 0.0
+        rate = f", {views / total:.2f} views/s" if total > 0 and views else ""
+        lines.append(f"time: {total:.1f} s for {views} views{rate} ({stages})")
+    for note in results.get("notes", []):
+        lines.append(f"note: {note}")
+    return lines
