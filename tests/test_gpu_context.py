@@ -79,3 +79,17 @@ def test_limits_can_only_be_lowered(ctx):
     c = GpuContext(ctx.device, limit_binding_bytes=10**15)
     assert c.max_binding_bytes == ctx.max_binding_bytes
     assert GpuContext(ctx.device, limit_binding_bytes=1000).max_binding_bytes == 768
+
+
+def test_atomic_writes_respect_the_umask(tmp_path):
+    import os
+
+    from r360gpu.util.atomic import write_text
+
+    old = os.umask(0o022)
+    try:
+        write_text(tmp_path / "a.txt", "x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o644
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp file left

@@ -64,10 +64,11 @@ def report(tmp_path_factory):
 
 
 def _decode(uri: str) -> np.ndarray:
-    assert uri.startswith("data:image/png;base64,"), uri[:40]
+    # plots are PNG, contact sheets JPEG (see html.JPEG_QUALITY)
+    assert uri.startswith(("data:image/png;base64,", "data:image/jpeg;base64,")), uri[:40]
     data = base64.b64decode(uri.split(",", 1)[1], validate=True)
     img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
-    assert img is not None, "not a decodable PNG"
+    assert img is not None, "not a decodable image"
     return img
 
 
@@ -89,10 +90,11 @@ def test_page_is_self_contained_and_every_image_decodes(report):
     assert "script" not in page.tags and "link" not in page.tags and "iframe" not in page.tags
     assert all(u.startswith("#") for u in page.attrs_with_urls)
     assert "http://" not in text and "https://" not in text
-    # embedded sheets are the files written by the picture functions
+    # embedded sheets are the files written by the picture functions (re-encoded as JPEG)
+    from r360gpu.report.html import _jpeg_uri
+
     rel = results["scenes"]["room"]["methods"]["ghost"]["pictures"]["01"]
-    want = base64.b64encode((out / rel).read_bytes()).decode()
-    assert want in text
+    assert _jpeg_uri((out / rel).read_bytes()) in text
     assert text == write_html(results, out).read_text(encoding="utf-8")  # deterministic
 
 

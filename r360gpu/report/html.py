@@ -132,8 +132,32 @@ def _png_uri(data: bytes) -> str:
     return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
 
 
-def _embed(out_dir: Path, rel) -> tuple[str | None, str | None]:
-    """(data URI, None) for a PNG inside ``out_dir``, else (None, reason)."""
+#: Contact sheets (photographic renders) are embedded as JPEG of this quality,
+#: at most EMBED_WIDTH pixels wide: a few per cent of the PNG's size, which
+#: keeps a report with dozens of views in the low megabytes.  The lossless
+#: full-size PNGs stay beside the report.
+JPEG_QUALITY = 80
+EMBED_WIDTH = 960
+
+
+def _jpeg_uri(png: bytes) -> str | None:
+    import cv2
+    import numpy as np
+
+    img = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+    if img is None:
+        return None
+    if img.shape[1] > EMBED_WIDTH:
+        h = max(1, round(img.shape[0] * EMBED_WIDTH / img.shape[1]))
+        img = cv2.resize(img, (EMBED_WIDTH, h), interpolation=cv2.INTER_AREA)
+    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+    return "data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii") if ok else None
+
+
+def _embed(out_dir: Path, rel, *, photo: bool = False) -> tuple[str | None, str | None]:
+    """(data URI, None) for a PNG inside ``out_dir``, else (None, reason).
+
+    photo: embed as JPEG (contact sheets of renders); plots stay PNG."""
     if not isinstance(rel, str) or not rel:
         return None, "no picture path"
     root = out_dir.resolve()
@@ -148,6 +172,11 @@ def _embed(out_dir: Path, rel) -> tuple[str | None, str | None]:
         return None, f"picture {rel!r} not found"
     if not data.startswith(_PNG_SIGNATURE):
         return None, f"picture {rel!r} is not a PNG; not embedded"
+    if photo:
+        uri = _jpeg_uri(data)
+        if uri is None:
+            return None, f"picture {rel!r} could not be decoded; not embedded"
+        return uri, None
     return _png_uri(data), None
 
 
@@ -327,7 +356,7 @@ def _method_section(results: dict, out_dir: Path, scene: str, method: str, probl
         by_view = {str(r.get("view")): r for r in entry.get("views") or []}
         for view in shown:
             rel = pics[view]
-            uri, why = _embed(out_dir, rel)
+            uri, why = _embed(out_dir, rel, photo=True)
             cap = f"{view}: {_view_caption(by_view.get(str(view), {}))}"
             if uri:
                 img = _img(uri, f"{scene} / {method} / {view}")
