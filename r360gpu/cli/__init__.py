@@ -18,7 +18,7 @@ import traceback
 from ..errors import GpuUnavailableError, R360Error
 
 # Order is the order shown in --help.
-_COMMANDS = ["demo", "score", "check", "tables", "doctor"]
+_COMMANDS = ["demo", "score", "check", "view", "tables", "doctor"]
 
 
 def build_parser() -> argparse.ArgumentParser:
