@@ -8,3 +8,14 @@ used by ``render`` and ``metrics``; ``cli`` drives everything.
 from __future__ import annotations
 
 __version__ = "0.1.0"
+
+__all__ = ["evaluate", "scene_from_objects", "EvaluateOptions", "__version__"]
+
+
+def __getattr__(name):
+    # Imported lazily so `import r360gpu` stays light (no wgpu, scipy, cv2).
+    if name in ("evaluate", "scene_from_objects", "EvaluateOptions"):
+        from . import scoring
+
+        return getattr(scoring, name)
+    raise AttributeError(f"module 'r360gpu' has no attribute {name!r}")

@@ -24,19 +24,23 @@ class ViewImages:
 
 
 class SceneSource:
-    """A splat scene kept on the device and rendered per camera."""
+    """A splat scene kept on the device and rendered per camera.
+
+    ``scene``: a splat file path, or a :class:`~r360gpu.io.Gaussians` already in memory.
+    """
 
     kind = "scene"
 
-    def __init__(self, path, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "expected"):
-        from ..io import load_gaussians
+    def __init__(self, scene, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "expected"):
+        from ..io import Gaussians, load_gaussians
         from .pipeline import Renderer
 
         if depth not in ("expected", "median"):
             raise InputError(f"depth mode must be 'expected' or 'median', got {depth!r}")
-        self.path = path
+        in_memory = isinstance(scene, Gaussians)
+        self.path = "<in memory>" if in_memory else scene
         self.depth_mode = depth
-        self.gaussians = load_gaussians(path)
+        self.gaussians = scene if in_memory else load_gaussians(scene)
         self.renderer = Renderer(self.gaussians, ctx=ctx, background=tuple(float(c) for c in background))
 
     def images(self, view: str, camera) -> ViewImages:
@@ -77,8 +81,75 @@ class RendersSource:
         pass
 
 
+class DeviceViewsSource:
+    """Renders another GPU pipeline already holds on the device, one per view.
+
+    ``views`` maps a view name to a :class:`~r360gpu.render.DeviceRender`
+    (this renderer's device output, or any buffer in that plane layout) or to
+    a pair ``(rgb, depth)`` with ``rgb`` float (H, W, 3) in [0, 1] and
+    ``depth`` a :class:`~r360gpu.kernels.depth_change.DeviceDepth` or a
+    float32 array.  Depth stays on the device: the geometric axis reads it
+    there.  RGB comes to the host, because the probes run on the CPU.
+    """
+
+    kind = "device"
+
+    def __init__(self, views, *, ctx=None, name: str = "device views"):
+        from ..gpu import get_context
+
+        self.views = dict(views)
+        self.ctx = ctx or get_context()
+        self.name = name
+
+    def images(self, view: str, camera=None) -> ViewImages:
+        from ..kernels.depth_change import DeviceDepth
+        from .pipeline import DeviceRender
+
+        if view not in self.views:
+            raise InputError(f"{self.name}: no render for view {view!r}")
+        item = self.views[view]
+        if isinstance(item, DeviceRender):
+            h, w, stride = item.height, item.width, item.plane_stride
+            planes = list(item.planes)
+            rgb = np.stack([self.ctx.read(item.buffer, np.float32, h * w, planes.index(c) * stride * 4)
+                            for c in ("r", "g", "b")], -1).reshape(h, w, 3)
+            depth = DeviceDepth(item.buffer, h, w, offset=planes.index("depth") * stride * 4)
+            return ViewImages(np.clip(rgb, 0.0, 1.0), depth)
+        rgb, depth = item
+        rgb = np.clip(np.asarray(rgb, np.float32), 0.0, 1.0)
+        if depth is not None and not isinstance(depth, DeviceDepth):
+            depth = np.asarray(depth, np.float32)
+        return ViewImages(rgb, depth)
+
+    def describe(self) -> dict:
+        return {"kind": "device", "name": self.name, "views": len(self.views)}
+
+    def release(self) -> None:
+        pass
+
+
+def host_depth(depth, ctx=None) -> np.ndarray | None:
+    """A depth image on the host (reads a DeviceDepth back; arrays pass through)."""
+    from ..kernels.depth_change import DeviceDepth
+
+    if isinstance(depth, DeviceDepth):
+        from ..gpu import get_context
+
+        ctx = ctx or get_context()
+        return ctx.read(depth.buffer, np.float32, depth.height * depth.width, depth.offset).reshape(depth.height, depth.width)
+    return depth
+
+
 def open_source(spec, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "expected"):
-    """A :class:`SceneSource` or :class:`RendersSource` for a bundle's ``SourceSpec``."""
+    """A source for a bundle entry: a ``SourceSpec`` (splat file or renders
+    folder), a :class:`~r360gpu.io.Gaussians` in memory, or a ready source
+    object (anything with ``images(view, camera)``, e.g. :class:`DeviceViewsSource`)."""
+    from ..io import Gaussians
+
+    if isinstance(spec, Gaussians):
+        return SceneSource(spec, ctx=ctx, background=background, depth=depth)
+    if hasattr(spec, "images") and hasattr(spec, "describe"):
+        return spec
     if spec.kind == "scene":
         return SceneSource(spec.path, ctx=ctx, background=background, depth=depth)
     if spec.kind == "renders":

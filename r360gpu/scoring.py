@@ -117,7 +117,9 @@ def evaluate(
 ) -> dict:
     """Score one or more scene bundles; returns the results document (a dict).
 
-    bundles: bundle folders (or :class:`~r360gpu.bundle.Bundle` objects).
+    bundles: bundle folders, :class:`~r360gpu.bundle.Bundle` objects, or
+        scenes built from in-memory objects with :func:`scene_from_objects`
+        (Gaussians, or renders and depths already on the device).
     out: output folder for results.json, tables, pictures and report.html
         (None: nothing is written and nothing is cached).
     semantic_probes, structural_probes: lists of probes (default: the
@@ -242,7 +244,11 @@ def _evaluate_scene(bundle, opts, ctx, sem_probes, str_probes, probe_cache, cach
     def mask_of(v):
         if v not in masks:
             c = cam(v)
-            masks[v] = load_mask(bundle.masks[v], shape=None if c is None else (c.height, c.width))
+            m = bundle.masks[v]
+            if isinstance(m, np.ndarray):  # a scene built from objects (scene_from_objects)
+                masks[v] = m != 0
+            else:
+                masks[v] = load_mask(m, shape=None if c is None else (c.height, c.width))
         return masks[v]
 
     # Probes that learn from the scene (the built-in appearance probe) fit on
@@ -263,7 +269,8 @@ def _evaluate_scene(bundle, opts, ctx, sem_probes, str_probes, probe_cache, cach
     probes_desc = {"semantic": [p.describe() for p in sem], "structural": [p.describe() for p in stru]}
     lpips = LpipsModel(opts.lpips_model) if opts.lpips_model and src_ref is not None else None
 
-    key = _digest({"version": __version__, "bundle": bundle.fingerprint(), "options": opts.scoring_key(),
+    key = _digest({"version": __version__, "bundle": _fingerprint(bundle, src_pre, src_ref, src_methods),
+                   "options": opts.scoring_key(),
                    "probes": probes_desc, "mode": mode, "depth": depth_mode,
                    "lpips": lpips.describe() if lpips else None})
     view_cache = cache_root / "views" / key / bundle.name if cache_root is not None else None
@@ -311,6 +318,54 @@ def _evaluate_scene(bundle, opts, ctx, sem_probes, str_probes, probe_cache, cach
         axes = method_axes(records[m], xis=opts.xis, boundary=boundaries[m] if opts.boundary else None)
         scene["methods"][m] = {"axes": axes, "views": [r.to_dict() for r in records[m]], "pictures": pictures[m]}
     return scene, len(views)
+
+
+def _fingerprint(bundle, src_pre, src_ref, src_methods) -> str:
+    """The bundle's file fingerprint, or for scenes built from objects a hash
+    of the sources' descriptions and the target masks."""
+    from .bundle import SourceSpec
+
+    specs = [bundle.pre, bundle.reference, *bundle.methods.values()]
+    if all(s is None or isinstance(s, SourceSpec) for s in specs) and not any(
+            isinstance(m, np.ndarray) for m in bundle.masks.values()):
+        return bundle.fingerprint()
+    h = hashlib.sha256()
+    for s in [src_pre, src_ref, *src_methods.values()]:
+        h.update(json.dumps(None if s is None else s.describe(), sort_keys=True, default=str).encode())
+    for v in bundle.views:
+        m = bundle.masks[v]
+        h.update(np.ascontiguousarray(m).tobytes() if isinstance(m, np.ndarray) else str(m).encode())
+    return h.hexdigest()
+
+
+def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, *, reference=None,
+                       cameras: dict | None = None, background=(0.0, 0.0, 0.0), depth: str = "expected",
+                       reference_free: bool = False):
+    """A scene to pass to :func:`evaluate` without files.
+
+    masks: {view: bool (H, W) target mask}; the keys are the evaluation views.
+    pre, reference, methods[...]: each a :class:`~r360gpu.io.Gaussians`
+        (rendered here at ``cameras``), a
+        :class:`~r360gpu.render.sources.DeviceViewsSource` (renders another
+        GPU pipeline already holds on the device), or a bundle ``SourceSpec``.
+    cameras: {view: Camera}, needed when any source is rendered here.
+    """
+    from .bundle import Bundle, BundleOptions
+
+    views = sorted(masks)
+    if not views:
+        raise InputError(f"scene {name!r}: no views (masks is empty)")
+    if not methods:
+        raise InputError(f"scene {name!r}: no methods")
+    missing = [v for v in views if cameras is not None and v not in cameras]
+    if missing:
+        raise InputError(f"scene {name!r}: views without a camera: {missing[:5]}")
+    return Bundle(root=Path("."), name=name, prompt=prompt, views=views,
+                  cameras=None if cameras is None else {v: cameras[v] for v in views},
+                  masks={v: np.asarray(masks[v]) for v in views}, pre=pre, reference=reference,
+                  methods=dict(methods),
+                  options=BundleOptions(background=tuple(background), depth=depth, reference_free=reference_free),
+                  layout="objects")
 
 
 def _progress(views, name, enabled):
@@ -428,9 +483,11 @@ def _write_picture(out, scene, method, view, pre, post, ref, mask, geo, compat, 
     from .metrics.compat import compat_quantise, depth_delta
     from .report.pictures import view_contact_sheet
 
+    from .render.sources import host_depth
+
     delta = threshold = changed = None
     if geo is not None:
-        delta = depth_delta(pre.depth, post.depth)
+        delta = depth_delta(host_depth(pre.depth), host_depth(post.depth))
         changed, threshold = geo.changed, geo.threshold
         if compat:  # the heat map then shows the 8-bit gray levels the threshold applies to
             delta = compat_quantise(delta)
