@@ -96,6 +96,7 @@ class GpuContext:
         }
         self._modules: dict[str, Any] = {}
         self._pipelines: dict[tuple, Any] = {}
+        self._scratch: dict = {}
         self._lock = threading.Lock()
 
     # -- construction -----------------------------------------------------
@@ -171,6 +172,26 @@ class GpuContext:
         raw = np.ascontiguousarray(data).tobytes() if isinstance(data, np.ndarray) else bytes(data)
         raw = raw + b"\0" * (-len(raw) % 4 if raw else 4)
         return self.device.create_buffer_with_data(label=label, data=raw, usage=usage)
+
+    def scratch(self, key, data: np.ndarray):
+        """A reusable buffer for ``key`` holding ``data`` (written with a queue copy).
+
+        For per-call uploads of the same size (e.g. the depth images of every
+        view): reusing one buffer avoids allocating and first-touching fresh
+        memory each call.  The caller must be done with the previous contents
+        (i.e. the passes reading it were submitted before this call).
+        """
+        data = np.ascontiguousarray(data)
+        nbytes = max(4, int(math.ceil(data.nbytes / 4) * 4))
+        with self._lock:
+            buf = self._scratch.get(key)
+            if buf is None or buf.size != nbytes:
+                buf = self.device.create_buffer(label=str(key), size=nbytes, usage=STORAGE | COPY_SRC | COPY_DST)
+                self._scratch[key] = buf
+        if data.nbytes % 4:
+            data = np.concatenate([data.view(np.uint8).reshape(-1), np.zeros(-data.nbytes % 4, np.uint8)])
+        self.queue.write_buffer(buf, 0, data)
+        return buf
 
     def uniform(self, *values, label: str = "params"):
         """A uniform buffer from 32-bit scalars: ints become u32/i32, floats f32.

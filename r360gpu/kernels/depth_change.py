@@ -126,7 +126,7 @@ def _padded(n_px: int, multiple: int = 32) -> int:
     return -(-n_px // multiple) * multiple
 
 
-def _upload_rows(ctx: GpuContext, d, r0: int, r1: int):
+def _upload_rows(ctx: GpuContext, d, r0: int, r1: int, slot: str):
     """A buffer with rows r0:r1 of depth image ``d``, flat, padded to whole vec4s."""
     n_px = (r1 - r0) * d.shape[1] if not isinstance(d, DeviceDepth) else (r1 - r0) * d.width
     size = _padded(n_px, 4) * 4
@@ -141,7 +141,9 @@ def _upload_rows(ctx: GpuContext, d, r0: int, r1: int):
     rows = d[r0:r1].reshape(-1)
     if n_px % 4:
         rows = np.concatenate([rows, np.zeros(4 - n_px % 4, np.float32)])
-    return ctx.buffer(rows, label="depth")
+    # The input is consumed by delta_minmax, which finishes before this call
+    # returns, so one reusable buffer per slot and chunk serves every view.
+    return ctx.scratch(("depth_change", slot, r0), rows)
 
 
 def delta_histogram(d_pre, d_post, *, ctx: GpuContext | None = None) -> DeltaHistogram:
@@ -168,7 +170,7 @@ def delta_histogram(d_pre, d_post, *, ctx: GpuContext | None = None) -> DeltaHis
         params = ctx.uniform(n_px, 0, 0, 0, 0.0, 0.0, 0.0, 0)
         ctx.dispatch(
             enc, pipe,
-            [params, _upload_rows(ctx, d_pre, r0, r1), _upload_rows(ctx, d_post, r0, r1), delta, stats],
+            [params, _upload_rows(ctx, d_pre, r0, r1, "pre"), _upload_rows(ctx, d_post, r0, r1, "post"), delta, stats],
             ctx.grid(math.ceil(n_px / _PX_PER_GROUP["delta_minmax"])),
         )
         res.chunks.append(_Chunk(r0, r1, delta))
