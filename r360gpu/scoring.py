@@ -395,10 +395,10 @@ def _collect(cell, records, boundaries, pictures, view):
         pictures[view] = cell["picture"]
 
 
-def _probe_views(view, images, rendering):
+def _probe_views(view, images, rendering, method=None):
     from .probes.base import ProbeView
 
-    return [ProbeView(name=view, image=images.rgb, rendering=rendering)]
+    return [ProbeView(name=view, image=images.rgb, rendering=rendering, method=method)]
 
 
 def _score_view(bundle, v, camera, mask, src_pre, src_ref, src_methods, sem, stru, mode, lpips, opts, ctx, timer,
@@ -433,8 +433,8 @@ def _score_view(bundle, v, camera, mask, src_pre, src_ref, src_methods, sem, str
         if post.rgb.shape[:2] != mask.shape:
             raise InputError(f"view {v}: method {m}'s rendering is {post.rgb.shape[1]}x{post.rgb.shape[0]} "
                              f"but the target mask is {mask.shape[1]}x{mask.shape[0]} (W x H)")
-        sem_post = {p.name: p.predict(_probe_views(v, post, "post"), prompt)[0] for p in sem}
-        str_post = {p.name: p.predict(_probe_views(v, post, "post"))[0] for p in stru}
+        sem_post = {p.name: p.predict(_probe_views(v, post, "post", m), prompt)[0] for p in sem}
+        str_post = {p.name: p.predict(_probe_views(v, post, "post", m))[0] for p in stru}
         t = timer.add("probe", t)
         sem_views = [semantic_view(sem_pre[p.name], sem_post[p.name], mask, view=v, ctx=ctx) for p in sem]
         if mode == "reference":

@@ -82,12 +82,15 @@ class ProbeView:
         when unknown (then precomputed probes cannot be used).
     size: (H, W) in pixels; taken from ``image`` when omitted.  Imported masks
         of another size are resized to it.
+    method: for a "post" rendering, the name of the method whose edit it is
+        (precomputed probes then prefer masks imported for that method).
     """
 
     name: str
     image: np.ndarray | None = None
     rendering: str | None = None
     size: tuple[int, int] | None = None
+    method: str | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:

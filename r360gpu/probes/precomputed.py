@@ -477,8 +477,8 @@ class _Importer:
         if not sources:
             raise ValueError("give at least one source (rendering -> directory)")
         for rendering in sources:
-            if rendering not in RENDERINGS:
-                raise ValueError(f"source keys must be among {RENDERINGS}, got {rendering!r}")
+            if rendering not in RENDERINGS and not (rendering.startswith("post/") and len(rendering) > 5):
+                raise ValueError(f"source keys must be among {RENDERINGS} or 'post/METHOD', got {rendering!r}")
         self.sources = dict(sources)
         self._name = name
         self.stats = ImportStats()
@@ -508,13 +508,18 @@ class _Importer:
                 f"view {view.name!r}: probe {self.name!r} reads precomputed masks and needs to know "
                 f"which rendering ({'/'.join(RENDERINGS)}) the view is"
             )
-        source = self.sources.get(view.rendering)
+        source = None
+        if view.rendering == "post" and view.method:
+            # Masks imported for this method's edit, when given, win over plain "post".
+            source = self.sources.get(f"post/{view.method}")
+        if source is None:
+            source = self.sources.get(view.rendering)
         if source is None:
             raise InputError(f"probe {self.name!r} has no precomputed masks for the {view.rendering!r} rendering")
         return source
 
     def _note_missing(self, view: ProbeView, source) -> None:
-        entry = f"{view.rendering}/{view.name}"
+        entry = f"{view.rendering}/{view.method + '/' if view.method else ''}{view.name}"
         if entry not in self.stats.missing:
             self.stats.missing.append(entry)
         if not self._warned_missing:

@@ -19,7 +19,10 @@ Spec syntax: ``KIND:BODY``.
   holding a sub-directory per rendering, named ``pre`` / ``before``,
   ``post`` / ``after``, ``ref`` / ``reference`` (for ``png``, a ``mask``
   folder inside it is used when present: the Remove360 layout
-  ``gsam2/before/mask``).
+  ``gsam2/before/mask``).  With several methods, each method's post masks
+  go in ``post/METHOD/`` (a sub-folder of the post folder named like the
+  method) or ``post/METHOD=DIR`` in the explicit form; plain ``post``
+  serves the methods without their own folder.
 
 Keys may use '-' or '_'.  Values cannot contain ','.  device is one of
 cpu (default), cuda, directml, coreml, auto.  Booleans: true/false, yes/no,
@@ -157,10 +160,20 @@ def _grounded(spec: str, opts: dict[str, str]) -> Probe:
 def _rendering_dirs(spec: str, kind: str, body: str) -> tuple[dict[str, Path], str | None]:
     first = body.split(",")[0]
     key = _key(first.partition("=")[0]) if "=" in first else ""
-    if key in ("pre", "post", "ref", "name"):
-        opts = _options(spec, body)
+    if key in ("pre", "post", "ref", "name") or first.strip().lower().startswith("post/"):
+        # post/METHOD=DIR: masks of one method's edit (method name kept as written).
+        per_method = {}
+        rest = []
+        for part in body.split(","):
+            k, eq, v = part.partition("=")
+            if eq and k.strip().lower().startswith("post/") and k.strip()[5:]:
+                per_method[f"post/{k.strip()[5:]}"] = v.strip()
+            else:
+                rest.append(part)
+        opts = _options(spec, ",".join(rest))
+        opts.update(per_method)
         name = opts.pop("name", None) or None
-        unknown = sorted(set(opts) - set(_RENDERING_DIRS))
+        unknown = sorted(k for k in set(opts) - set(_RENDERING_DIRS) if not k.startswith("post/"))
         if unknown:
             raise InputError(f"probe spec {spec!r}: unknown key(s) {', '.join(unknown)} (use pre, post, ref, name)")
         dirs = {r: Path(d) for r, d in opts.items() if d}
@@ -181,6 +194,12 @@ def _rendering_dirs(spec: str, kind: str, body: str) -> tuple[dict[str, Path], s
         raise InputError(
             f"probe spec {spec!r}: no per-rendering sub-folder ({wanted}); or name them: {kind}:pre=DIR,post=DIR", root
         )
+    # A bundle with several methods keeps each method's post masks in a
+    # sub-folder of the post folder named like the method (post/<method>/).
+    post = dirs.get("post")
+    if post is not None:
+        for sub in sorted(p for p in post.iterdir() if p.is_dir() and p.name != "mask"):
+            dirs[f"post/{sub.name}"] = sub
     if kind == "png":
         dirs = {r: (d / "mask" if (d / "mask").is_dir() else d) for r, d in dirs.items()}
     return dirs, None
