@@ -201,7 +201,7 @@ def test_png_masks(tmp_path):
     for name, expected in [("gray", SOFA), ("low", SOFA), ("colour", CORNERS), ("rgba", TOP_ROW), ("wide", SOFA)]:
         assert np.array_equal(read_mask_png(tmp_path / f"{name}.png"), expected), name
     (tmp_path / "broken.png").write_bytes(b"\x89PNG not really")
-    with pytest.raises(InputError, match="not a readable image") as err:
+    with pytest.raises(InputError, match="cannot decode mask image") as err:
         read_mask_png(tmp_path / "broken.png")
     assert "broken.png" in str(err.value)
 

@@ -266,13 +266,10 @@ def _predict_cached(
     return results
 
 
-class CachedSemanticProbe(SemanticProbe):
-    """A semantic probe whose per-view outputs go through a :class:`ProbeCache`.
+class _Wrapped:
+    """Name, parameters, model hashes and ``describe()`` are the wrapped probe's."""
 
-    Name, parameters, model hashes and ``describe()`` are the wrapped probe's.
-    """
-
-    def __init__(self, probe: SemanticProbe, cache: ProbeCache):
+    def __init__(self, probe, cache: ProbeCache):
         self.probe = probe
         self.cache = cache
 
@@ -288,31 +285,18 @@ class CachedSemanticProbe(SemanticProbe):
 
     def describe(self) -> dict:
         return self.probe.describe()
+
+
+class CachedSemanticProbe(_Wrapped, SemanticProbe):
+    """A semantic probe whose per-view outputs go through a :class:`ProbeCache`."""
 
     def predict(self, views: Sequence[ProbeView], prompt: str) -> list[SemanticPrediction]:
         """Cached results where present; the wrapped probe runs on the rest (one batch)."""
         return _predict_cached(self.probe, self.cache, views, prompt, "semantic", lambda b: self.probe.predict(b, prompt))
 
 
-class CachedStructuralProbe(StructuralProbe):
+class CachedStructuralProbe(_Wrapped, StructuralProbe):
     """A structural probe whose per-view outputs go through a :class:`ProbeCache`."""
-
-    def __init__(self, probe: StructuralProbe, cache: ProbeCache):
-        self.probe = probe
-        self.cache = cache
-
-    @property
-    def name(self) -> str:
-        return self.probe.name
-
-    def params(self) -> dict:
-        return self.probe.params()
-
-    def model_hashes(self) -> dict[str, str]:
-        return self.probe.model_hashes()
-
-    def describe(self) -> dict:
-        return self.probe.describe()
 
     def predict(self, views: Sequence[ProbeView]) -> list[MaskSet]:
         """Cached results where present; the wrapped probe runs on the rest (one batch)."""

@@ -300,19 +300,11 @@ def read_sam_json(path: str | os.PathLike, probe: str = "") -> MaskSet:
 
 
 def read_mask_png(path: str | os.PathLike) -> np.ndarray:
-    """bool (H, W) from a mask image: non-zero = mask (colour: any colour channel)."""
-    path = Path(path)
-    try:
-        data = np.fromfile(path, dtype=np.uint8)
-    except OSError as exc:
-        raise InputError(f"cannot read mask image ({exc.strerror or exc})", path) from None
-    image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
-    if image is None:
-        raise InputError("not a readable image", path)
-    if image.ndim == 2:
-        return image != 0
-    # OpenCV gives BGR(A); the alpha channel says nothing about the mask.
-    return (image[..., :3] != 0).any(axis=-1)
+    """bool (H, W) from a mask image: non-zero = mask (colour: any colour channel;
+    alpha ignored).  The same reader as the target masks (:func:`r360gpu.io.load_mask`)."""
+    from ..io.masks import load_mask
+
+    return load_mask(path)
 
 
 def _check_dir(directory: str | os.PathLike) -> Path:
