@@ -93,3 +93,15 @@ def test_atomic_writes_respect_the_umask(tmp_path):
         os.umask(old)
     assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o644
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp file left
+
+
+def test_large_reads_use_the_staging_buffer(ctx):
+    from r360gpu.gpu import context as C
+
+    x = np.random.default_rng(3).random(C._STAGED_READ_BYTES // 4 * 3 + 7).astype(np.float32)
+    buf = ctx.buffer(x)
+    np.testing.assert_array_equal(ctx.read(buf, np.float32), x)
+    np.testing.assert_array_equal(ctx.read(buf, np.float32, 1000, offset=400), x[100:1100])  # small: direct
+    np.testing.assert_array_equal(ctx.read(buf, np.float32, x.size - 10, offset=40), x[10:])  # large, offset
+    small_then_large = ctx.buffer(np.arange(10, dtype=np.uint8))
+    np.testing.assert_array_equal(ctx.read(small_then_large, np.uint8, 10), np.arange(10))

@@ -45,6 +45,7 @@ _WANTED_LIMITS = (
     "max-storage-buffers-per-shader-stage",
 )
 _OPTIONAL_FEATURES = ("subgroup", "timestamp-query", "shader-f16")
+_STAGED_READ_BYTES = 256 * 1024  # reads this large use the reusable staging buffer
 
 
 @dataclass(frozen=True)
@@ -97,6 +98,7 @@ class GpuContext:
         self._modules: dict[str, Any] = {}
         self._pipelines: dict[tuple, Any] = {}
         self._scratch: dict = {}
+        self._staging = None
         self._lock = threading.Lock()
 
     # -- construction -----------------------------------------------------
@@ -210,14 +212,36 @@ class GpuContext:
         self.queue.write_buffer(buffer, offset, np.ascontiguousarray(data))
 
     def read(self, buffer, dtype=np.uint8, count: int | None = None, offset: int = 0) -> np.ndarray:
-        """Copy ``count`` elements of ``dtype`` from ``buffer`` (at byte ``offset``) to the host."""
+        """Copy ``count`` elements of ``dtype`` from ``buffer`` (at byte ``offset``) to the host.
+
+        Large reads go through one reusable mappable staging buffer (a fresh
+        staging buffer per read costs more than the copy itself: 52 MB read
+        in 12 ms instead of 80-180 ms on lavapipe).
+        """
         itemsize = np.dtype(dtype).itemsize
         size = buffer.size - offset if count is None else count * itemsize
         if size <= 0:
             return np.zeros(0, dtype=dtype)
         padded = int(math.ceil(size / 4) * 4)
-        raw = self.queue.read_buffer(buffer, offset, padded)
-        return np.frombuffer(raw, dtype=np.uint8)[:size].view(dtype).copy()
+        if padded < _STAGED_READ_BYTES:
+            raw = self.queue.read_buffer(buffer, offset, padded)
+            return np.frombuffer(raw, dtype=np.uint8)[:size].view(dtype).copy()
+        with self._lock:
+            staging = self._staging
+            if staging is None or staging.size < padded:
+                if staging is not None:
+                    staging.destroy()
+                staging = self._staging = self.device.create_buffer(
+                    label="r360gpu-staging", size=padded, usage=MAP_READ | COPY_DST)
+            enc = self.device.create_command_encoder()
+            enc.copy_buffer_to_buffer(buffer, offset, staging, 0, padded)
+            self.queue.submit([enc.finish()])
+            staging.map_sync(MAP_READ, 0, padded)
+            try:
+                out = np.frombuffer(staging.read_mapped(0, padded, copy=False), dtype=np.uint8)[:size].view(dtype).copy()
+            finally:
+                staging.unmap()
+        return out
 
     # -- dispatch ---------------------------------------------------------
     def grid(self, groups: int) -> tuple[int, int, int]:
