@@ -73,7 +73,7 @@ def main() -> int:
 
     from r360gpu.gpu import get_context
     from r360gpu.probes.registry import parse_probe_spec
-    from r360gpu.scoring import EvaluateOptions, evaluate
+    from r360gpu.pipeline import EvaluateOptions, evaluate
     from r360gpu.synthetic import generate_benchmark
 
     ctx = get_context()

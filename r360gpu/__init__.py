@@ -2,7 +2,7 @@
 
 Data flows one way through the sub-packages:
 ``io`` (load) -> ``render`` -> ``probes`` -> ``metrics`` (measure)
--> ``aggregate`` -> ``report``.  ``gpu`` and ``kernels`` are the device layer
+-> ``aggregate`` -> ``report``; ``pipeline`` runs the stages per view.  ``gpu`` and ``kernels`` are the device layer
 used by ``render`` and ``metrics``; ``cli`` drives everything.
 """
 from __future__ import annotations
@@ -14,8 +14,12 @@ __all__ = ["evaluate", "scene_from_objects", "EvaluateOptions", "__version__"]
 
 def __getattr__(name):
     # Imported lazily so `import r360gpu` stays light (no wgpu, scipy, cv2).
-    if name in ("evaluate", "scene_from_objects", "EvaluateOptions"):
-        from . import scoring
+    if name in ("evaluate", "EvaluateOptions"):
+        from . import pipeline
 
-        return getattr(scoring, name)
+        return getattr(pipeline, name)
+    if name == "scene_from_objects":
+        from .bundle import scene_from_objects
+
+        return scene_from_objects
     raise AttributeError(f"module 'r360gpu' has no attribute {name!r}")

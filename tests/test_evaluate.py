@@ -6,7 +6,7 @@ import json
 import pytest
 
 from r360gpu.cli import main
-from r360gpu.scoring import EvaluateOptions, evaluate
+from r360gpu.pipeline import EvaluateOptions, evaluate
 from r360gpu.report.outputs import write_outputs
 from r360gpu.synthetic import generate_benchmark
 
@@ -117,3 +117,43 @@ def test_scene_from_objects_with_renders_already_on_the_device(bundle, ctx):
     a, r = _axes(res)["recoloured"], _axes(ref)["recoloured"]
     assert a["s_geo"] == r["s_geo"] and a["s_sem"] == r["s_sem"] and a["s_str"] == r["s_str"]
     assert res["scenes"]["room"]["sources"]["pre"]["kind"] == "device"
+
+
+def test_pictures_are_outputs_the_view_cache_knows(bundle, tmp_path, ctx):
+    """A run without pictures, then one with: the pictures appear; a deleted one is written again."""
+    opts = dict(views=("view_00[12]",), boundary=False, **OPTS)
+    out = tmp_path / "o"
+    first = evaluate(bundle, out=out, options=EvaluateOptions(pictures=False, **opts), ctx=ctx, progress=False)
+    assert not (out / "pictures").exists()
+    assert all(not e["pictures"] for e in first["scenes"]["room"]["methods"].values())
+    second = evaluate(bundle, out=out, options=EvaluateOptions(**opts), ctx=ctx, progress=False)
+    pics = second["scenes"]["room"]["methods"]["clean"]["pictures"]
+    assert set(pics) == {"view_001", "view_002"} and all((out / p).is_file() for p in pics.values())
+    assert _axes(second) == _axes(first)
+    gone = out / pics["view_002"]
+    gone.unlink()
+    third = evaluate(bundle, out=out, options=EvaluateOptions(**opts), ctx=ctx, progress=False)
+    assert gone.is_file() and _axes(third) == _axes(first)
+    # everything there: nothing is rendered again
+    fourth = evaluate(bundle, out=out, options=EvaluateOptions(**opts), ctx=ctx, progress=False)
+    assert "render" not in fourth["timing"]["stages_s"]
+
+
+def test_every_source_is_rendered_once_per_view(bundle, ctx, monkeypatch):
+    """The appearance probe's fit renders of pre are the renders the views are scored with."""
+    from collections import Counter
+
+    from r360gpu.render.sources import SceneSource
+
+    calls = Counter()
+    images = SceneSource.images
+
+    def counting(self, view, camera):
+        calls[(str(self.path), view)] += 1
+        return images(self, view, camera)
+
+    monkeypatch.setattr(SceneSource, "images", counting)
+    res = evaluate(bundle, options=EvaluateOptions(boundary=False, **OPTS), ctx=ctx, progress=False)
+    n_sources = 2 + len(res["scenes"]["room"]["methods"])  # pre, reference, methods
+    assert len(calls) == n_sources * len(res["scenes"]["room"]["views"])
+    assert set(calls.values()) == {1}

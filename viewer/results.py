@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from r360gpu.errors import InputError
-from r360gpu.scoring import CACHE_DIR  # where ``r360gpu score`` keeps its caches, beside results.json
+from r360gpu.pipeline import CACHE_DIR  # where ``r360gpu score`` keeps its caches, beside results.json
 from r360gpu.metrics.record import ViewRecord
 from r360gpu.metrics.semantic import XI_DEFAULT
 

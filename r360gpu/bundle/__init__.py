@@ -48,10 +48,12 @@ from __future__ import annotations
 from .load import CONFIG_NAME, check_bundle, inspect_bundle, load_bundle, view_name
 from .model import (DEPTH_MODES, RESERVED_METHOD_NAMES, Bundle, BundleError, BundleOptions, Problem,
                     SourceSpec)
+from .objects import is_from_objects, scene_from_objects
 from .remove360_layout import DEFAULT_METHOD_NAME, PROMPT_FILE, is_remove360_folder
 
 __all__ = [
     "Bundle", "BundleOptions", "SourceSpec", "Problem", "BundleError",
     "load_bundle", "check_bundle", "inspect_bundle", "view_name", "is_remove360_folder",
+    "scene_from_objects", "is_from_objects",
     "CONFIG_NAME", "RESERVED_METHOD_NAMES", "DEPTH_MODES", "DEFAULT_METHOD_NAME", "PROMPT_FILE",
 ]

@@ -54,7 +54,7 @@ def register(sub) -> None:
 
 
 def options_from_args(args):
-    from ..scoring import EvaluateOptions
+    from ..pipeline import EvaluateOptions
     from ..errors import InputError
 
     for x in args.xi:
@@ -109,7 +109,7 @@ def probes_from_args(args):
 
 
 def score_and_report(bundles, out, args) -> int:
-    from ..scoring import evaluate
+    from ..pipeline import evaluate
     from ..report.outputs import summary_lines, write_outputs
 
     sem, stru = probes_from_args(args)

@@ -1,0 +1,49 @@
+"""Cross-scene pooling of the results document: the aggregate tables and the
+xi and boundary sweeps pooled over views like the Overall row."""
+from __future__ import annotations
+
+import numpy as np
+
+from .results import axis_cells
+from .summary import aggregate_tables
+
+
+def wmean(pairs):
+    """Weighted mean of (value, weight) pairs; the plain mean when no weight is positive."""
+    w = sum(p[1] for p in pairs)
+    if w <= 0:
+        return float(np.mean([p[0] for p in pairs])) if pairs else None
+    return float(sum(v * wt for v, wt in pairs) / w)
+
+
+def pooled_sensitivity(scenes: dict, methods, scene_names) -> dict:
+    """The xi sweep and the boundary sweep per method, each scene weighted by its n_views."""
+    sens: dict = {"xi": {}, "boundary": {}}
+    for m in methods:
+        acc: dict = {}
+        bnd: dict = {}
+        for s in scene_names:
+            ax = scenes[s]["methods"][m]["axes"]
+            w = ax.get("n_views") or 0
+            for k, v in (ax.get("acc_seg") or {}).items():
+                if v is not None:
+                    acc.setdefault(k, []).append((v, w))
+            for row, vals in (ax.get("boundary") or {}).items():
+                for lab, v in vals.items():
+                    if v is not None:
+                        bnd.setdefault(row, {}).setdefault(lab, []).append((v, w))
+        sens["xi"][m] = {k: wmean(v) for k, v in acc.items()}
+        sens["boundary"][m] = {row: {lab: wmean(v) for lab, v in labs.items()} for row, labs in bnd.items()}
+    return sens
+
+
+def aggregate_results(results: dict, *, n_boot: int, n_perm: int, seed: int) -> None:
+    """Add ``aggregate`` and ``sensitivity`` (or a note why not) to a results document."""
+    cells = axis_cells(results["scenes"])
+    if cells is None:
+        results["aggregate"] = None
+        results.setdefault("notes", []).append(
+            "aggregate tables need every scene to have the same methods and all three axes")
+        return
+    results["aggregate"] = aggregate_tables(cells, n_boot=n_boot, n_perm=n_perm, seed=seed)
+    results["sensitivity"] = pooled_sensitivity(results["scenes"], cells.methods, cells.scenes)

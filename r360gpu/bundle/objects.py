@@ -1,0 +1,46 @@
+"""Scenes built from in-memory objects (no files): library use from another pipeline."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .model import Bundle, BundleOptions
+
+
+def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, *, reference=None,
+                       cameras: dict | None = None, background=(0.0, 0.0, 0.0), depth: str = "expected",
+                       reference_free: bool = False) -> Bundle:
+    """A scene to pass to :func:`r360gpu.evaluate` without files.
+
+    masks: {view: bool (H, W) target mask}; the keys are the evaluation views.
+    pre, reference, methods[...]: each a :class:`~r360gpu.io.Gaussians`
+        (rendered at ``cameras``), a
+        :class:`~r360gpu.render.sources.DeviceViewsSource` (renders another
+        GPU pipeline already holds on the device), or a bundle ``SourceSpec``.
+    cameras: {view: Camera}, needed when any source is rendered here.
+    """
+    views = sorted(masks)
+    if not views:
+        raise InputError(f"scene {name!r}: no views (masks is empty)")
+    if not methods:
+        raise InputError(f"scene {name!r}: no methods")
+    missing = [v for v in views if cameras is not None and v not in cameras]
+    if missing:
+        raise InputError(f"scene {name!r}: views without a camera: {missing[:5]}")
+    return Bundle(root=Path("."), name=name, prompt=prompt, views=views,
+                  cameras=None if cameras is None else {v: cameras[v] for v in views},
+                  masks={v: np.asarray(masks[v]) for v in views}, pre=pre, reference=reference,
+                  methods=dict(methods),
+                  options=BundleOptions(background=tuple(background), depth=depth, reference_free=reference_free),
+                  layout="objects")
+
+
+def is_from_objects(bundle: Bundle) -> bool:
+    """True when some source or mask is an object rather than a file spec."""
+    from .model import SourceSpec
+
+    specs = [bundle.pre, bundle.reference, *bundle.methods.values()]
+    return not (all(s is None or isinstance(s, SourceSpec) for s in specs)
+                and not any(isinstance(m, np.ndarray) for m in bundle.masks.values()))

@@ -1,0 +1,115 @@
+"""The run's caches under ``OUT/.r360cache``: per-view cells and probe outputs.
+
+* View cache: ``views/<key>/<scene>/<method>/<view>.json``, one JSON cell per
+  (method, view): the :class:`~r360gpu.metrics.record.ViewRecord`, the
+  boundary table and the path of the view's picture.  ``key`` digests
+  everything that changes a per-view value (version, the bundle's
+  fingerprint, scoring options, probe descriptions, structural mode, depth
+  mode, LPIPS model), so a changed input or option misses.  A view is served
+  from the cache only when every method's cell is there and, when pictures
+  are asked for, every cell names a picture that exists: pictures are
+  outputs of the run, so a run after ``--no-pictures`` or after a picture was
+  deleted recomputes the view and writes it.
+* Probe cache: ``probes/``, :class:`~r360gpu.probes.cache.ProbeCache`, keyed
+  by image content, so re-scoring never re-runs a probe on an unchanged image.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+
+CACHE_DIR = ".r360cache"
+
+
+def digest(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+class RunCache:
+    """The cache folder of one output folder (None out: no caching at all)."""
+
+    def __init__(self, out: Path | None, *, force: bool = False):
+        self.out = out
+        self.root = out / CACHE_DIR if out is not None else None
+        if force and self.root is not None and self.root.exists():
+            shutil.rmtree(self.root)
+        self.probes = None
+        if self.root is not None:
+            from ..probes.cache import ProbeCache
+
+            self.probes = ProbeCache(self.root / "probes")
+
+    def wrap_probe(self, probe):
+        """The probe with its outputs going through the probe cache."""
+        if self.probes is None:
+            return probe
+        from ..probes.cache import cached
+
+        return cached(probe, self.probes)
+
+    def views(self, scene: str, key_parts: dict) -> "ViewCache | None":
+        if self.root is None:
+            return None
+        return ViewCache(self.root / "views" / digest({"version": __version__, **key_parts}) / scene, self.out)
+
+
+class ViewCache:
+    """Per-view cells of one scene under one key."""
+
+    def __init__(self, folder: Path, out: Path):
+        self.folder = folder
+        self.out = out
+
+    def _path(self, method: str, view: str) -> Path:
+        return self.folder / method / f"{view}.json"
+
+    def load_cell(self, method: str, view: str) -> dict | None:
+        p = self._path(method, view)
+        if not p.is_file():
+            return None
+        try:
+            return json.loads(p.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None  # a damaged cache entry is recomputed
+
+    def load_view(self, methods, view: str, *, pictures: bool) -> dict | None:
+        """Every method's cell of ``view``, or None when any is missing (or its picture is)."""
+        cells = {}
+        for m in methods:
+            cell = self.load_cell(m, view)
+            if not cell:
+                return None
+            if pictures and not (cell.get("picture") and (self.out / cell["picture"]).is_file()):
+                return None
+            cells[m] = cell
+        return cells
+
+    def store(self, method: str, view: str, cell: dict) -> None:
+        from ..util.atomic import write_json
+
+        write_json(self._path(method, view), cell, allow_nan=False)
+
+
+def fingerprint(bundle, sources) -> str:
+    """The bundle's file fingerprint, or for scenes built from objects a hash
+    of the sources' descriptions and the target masks.
+
+    sources: [pre, reference or None, *methods], the opened sources.
+    """
+    from ..bundle import is_from_objects
+
+    if not is_from_objects(bundle):
+        return bundle.fingerprint()
+    h = hashlib.sha256()
+    for s in sources:
+        h.update(json.dumps(None if s is None else s.describe(), sort_keys=True, default=str).encode())
+    for v in bundle.views:
+        m = bundle.masks[v]
+        h.update(np.ascontiguousarray(m).tobytes() if isinstance(m, np.ndarray) else str(m).encode())
+    return h.hexdigest()

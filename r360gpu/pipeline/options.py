@@ -1,0 +1,66 @@
+"""Scoring options: what ``r360gpu score`` and ``r360gpu demo`` take on the command line."""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+from ..metrics.geometric import GhtParams
+from ..metrics.semantic import XI_SWEEP
+
+
+@dataclass
+class EvaluateOptions:
+    """Scoring options (the CLI flags of ``r360gpu score``).
+
+    xis: acc_seg thresholds reported (0.3 is s_sem).
+    compat: geometric axis in the reference pipeline's 8-bit mode.
+    ght: GHT parameters (a :class:`~r360gpu.metrics.geometric.GhtParams`; a
+        dict with its fields is accepted and converted).
+    reference_free: True forces s_str = 1 - sim(pre, post) even with a
+        reference; None follows each bundle's option.
+    depth: "expected" or "median" depth; None follows each bundle.
+    views: glob patterns selecting views by name (None: the bundle's views).
+    boundary: run the mask-boundary sweep (E15..D15).
+    lpips_model: path of an LPIPS ONNX model (None: LPIPS not computed).
+    pictures: write a contact sheet per (method, view) and plots.
+    fit_views: views of the pre rendering a fitted probe learns from.
+    n_boot, n_perm, seed: statistics of the aggregate tables.
+    """
+
+    xis: tuple = XI_SWEEP
+    compat: bool = False
+    ght: GhtParams = field(default_factory=GhtParams)
+    reference_free: bool | None = None
+    depth: str | None = None
+    views: tuple | None = None
+    boundary: bool = True
+    lpips_model: str | None = None
+    pictures: bool = True
+    fit_views: int = 8
+    n_boot: int = 20000
+    n_perm: int = 5000
+    seed: int = 0
+
+    def __post_init__(self):
+        if isinstance(self.ght, dict):
+            self.ght = GhtParams(**self.ght)
+
+    def scoring_key(self) -> dict:
+        """The options that change per-view values (part of the view cache key).
+
+        Pictures and the statistics of the aggregate tables are left out: they
+        do not change a per-view value.
+        """
+        d = asdict(self)  # the GhtParams becomes {"nu", "tau", "kappa", "omega"}
+        for k in ("pictures", "n_boot", "n_perm", "seed"):
+            d.pop(k)
+        d["xis"] = [float(x) for x in self.xis]
+        d["views"] = None if self.views is None else list(self.views)
+        return d
+
+
+def default_probes():
+    """The weight-free built-in probes: (semantic list, structural list)."""
+    from ..probes.builtin_semantic import BuiltinAppearanceProbe
+    from ..probes.builtin_structural import BuiltinStructuralProbe
+
+    return [BuiltinAppearanceProbe()], [BuiltinStructuralProbe()]
