@@ -38,7 +38,11 @@ def pooled_sensitivity(scenes: dict, methods, scene_names) -> dict:
 
 
 def aggregate_results(results: dict, *, n_boot: int, n_perm: int, seed: int) -> None:
-    """Add ``aggregate`` and ``sensitivity`` (or a note why not) to a results document."""
+    """Add ``aggregate`` and ``sensitivity`` (or a note why not) to a results document, and
+    ``validity``: {axis: [scenes where the axis is "weak" or "blind"]}, the Overall cells to mark."""
+    from .validity import not_ok_cells
+
+    results["validity"] = not_ok_cells(results["scenes"])
     cells = axis_cells(results["scenes"])
     if cells is None:
         results["aggregate"] = None

@@ -28,6 +28,9 @@ def add_scoring_options(p) -> None:
     g.add_argument("--lpips", metavar="ONNX", default=None, help="LPIPS ONNX model (else LPIPS is not computed)")
     g.add_argument("--no-boundary", action="store_true", help="skip the mask erosion/dilation sweep")
     g.add_argument("--no-pictures", action="store_true", help="skip per-view contact sheets")
+    g.add_argument("--no-controls", action="store_true",
+                   help="skip the identity and reference controls (the unedited scene and the reference scored "
+                        "as methods, never ranked) that give each axis its validity verdict")
     g = p.add_argument_group("statistics")
     g.add_argument("--n-boot", type=int, default=20000, help="bootstrap resamples (default 20000)")
     g.add_argument("--n-perm", type=int, default=5000, help="permutations (default 5000)")
@@ -69,6 +72,7 @@ def options_from_args(args):
         boundary=not args.no_boundary,
         lpips_model=args.lpips,
         pictures=not args.no_pictures,
+        controls=not args.no_controls,
         n_boot=args.n_boot,
         n_perm=args.n_perm,
         seed=args.seed,

@@ -99,6 +99,7 @@ def evaluate(
 def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool) -> dict:
     """Every view of one scene (from the view cache where it has them); the scene's results entry."""
     from ..aggregate.results import method_axes
+    from ..aggregate.validity import scene_validity
     from ..metrics.record import ViewRecord
 
     bundle, opts = run.bundle, run.opts
@@ -106,11 +107,17 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
         "bundle": fingerprint(bundle, [run.pre, run.reference, *run.methods.values()]),
         "options": opts.scoring_key(), "probes": run.probes_desc, "mode": run.mode, "depth": run.depth_mode,
         "lpips": run.lpips.describe() if run.lpips else None})
-    records: dict = {m: [] for m in bundle.methods}
-    boundaries: dict = {m: [] for m in bundle.methods}
-    pictures: dict = {m: {} for m in bundle.methods}
+    scored = [*bundle.methods, *run.controls.values()]
+    records: dict = {m: [] for m in scored}
+    boundaries: dict = {m: [] for m in scored}
+    pictures: dict = {m: {} for m in scored}
     for v in _progress(run.views, bundle.name, progress):
-        cells = view_cache.load_view(bundle.methods, v, pictures=sink.enabled) if view_cache else None
+        cells = None
+        if view_cache:
+            cells = view_cache.load_view(bundle.methods, v, pictures=sink.enabled)
+            if cells is not None:
+                ctl = view_cache.load_view(run.controls.values(), v, pictures=False)
+                cells = None if ctl is None else {**cells, **ctl}
         if cells is None:
             cells = score_view(run, v, sink)
             if view_cache is not None:
@@ -135,6 +142,11 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     for m in bundle.methods:
         axes = method_axes(records[m], xis=opts.xis, boundary=boundaries[m] if opts.boundary else None)
         scene["methods"][m] = {"axes": axes, "views": [r.to_dict() for r in records[m]], "pictures": pictures[m]}
+    if run.controls:
+        scene["controls"] = {c: {"source": src, "axes": method_axes(records[src], xis=opts.xis),
+                                 "views": [r.to_dict() for r in records[src]]}
+                             for c, src in run.controls.items()}
+    scene["validity"], scene["validity_notes"], scene["detectability"] = scene_validity(scene, xi=0.3)
     return scene
 
 

@@ -23,6 +23,9 @@ class EvaluateOptions:
     lpips_model: path of an LPIPS ONNX model (None: LPIPS not computed).
     pictures: write a contact sheet per (method, view) and plots.
     fit_views: views of the pre rendering a fitted probe learns from.
+    controls: also score the controls of each scene (the unedited pre
+        scored as if it were a method, and the reference likewise), from
+        which each axis gets a validity verdict (``aggregate.validity``).
     n_boot, n_perm, seed: statistics of the aggregate tables.
     """
 
@@ -36,6 +39,7 @@ class EvaluateOptions:
     lpips_model: str | None = None
     pictures: bool = True
     fit_views: int = 8
+    controls: bool = True
     n_boot: int = 20000
     n_perm: int = 5000
     seed: int = 0
@@ -47,11 +51,12 @@ class EvaluateOptions:
     def scoring_key(self) -> dict:
         """The options that change per-view values (part of the view cache key).
 
-        Pictures and the statistics of the aggregate tables are left out: they
-        do not change a per-view value.
+        Pictures, controls (cached under their own names) and the statistics
+        of the aggregate tables are left out: they do not change a method's
+        per-view value.
         """
         d = asdict(self)  # the GhtParams becomes {"nu", "tau", "kappa", "omega"}
-        for k in ("pictures", "n_boot", "n_perm", "seed"):
+        for k in ("pictures", "n_boot", "n_perm", "seed", "controls"):
             d.pop(k)
         d["xis"] = [float(x) for x in self.xis]
         d["views"] = None if self.views is None else list(self.views)

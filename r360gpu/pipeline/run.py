@@ -7,6 +7,9 @@ holds
   method is compared against (every method uses the scene's ``pre`` today; a
   method that brings its own pre adds an entry here and nothing else changes);
 * ``reference`` (or None) and ``methods``: the other sources;
+* ``controls``: {control: source name}, the sources scored as if they were
+  methods to show what each axis reads on an unedited scene ("identity": the
+  pre) and on a real removal ("reference");
 * the target masks (read on first use, dropped once the view is done);
 * the probes, already wrapped in the probe cache, and LPIPS;
 * ``warnings``: a :class:`WarningLog` the stages add to.
@@ -87,6 +90,16 @@ class SceneRun:
         self.reference = src(bundle.reference) if bundle.reference else None
         self.methods = {m: src(s) for m, s in bundle.methods.items()}
         self.pre_of = {m: "pre" for m in bundle.methods}
+        # The controls, scored like methods but never ranked: {control: source
+        # name}.  Their cells are cached under the source's name, which no
+        # method may take (bundle.model.RESERVED_METHOD_NAMES).
+        self.controls = {}
+        if opts.controls:
+            self.controls["identity"] = "pre"
+            if self.reference is not None:
+                self.controls["reference"] = "reference"
+        for src_name in self.controls.values():
+            self.pre_of[src_name] = "pre"
         timer.add("load", t0)
         self._masks: dict = {}
         self._fit_renders: dict = {}

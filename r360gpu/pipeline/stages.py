@@ -90,8 +90,9 @@ def structural_pairs(run, controls: Controls, pre_name: str, str_post: dict) -> 
     return {p.name: (controls.str_pre[pre_name][p.name], str_post[p.name]) for p in run.stru}
 
 
-def measure_method(run, method: str, view: str, mask, controls: Controls, post, sem_post, pairs):
-    """The three axes, fidelity and the boundary sweep of one method at one view.
+def measure_method(run, method: str, view: str, mask, controls: Controls, post, sem_post, pairs, *,
+                   boundary_sweep: bool = True):
+    """The three axes, fidelity and the boundary sweep (unless ``boundary_sweep`` is False) of one method at one view.
 
     Returns (ViewRecord, boundary table or None, GeometricView or None).
     """
@@ -116,7 +117,7 @@ def measure_method(run, method: str, view: str, mask, controls: Controls, post, 
                               probes=run.probes_desc["semantic"] + run.probes_desc["structural"],
                               semantic=sem_views, structural=str_views, geometric=geo, fidelity=fid)
     boundary = None
-    if opts.boundary and run.sem and run.stru:
+    if boundary_sweep and opts.boundary and run.sem and run.stru:
         p0s, p0t = run.sem[0].name, run.stru[0].name
         a, b = pairs[p0t]
         table = boundary_sensitivity(
@@ -162,4 +163,34 @@ def score_view(run, view: str, sink) -> dict:
         record, boundary, geo = measure_method(run, m, view, mask, controls, post, sem_post, pairs)
         picture = picture_method(run, sink, m, view, mask, controls, post, sem_post, pairs, geo)
         cells[m] = {"record": record.to_dict(), "boundary": boundary, "picture": picture}
+    cells.update(score_controls(run, view, mask, controls))
+    return cells
+
+
+def score_controls(run, view: str, mask, controls: Controls) -> dict:
+    """The controls' cells of one view, keyed by source name ("pre", "reference").
+
+    The renders are the ones the methods were compared with.  The probes read
+    them as the renderings they are ("pre", "ref"), so precomputed probes use
+    the masks given for those renderings, and a reading already taken is
+    reused.  No boundary sweep, no picture.
+    """
+    cells = {}
+    for src in run.controls.values():
+        rendering, img = ("pre", controls.pres["pre"]) if src == "pre" else ("ref", controls.ref)
+        t = time.perf_counter()
+        if src == "pre":
+            sem_post = controls.sem_pre["pre"]
+        else:
+            sem_post = {p.name: p.predict(_probe_views(view, img, rendering), run.bundle.prompt)[0] for p in run.sem}
+        if src == "pre" and run.mode == "reference_free":
+            str_post = controls.str_pre["pre"]
+        elif src == "reference" and run.mode == "reference":
+            str_post = controls.str_ref
+        else:
+            str_post = {p.name: p.predict(_probe_views(view, img, rendering))[0] for p in run.stru}
+        run.timer.add("probe", t)
+        pairs = structural_pairs(run, controls, "pre", str_post)
+        record, _, _ = measure_method(run, src, view, mask, controls, img, sem_post, pairs, boundary_sweep=False)
+        cells[src] = {"record": record.to_dict(), "boundary": None, "picture": None}
     return cells

@@ -40,12 +40,19 @@ def summary_lines(results: dict) -> list[str]:
         pooling = agg.get("overall_pooling", "")
         lines.append(f"overall ({pooling}):")
         lines.append(f"  {'method':<18}{'s_sem':>8}{'s_geo':>8}{'s_str':>8}{'RQS':>8}{'AvgRank':>9}")
+        flagged = {a for a, scenes in (results.get("validity") or {}).items() if scenes}
         for m, ax in overall.items():
-            def f(x):
-                return f"{x:8.3f}" if isinstance(x, (int, float)) else f"{'-':>8}"
+            def f(x, axis=None):
+                mark = "!" if axis in flagged else " "
+                return f"{x:7.3f}{mark}" if isinstance(x, (int, float)) else f"{'-':>7}{mark}"
             r = ranks.get(m, {}).get("avg_rank")
-            lines.append(f"  {m:<18}{f(ax.get('s_sem'))}{f(ax.get('s_geo'))}{f(ax.get('s_str'))}{f(ax.get('rqs'))}"
+            lines.append(f"  {m:<18}{f(ax.get('s_sem'), 's_sem')}{f(ax.get('s_geo'), 's_geo')}"
+                         f"{f(ax.get('s_str'), 's_str')}{f(ax.get('rqs'))}"
                          f"{(f'{r:9.2f}' if r is not None else f'{chr(45):>9}')}")
+        if flagged:
+            where = "; ".join(f"{a} in {', '.join(s)}" for a, s in results["validity"].items() if s)
+            lines.append(f"  ! axis not 'ok' (weak or blind probe) in some scene: {where}")
+    lines += control_lines(results)
     t = results.get("timing") or {}
     if t:
         stages = ", ".join(f"{k} {v:.1f} s" for k, v in t.get("stages_s", {}).items())
@@ -55,4 +62,24 @@ def summary_lines(results: dict) -> list[str]:
         lines.append(f"time: {total:.1f} s for {views} views{rate} ({stages})")
     for note in results.get("notes", []):
         lines.append(f"note: {note}")
+    return lines
+
+
+def control_lines(results: dict) -> list[str]:
+    """Per scene: the controls' axes (never ranked) and every axis whose verdict is not "ok"."""
+    lines = []
+    for scene, s in results.get("scenes", {}).items():
+        controls = s.get("controls") or {}
+        validity = s.get("validity") or {}
+        if not controls and not validity:
+            continue
+        verdicts = ", ".join(f"{a} {v}" for a, v in validity.items() if v is not None)
+        lines.append(f"{scene}: validity {verdicts}" if verdicts else f"{scene}:")
+        for c, entry in controls.items():
+            ax = entry.get("axes") or {}
+            vals = "  ".join(f"{a} {ax[a]:.3f}" if isinstance(ax.get(a), (int, float)) else f"{a} -"
+                             for a in ("s_sem", "s_geo", "s_str"))
+            lines.append(f"  control {c:<10} {vals}")
+        for note in (s.get("validity_notes") or {}).values():
+            lines.append(f"  {note}")
     return lines
