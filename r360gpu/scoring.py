@@ -33,7 +33,9 @@ class EvaluateOptions:
     """Scoring options (the CLI flags of ``r360gpu score``).
 
     xis: acc_seg thresholds reported (0.3 is s_sem).
-    compat: geometric axis in the reference pipeline's 8-bit mode.
+    compat: None/False (paper mode), "public" (True means it) or
+        "public-default": score as the public scripts do (see
+        :mod:`r360gpu.aggregate.compat`).
     ght: GHT parameters (nu, tau, kappa, omega).
     reference_free: True forces s_str = 1 - sim(pre, post) even with a
         reference; None follows each bundle's option.
@@ -47,7 +49,7 @@ class EvaluateOptions:
     """
 
     xis: tuple = XI_SWEEP
-    compat: bool = False
+    compat: bool | str | None = None
     ght: dict = field(default_factory=lambda: {"nu": 1000.0, "tau": 300.0, "kappa": 0.0, "omega": 0.0})
     reference_free: bool | None = None
     depth: str | None = None
@@ -59,6 +61,11 @@ class EvaluateOptions:
     n_boot: int = 20000
     n_perm: int = 5000
     seed: int = 0
+
+    def __post_init__(self):
+        from .metrics.compat import check_compat
+
+        self.compat = check_compat(self.compat)
 
     def scoring_key(self) -> dict:
         """The options that change per-view values (for the cache key)."""
@@ -141,6 +148,10 @@ def evaluate(
     if isinstance(bundles, (str, Path, Bundle)):
         bundles = [bundles]
     loaded = [b if isinstance(b, Bundle) else load_bundle(b) for b in bundles]
+    if opts.compat:  # public folders: depth is read as the public scripts read it (aggregate.compat)
+        from .bundle.remove360_layout import without_depth
+
+        loaded = [without_depth(b) for b in loaded]
     names = [b.name for b in loaded]
     if len(set(names)) != len(names):
         raise InputError(f"two bundles share a scene name: {names}")
@@ -170,6 +181,10 @@ def evaluate(
         scene_res, n = _evaluate_scene(
             bundle, opts, ctx, semantic_probes, structural_probes, probe_cache, cache_root, out, timer, progress, log
         )
+        if opts.compat:
+            from .aggregate.compat import apply_compat
+
+            apply_compat(scene_res, bundle, opts.compat, xis=opts.xis, ght=opts.ght)
         results["scenes"][bundle.name] = scene_res
         results["probes"] = scene_res.pop("_probes")
         n_views_done += n
