@@ -180,7 +180,8 @@ def compat_changed(
     kappa: float = 0.0,
     omega: float = 0.0,
 ) -> CompatResult:
-    """The reference pipeline's changed-pixel mask for one view.
+    """``gray < t`` of the ``"public"`` path for one view, before the mask PNG round trip
+    (:func:`public_changed` adds it; the two differ only for a constant mask).
 
     Args:
         delta: |ΔD|, shape (H, W), finite (see :func:`depth_delta`); the whole
