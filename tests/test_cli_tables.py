@@ -164,3 +164,16 @@ def test_python_dash_m_entry_point(tmp_path):
                           cwd=tmp_path, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert json.loads(out_json.read_text())["overall_pooling"] == "scene-macro"
+
+
+def test_paper_axes_print_that_the_overall_row_is_view_weighted(tmp_path, capsys):
+    from pathlib import Path
+
+    from r360gpu.cli.tables import OVERALL_NOTE
+
+    paper = Path(__file__).parent / "data" / "remove360_paper_axes.csv"
+    out_json = tmp_path / "t.json"
+    assert cli.main(["tables", str(paper), "--n-boot", "50", "--n-perm", "50", "--json", str(out_json)]) == 0
+    out = capsys.readouterr().out
+    assert "tab:main_results" in out and "view-weighted" in out and out.count(OVERALL_NOTE) == 1
+    assert json.loads(out_json.read_text())["notes"]["overall_pooling"] == OVERALL_NOTE

@@ -1,4 +1,8 @@
-"""Tests of r360gpu.metrics.compat against matplotlib, PIL and OpenCV doing what the reference code does."""
+"""Tests of r360gpu.metrics.compat against matplotlib, PIL and OpenCV doing what the public scripts do.
+
+The public code is modelled line by line with its dtypes (uint8 depths from PIL, float32
+differences, the uint8 negation that wraps); the folder-level parity against the public
+modules themselves is in tests/test_compat_public.py."""
 from __future__ import annotations
 
 import io
@@ -19,9 +23,13 @@ from r360gpu.errors import InputError  # noqa: E402
 from r360gpu.metrics.compat import (  # noqa: E402
     _GRAY_R,
     CompatResult,
+    check_compat,
     compat_changed,
     compat_quantise,
     depth_delta,
+    public_changed,
+    public_delta,
+    read_depth_public,
 )
 from r360gpu.metrics.ght import ght  # noqa: E402
 
@@ -74,10 +82,10 @@ def delta_family(kind: str, seed: int) -> np.ndarray:
     if kind == "uniform":
         return rng.random(shape, dtype=np.float32)
     if kind == "reference_8bit":
-        # What the reference sees: |difference| of 8-bit depths with zeros for missing depth.
-        pre = rng.integers(0, 256, shape) * (rng.random(shape) > 0.1)
-        post = np.where(rng.random(shape) < 0.3, rng.integers(0, 256, shape), pre)
-        return depth_delta(pre, post)
+        # What the scripts see: |difference| of 8-bit depths under their missing-depth rule.
+        pre = (rng.integers(0, 256, shape) * (rng.random(shape) > 0.1)).astype(np.uint8)
+        post = np.where(rng.random(shape) < 0.3, rng.integers(0, 256, shape), pre).astype(np.uint8)
+        return public_delta(pre, post)
     if kind == "bimodal":
         small = np.abs(rng.normal(0, 0.02, shape))
         large = rng.normal(rng.uniform(0.5, 3.0), 0.2, shape)
@@ -202,25 +210,137 @@ def test_bad_delta_raises_input_error(bad):
         compat_changed(bad)
 
 
-# --- depth_delta: the missing-depth rule ----------------------------------------------------
+# --- the public scripts' missing-depth rule, modelled with their exact dtypes ---------------
 
-def reference_style_delta(pre_u8: np.ndarray, post_u8: np.ndarray) -> np.ndarray:
-    """The reference's rule on 8-bit depths: post - pre in float32, zeroed where the
-    difference equals post (pre is 0) or equals -pre (post is 0), then absolute value."""
-    diff = post_u8.astype(np.float32) - pre_u8.astype(np.float32)
-    missing = (diff == post_u8.astype(np.float32)) | (diff == -pre_u8.astype(np.float32))
-    return np.abs(np.where(missing, np.float32(0), diff))
+def public_script_delta(depth1: np.ndarray, depth2: np.ndarray) -> np.ndarray:
+    """depth_diff.py's lines as they run: depth1 (before) and depth2 (after) are the uint8
+    arrays of PIL convert("L"), so ``-depth1`` is uint8 negation, which wraps modulo 256."""
+    assert depth1.dtype == np.uint8 and depth2.dtype == np.uint8
+    diff = depth2.astype(np.float32) - depth1.astype(np.float32)
+    diff[(diff == depth2) | (diff == -depth1)] = 0
+    return np.abs(diff)
 
 
-@pytest.mark.parametrize("seed", range(5))
-def test_depth_delta_matches_reference_rule_on_8bit_depths(seed):
-    rng = np.random.default_rng(400 + seed)
-    shape = (int(rng.integers(1, 40)), int(rng.integers(1, 40)))
-    pre = (rng.integers(0, 256, shape) * (rng.random(shape) > 0.2)).astype(np.uint8)
-    post = (rng.integers(0, 256, shape) * (rng.random(shape) > 0.2)).astype(np.uint8)
-    out = depth_delta(pre, post)
+def adversarial_pairs():
+    rng = np.random.default_rng(1000)
+    v = np.arange(256, dtype=np.uint8)
+    pre_all, post_all = np.meshgrid(v, v)  # every (pre, post) pair of 8-bit values once
+    yield "all_pairs", pre_all, post_all
+    yield "post_zero", v[None, :], np.zeros((1, 256), np.uint8)
+    yield "pre_zero", np.zeros((1, 256), np.uint8), v[None, :]
+    yield "both_zero", np.zeros((3, 4), np.uint8), np.zeros((3, 4), np.uint8)
+    yield "equal", v[None, :], v[None, :]
+    yield "pre_128", np.full((1, 256), 128, np.uint8), v[None, :]
+    for seed in range(3):
+        shape = (int(rng.integers(1, 40)), int(rng.integers(1, 40)))
+        pre = (rng.integers(0, 256, shape) * (rng.random(shape) > 0.2)).astype(np.uint8)
+        post = (rng.integers(0, 256, shape) * (rng.random(shape) > 0.2)).astype(np.uint8)
+        yield f"random{seed}", pre, post
+
+
+@pytest.mark.parametrize("name, pre, post", list(adversarial_pairs()), ids=lambda x: x if isinstance(x, str) else "")
+def test_public_delta_is_the_scripts_rule_bit_for_bit(name, pre, post):
+    out = public_delta(pre, post)
     assert out.dtype == np.float32
-    np.testing.assert_array_equal(out, reference_style_delta(pre, post))
+    np.testing.assert_array_equal(out, public_script_delta(pre, post))
+
+
+def test_only_post_missing_keeps_the_pre_depth():
+    pre = np.array([[0, 0, 7, 200, 128, 255]], np.uint8)
+    post = np.array([[0, 9, 0, 0, 0, 255]], np.uint8)
+    # pre 0: zeroed; post 0 alone: |dD| = D_pre (the uint8 wrap makes "diff == -pre" miss it).
+    np.testing.assert_array_equal(public_delta(pre, post), np.float32([[0, 0, 7, 200, 128, 0]]))
+    np.testing.assert_array_equal(public_script_delta(pre, post), np.float32([[0, 0, 7, 200, 128, 0]]))
+    # r360gpu's own rule (paper mode, pictures) zeroes both kinds of hole.
+    np.testing.assert_array_equal(depth_delta(pre, post), np.float32([[0, 0, 0, 0, 0, 0]]))
+
+
+def test_public_delta_on_float_depths_applies_the_effective_rule():
+    pre = np.array([[0.0, 1.5, 2.0, np.nan, 1.0, 4.0, -1.0, 3.0]], np.float32)
+    post = np.array([[3.0, 0.0, 2.5, 1.0, np.inf, 4.0, 2.0, -2.0]], np.float32)
+    expected = np.float32([[0.0, 1.5, 0.5, 0.0, 1.0, 0.0, 0.0, 3.0]])
+    np.testing.assert_array_equal(public_delta(pre, post), expected)
+
+
+def _png(path, arr, mode=None):
+    img = Image.fromarray(arr)
+    (img if mode is None else img.convert(mode)).save(path)
+    return path
+
+
+def test_depth_is_read_as_pil_convert_L(tmp_path):
+    # 16-bit: PIL clips at 255; RGB: ITU-R 601 luma (299 R + 587 G + 114 B) / 1000; palette: its colours.
+    p16 = tmp_path / "d16.png"
+    assert cv2.imwrite(str(p16), np.array([[0, 100, 255, 256, 300, 65535]], np.uint16))
+    np.testing.assert_array_equal(read_depth_public(p16), [[0, 100, 255, 255, 255, 255]])
+    rgb = np.array([[[255, 0, 0], [0, 255, 0], [0, 0, 255], [10, 20, 30]]], np.uint8)
+    np.testing.assert_array_equal(read_depth_public(_png(tmp_path / "rgb.png", rgb)), [[76, 150, 29, 18]])
+    grey = np.array([[0, 7, 100, 255]], np.uint8)
+    np.testing.assert_array_equal(read_depth_public(_png(tmp_path / "p.png", grey, "P")), grey)
+    np.testing.assert_array_equal(read_depth_public(_png(tmp_path / "g.png", grey)), grey)
+    (tmp_path / "bad.png").write_bytes(b"not a png")
+    with pytest.raises(InputError, match="bad.png"):
+        read_depth_public(tmp_path / "bad.png")
+
+
+def public_script_changed(delta: np.ndarray, save_intermediate: bool, tmp_path) -> np.ndarray:
+    """process_depth_pair's thresholding and evaluate_depth_scene's read-back, with matplotlib,
+    PIL and OpenCV: the intermediate round trip (or the raw uint8 cast), the 256-level
+    histogram, GHT, ``im_bw < t``, the mask saved with imsave(gray_r) and read as != 255."""
+    if save_intermediate:
+        im = np.array(Image.open(_imsave(tmp_path / "interm.png", delta)))
+    else:
+        im = np.clip(delta, 0, 255).astype(np.uint8)
+    im_bw = np.amax(im[..., :3], axis=-1) if im.ndim == 3 else im
+    n, _ = np.histogram(im_bw.ravel(), np.arange(-0.5, 256.5))
+    t = ght(n, np.arange(256), nu=1000, tau=300, kappa=0.0, omega=0.0).threshold
+    back = cv2.imread(str(_imsave(tmp_path / "final.png", im_bw < t)), cv2.IMREAD_GRAYSCALE)
+    return back != 255
+
+
+def _imsave(path, arr):
+    plt.imsave(str(path), arr, cmap=plt.cm.gray_r)
+    return path
+
+
+def _delta_cases():
+    rng = np.random.default_rng(77)
+    yield "constant", np.full((20, 30), 20, np.float32)
+    yield "zero", np.zeros((20, 30), np.float32)
+    for name, pre, post in adversarial_pairs():
+        yield name, public_script_delta(pre, post)
+    big = np.zeros((96, 128), np.float32)
+    big[30:70, 40:90] = rng.integers(120, 180, (40, 50))
+    big[35:45, 50:60] = rng.integers(5, 30, (10, 10))
+    yield "object", big
+    yield "uniform8bit", rng.integers(0, 256, (64, 64)).astype(np.float32)
+
+
+@pytest.mark.parametrize("mode", ["public", "public-default"])
+@pytest.mark.parametrize("name, delta", list(_delta_cases()), ids=lambda x: x if isinstance(x, str) else "")
+def test_public_changed_matches_the_scripts_round_trips(mode, name, delta, tmp_path):
+    res = public_changed(delta, mode)
+    expected = public_script_changed(delta, mode == "public", tmp_path)
+    np.testing.assert_array_equal(res.changed, expected)
+
+
+def test_default_path_marks_small_changes_and_constant_masks_read_as_unchanged():
+    delta = np.zeros((96, 128), np.float32)
+    delta[30:70, 40:90] = 200.0
+    delta[0:20, 0:20] = 3.0
+    small = public_changed(delta, "public-default")
+    large = public_changed(delta, "public")
+    assert large.changed[30:70, 40:90].all() and not large.changed[:20, :20].any()
+    assert not small.changed[30:70, 40:90].any() and small.changed[:20, :20].all()
+    # Everything below the split: "im < t" is all True, saved all white, read as nothing changed.
+    assert not public_changed(np.full((8, 8), 20, np.float32), "public-default").changed.any()
+
+
+def test_compat_mode_names():
+    assert check_compat(True) == "public" and check_compat(None) is None and check_compat(False) is None
+    assert check_compat("public-default") == "public-default"
+    with pytest.raises(InputError, match="public-default"):
+        check_compat("8bit")
 
 
 def test_depth_delta_on_float_depths():
@@ -239,5 +359,6 @@ def test_depth_delta_on_float_depths():
      (np.zeros((0, 0)), np.zeros((0, 0))), (np.array([["a"]]), np.array([["b"]]))],
 )
 def test_depth_delta_rejects_bad_input(pre, post):
-    with pytest.raises(InputError):
-        depth_delta(pre, post)
+    for f in (depth_delta, public_delta):
+        with pytest.raises(InputError):
+            f(pre, post)

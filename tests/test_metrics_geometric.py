@@ -2,8 +2,9 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from r360gpu.metrics.compat import compat_changed, depth_delta
+from r360gpu.metrics.compat import public_changed, public_delta
 from r360gpu.metrics.geometric import GhtParams, acc_depth, acc_depth_view
 from r360gpu.metrics.ght import ght
 
@@ -35,14 +36,20 @@ def test_float_mode_matches_oracle(ctx):
     assert lo < v.threshold < hi
 
 
-def test_compat_mode_matches_reference_arithmetic(ctx):
+@pytest.mark.parametrize("compat, mode", [(True, "public"), ("public", "public"), ("public-default", "public-default")])
+def test_compat_modes_use_the_public_rule(ctx, compat, mode):
     rng = np.random.default_rng(1)
     pre, post, mask = _object_scene(rng)
-    v = acc_depth_view(pre, post, mask, compat=True)
-    ref = compat_changed(depth_delta(pre, post))
+    v = acc_depth_view(pre, post, mask, compat=compat)
+    ref = public_changed(public_delta(pre, post), mode)
     np.testing.assert_array_equal(v.changed, ref.changed)
-    assert v.mode == "compat" and v.threshold == ref.threshold
-    assert abs(v.acc_depth - 25 / 30) < 1e-9
+    assert v.mode == mode and v.threshold == ref.threshold
+    if mode == "public":
+        assert abs(v.acc_depth - 25 / 30) < 1e-9
+    else:
+        # The default path thresholds raw |dD| (0 and 3 here) with "< t": both levels lie below
+        # the split, the mask is all True, and the scripts save it as an all-white "no change".
+        assert v.threshold > 3 and not v.changed.any() and v.acc_depth == 0.0
 
 
 def test_empty_mask_is_excluded_not_scored(ctx):

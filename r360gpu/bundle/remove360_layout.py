@@ -105,3 +105,21 @@ def _prompt(root: Path, prompt: str | None, problems: list[Problem]) -> str | No
     problems.append(Problem(str(file), f"no prompt: write the removed object's category (e.g. {guess!r}) "
                                        f"into {PROMPT_FILE}, or pass --prompt"))
     return None
+
+
+def without_depth(bundle):
+    """The bundle with no depth folders attached to its sources (a copy).
+
+    The ``--compat`` modes score a public folder's depth as the public scripts
+    read it (:mod:`r360gpu.metrics.compat_public`: PIL ``convert("L")``, which
+    also takes RGB and palette PNGs), so the scoring pipeline must not read
+    those PNGs as r360gpu's float depth.  Bundles of another layout are
+    returned unchanged.
+    """
+    import dataclasses
+
+    if getattr(bundle, "layout", None) != "remove360":
+        return bundle
+    strip = lambda s: None if s is None else dataclasses.replace(s, depth_dir=None)  # noqa: E731
+    return dataclasses.replace(bundle, pre=strip(bundle.pre), reference=strip(bundle.reference),
+                               methods={m: strip(s) for m, s in bundle.methods.items()})

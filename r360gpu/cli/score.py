@@ -17,8 +17,10 @@ def add_scoring_options(p) -> None:
     g = p.add_argument_group("protocol")
     g.add_argument("--reference-free", action="store_true",
                    help="s_str = 1 - sim(pre, post) even when a reference exists")
-    g.add_argument("--compat", action="store_true",
-                   help="geometric axis with the public reference code's 8-bit PNG quantisation")
+    g.add_argument("--compat", nargs="?", const="public", default=None, type=_compat_mode, metavar="MODE",
+                   help="score as the public Remove360 scripts do: 'public' (the default of --compat: their "
+                        "save_intermediate=True depth path) or 'public-default' (their default path, which "
+                        "marks SMALL depth changes); on a public folder every axis is the scripts' number")
     g.add_argument("--xi", type=float, nargs="+", default=[0.3, 0.5, 0.7, 0.9], metavar="XI",
                    help="acc_seg thresholds to report (0.3 is s_sem; default 0.3 0.5 0.7 0.9)")
     g.add_argument("--depth", choices=["expected", "median"], default=None,
@@ -39,6 +41,18 @@ def add_scoring_options(p) -> None:
     g.add_argument("--adapter", default=None, help="GPU adapter: auto, gpu, cpu, or part of its name")
     g.add_argument("--force", action="store_true", help="recompute everything (ignore cached per-view results)")
     g.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def _compat_mode(value: str) -> str:
+    import argparse
+
+    from ..metrics.compat import COMPAT_MODES
+
+    if value not in COMPAT_MODES:
+        raise argparse.ArgumentTypeError(
+            f"{value!r} is not a compat mode ({', '.join(COMPAT_MODES)}); --compat takes the next word as its "
+            f"mode, so write --compat=public or put --compat after the bundles")
+    return value
 
 
 def register(sub) -> None:

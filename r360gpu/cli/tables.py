@@ -5,6 +5,11 @@ Reads a CSV with columns ``scene, method, s_sem, s_geo, s_str`` (optional
 aggregate table (per-scene RQS, overall, scene-macro means, rank aggregation,
 reliability, axis association) as Markdown or LaTeX, and optionally writes the
 numbers as JSON (see :func:`r360gpu.aggregate.aggregate_tables`).
+
+Without ``n_views`` (and with several scenes) the Overall row is the scene-macro mean, and a note says
+that the paper's Overall row (tab:main_results) is view-weighted, so it cannot
+be rebuilt from per-scene axes alone (tests/test_aggregate_rqs.py shows it
+differs from the scene-macro mean of the paper's per-scene axes).
 """
 from __future__ import annotations
 
@@ -15,6 +20,13 @@ from ..aggregate import aggregate_tables, read_axes_csv
 from ..errors import InputError
 from ..report.tables import FORMATS, render_tables
 from ..util.atomic import write_json
+
+
+OVERALL_NOTE = (
+    "no n_views column, so the Overall row is the unweighted mean over scenes (scene-macro). The paper's "
+    "Overall row (tab:main_results) is view-weighted, pooled over all views of all scenes; it cannot be rebuilt "
+    "from per-scene axes without the per-scene view counts, which the paper does not publish, so it differs "
+    "from this row (e.g. GC acc_seg: 0.875 printed, 0.886 scene-macro). Add an n_views column to pool by views.")
 
 
 def _positive_int(text: str) -> int:
@@ -73,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
     cells = read_axes_csv(args.axes_csv)
     result = aggregate_tables(cells, n_boot=args.n_boot, n_perm=args.n_perm, seed=args.seed,
                               rank_decimals=args.rank_decimals)
+    if cells.n_views is None and len(cells.scenes) > 1:  # one scene: Overall is that scene either way
+        result.setdefault("notes", {})["overall_pooling"] = OVERALL_NOTE
     if args.json:
         try:
             write_json(args.json, result, allow_nan=False)

@@ -1,41 +1,44 @@
-"""The Remove360 reference pipeline's 8-bit ("compat") depth-change mask, in numpy.
+"""The public Remove360 scripts' depth-change mask, in numpy (the ``--compat`` modes).
 
-The public reference code (github.com/simonakocour/anything_left,
-``remove360/preprocessing/depth_diff.py``, ``process_depth_pair`` with
-``save_intermediate=True``) does not threshold |ΔD| directly.  It
+The public evaluation code (github.com/simonakocour/anything_left, commit
+dd0aad8, ``remove360/preprocessing/depth_diff.py``, ``process_depth_pair``)
+does not threshold |ΔD| of float depths.  Per view it
 
-1. computes ``|D_post - D_pre|`` in float32, with 0 wherever either depth is 0
-   (:func:`depth_delta`, which also treats NaN, inf and negative depths as
-   missing);
-2. writes it with ``matplotlib.pyplot.imsave(path, delta, cmap=gray_r)``:
-   min-max normalisation (``matplotlib.colors.Normalize``), the 256-entry
-   ``gray_r`` lookup table converted to bytes, an RGBA PNG;
-3. reads the PNG back with PIL as RGBA and takes the max over R, G, B as the
-   gray level (all three are equal for gray_r);
-4. counts the 256 gray levels (bin edges -0.5 .. 255.5, positions 0..255),
-   runs GHT with nu=1000, tau=300, kappa=0, omega=0, and marks
-   ``gray < t`` as changed.  gray_r is reversed (large |ΔD| -> dark), so
-   ``gray < t`` selects large depth changes.
+1. reads both depth PNGs with PIL ``convert("L")`` (8-bit grey: RGB and
+   palette images through ITU-R 601 luma, 16-bit ones clipped at 255), see
+   :func:`read_depth_public`;
+2. computes ``diff = D_post - D_pre`` in float32 and zeroes
+   ``(diff == D_post) | (diff == -D_pre)``, where ``D_pre`` is uint8 so
+   ``-D_pre`` wraps modulo 256: the first test zeroes the pixels whose pre
+   depth is 0, the second matches nothing that is not already 0, so pixels
+   whose POST depth alone is 0 keep ``|ΔD| = D_pre`` (:func:`public_delta`);
+3. ``save_intermediate=True`` (mode ``"public"``; ``process_depth_pair``'s own
+   default and ``scripts/compute_depth_diff.py --save-intermediate``): writes
+   |ΔD| with ``matplotlib.pyplot.imsave(cmap=gray_r)`` (min-max normalisation,
+   the 256-entry gray_r table in bytes), reads the PNG back as RGBA and takes
+   the max over R, G, B (:func:`compat_quantise`); large |ΔD| is dark.
+   ``save_intermediate=False`` (mode ``"public-default"``; the default of
+   ``batch_process_depths`` and of ``scripts/compute_depth_diff.py``, which
+   ``scripts/run_pipeline.py`` runs): the gray image is
+   ``clip(|ΔD|, 0, 255).astype(uint8)``, not normalised and not reversed;
+4. histograms the 256 gray levels, runs GHT (nu=1000, tau=300, kappa=0,
+   omega=0) and marks ``gray < t``.  In mode ``"public"`` that selects the
+   LARGE depth changes; in mode ``"public-default"`` it selects the SMALL
+   ones (pixels whose |ΔD| lies below the split), which is what the scripts'
+   default pipeline reports as "changed";
+5. saves the mask with ``imsave(mask, cmap=gray_r)`` and the evaluation reads
+   it back as "changed = gray != 255": a mask that is constant (all True or
+   all False) is written all white, i.e. nothing changed (:func:`public_changed`).
 
-:func:`compat_quantise` reproduces steps 2-3 bit for bit without matplotlib
-(the arithmetic of matplotlib 3.11 under numpy 2: Normalize subtracts and
-divides by float64 scalars and stores float32), and :func:`compat_changed`
-adds step 4.  The reference then saves the mask with
-``imsave(mask, cmap=gray_r)`` and reads it as "changed = gray != 255"; that
-round trip returns the same mask, because ``gray < t`` can never hold for
-every pixel (the smallest |ΔD| always maps to gray 255 and ``t <= 254``), so the
-mask is never the constant image that imsave would write as all white.
-
-Not reproduced: with ``save_intermediate=False`` (the default of
-``batch_process_depths`` and of ``scripts/compute_depth_diff.py``, which
-``scripts/run_pipeline.py`` calls without ``--save-intermediate``) the same
-function skips steps 2-3 and histograms ``clip(|ΔD|, 0, 255).astype(uint8)``
-directly: no min-max normalisation and no reversal, so its ``gray < t`` marks
-the *small* depth changes.  The protocol's compat option follows the
-normalised gray_r path above.
+:func:`compat_quantise` reproduces step 3 (``"public"``) bit for bit without
+matplotlib (the arithmetic of matplotlib 3.11 under numpy 2: Normalize
+subtracts and divides by float64 scalars and stores float32); the tests
+compare it with matplotlib itself, and ``tests/data/compat_public`` holds a
+folder scored by the public modules themselves.
 """
 from __future__ import annotations
 
+import os
 from typing import NamedTuple
 
 import numpy as np
@@ -45,6 +48,23 @@ from r360gpu.metrics.ght import ght
 
 N_LEVELS = 256
 """Entries of matplotlib's gray_r colormap (``Colormap.N``) and of the gray-level histogram."""
+
+COMPAT_MODES = ("public", "public-default")
+"""``public``: the scripts' ``save_intermediate=True`` path (gray_r PNG round trip);
+``public-default``: their default ``save_intermediate=False`` path (raw 8-bit |ΔD|)."""
+
+
+def check_compat(compat) -> str | None:
+    """The compat mode named by ``compat``: None/False -> None (paper mode),
+    True -> ``"public"`` (what ``--compat`` alone means), or a name of
+    :data:`COMPAT_MODES`.  Anything else is an InputError."""
+    if compat is None or compat is False:
+        return None
+    if compat is True:
+        return "public"
+    if isinstance(compat, str) and compat in COMPAT_MODES:
+        return compat
+    raise InputError(f"compat mode must be one of {', '.join(COMPAT_MODES)} (or True for 'public'), got {compat!r}")
 
 
 def _gray_r_bytes() -> np.ndarray:
@@ -96,21 +116,20 @@ def _check_image(name: str, a, *, finite: bool = True) -> np.ndarray:
 
 
 def depth_delta(depth_pre, depth_post) -> np.ndarray:
-    """Absolute depth change with the reference's missing-depth rule.
+    """Absolute depth change, 0 wherever either depth is missing (r360gpu's rule).
+
+    This is the rule of r360gpu's default mode (and of its depth pictures),
+    NOT the public scripts' rule: they keep ``|ΔD| = D_pre`` where only the
+    post depth is missing (see :func:`public_delta`).
 
     Args:
-        depth_pre, depth_post: depth maps, shape (H, W), any real dtype (the
-            reference reads 8-bit PNGs); converted to float32.  A depth is
-            valid when finite and > 0; 0 means "no coverage", and NaN, inf and
-            negative values count as missing too (as in
-            :mod:`r360gpu.kernels.depth_change`).
+        depth_pre, depth_post: depth maps, shape (H, W), any real dtype;
+            converted to float32.  A depth is valid when finite and > 0; 0
+            means "no coverage", and NaN, inf and negative values count as
+            missing too (as in :mod:`r360gpu.kernels.depth_change`).
     Returns:
         float32 (H, W): ``|depth_post - depth_pre|`` where both depths are
-        valid, else 0.  The reference detects missing pixels by testing
-        ``diff == depth_post`` or ``diff == -depth_pre`` on the float32
-        difference, which for its 8-bit depths is exactly "either depth is
-        0"; here the test is explicit, so a tiny nonzero depth beside a large
-        one is not mistaken for a missing one.
+        valid, else 0.
     Raises:
         InputError: shapes differ, not 2-D, empty, or not numeric.
     """
@@ -161,7 +180,8 @@ def compat_changed(
     kappa: float = 0.0,
     omega: float = 0.0,
 ) -> CompatResult:
-    """The reference pipeline's changed-pixel mask for one view.
+    """``gray < t`` of the ``"public"`` path for one view, before the mask PNG round trip
+    (:func:`public_changed` adds it; the two differ only for a constant mask).
 
     Args:
         delta: |ΔD|, shape (H, W), finite (see :func:`depth_delta`); the whole
@@ -177,3 +197,78 @@ def compat_changed(
     hist = np.bincount(gray.ravel(), minlength=N_LEVELS).astype(np.int64)
     threshold = ght(hist, np.arange(N_LEVELS), nu=nu, tau=tau, kappa=kappa, omega=omega).threshold
     return CompatResult(gray < threshold, threshold, hist)
+
+
+# --- the public scripts' depth path, step by step ---------------------------------------------
+
+def read_depth_public(path: str | os.PathLike) -> np.ndarray:
+    """A depth PNG as the scripts read it: ``np.array(Image.open(path).convert("L"))``.
+
+    uint8 (H, W).  PIL's "L" conversion is the scripts' only depth decoding:
+    RGB/RGBA/palette images become ITU-R 601 luma, 16-bit grey images are
+    clipped at 255 (so most of a 16-bit depth map reads as 255).
+    Raises InputError naming the file when it cannot be read or decoded.
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as im:
+            return np.array(im.convert("L"))
+    except (OSError, UnidentifiedImageError, ValueError) as e:
+        raise InputError(f"cannot read depth image as the public scripts do (PIL convert('L')): {e}", path) from None
+
+
+def public_delta(depth_pre, depth_post) -> np.ndarray:
+    """|ΔD| with the scripts' missing-depth rule, float32 (H, W).
+
+    For uint8 inputs (what :func:`read_depth_public` gives) this equals the
+    scripts' ``diff = post - pre`` (float32), ``diff[(diff == post) |
+    (diff == -pre)] = 0`` with ``-pre`` wrapping modulo 256, ``abs``: 0 where
+    the PRE depth is 0; ``|post - pre|`` everywhere else, so a pixel whose post
+    depth alone is 0 keeps ``D_pre``.  Other dtypes (float depth of a bundle
+    that is not a public folder) get that same effective rule on float32
+    values, with NaN, inf and negative depths first set to 0 (missing).
+    Raises InputError on shape mismatch, non-2-D, empty or non-numeric input.
+    """
+    pre = _check_image("depth_pre", depth_pre, finite=False)
+    post = _check_image("depth_post", depth_post, finite=False)
+    if pre.shape != post.shape:
+        raise InputError(f"depth maps differ in shape: pre {pre.shape}, post {post.shape}")
+    with np.errstate(invalid="ignore"):
+        pre = np.where(np.isfinite(pre) & (pre > 0), pre, np.float32(0.0))
+        post = np.where(np.isfinite(post) & (post > 0), post, np.float32(0.0))
+    return np.where(pre == 0, np.float32(0.0), np.abs(post - pre)).astype(np.float32)
+
+
+def public_gray(delta, mode: str) -> np.ndarray:
+    """The 8-bit image the scripts histogram: :func:`compat_quantise` for
+    ``"public"``, ``clip(delta, 0, 255).astype(uint8)`` for ``"public-default"``."""
+    mode = check_compat(mode)
+    if mode == "public":
+        return compat_quantise(delta)
+    a = _check_image("delta", delta)
+    return np.clip(a, 0, 255).astype(np.uint8)
+
+
+def public_changed(
+    delta,
+    mode: str = "public",
+    nu: float = 1000.0,
+    tau: float = 300.0,
+    kappa: float = 0.0,
+    omega: float = 0.0,
+) -> CompatResult:
+    """The changed-pixel mask the scripts' depth evaluation reads for one view.
+
+    ``gray < t`` (GHT on the 256-level histogram of :func:`public_gray`),
+    then the mask PNG round trip: a constant mask (all True or all False) is
+    written as an all-white image, which the evaluation reads as "no pixel
+    changed".  ``threshold`` is ``t`` on the gray-level axis.
+    """
+    gray = public_gray(delta, mode)
+    hist = np.bincount(gray.ravel(), minlength=N_LEVELS).astype(np.int64)
+    threshold = ght(hist, np.arange(N_LEVELS), nu=nu, tau=tau, kappa=kappa, omega=omega).threshold
+    mask = gray < threshold
+    if mask.all():  # all False needs nothing: it already reads as unchanged
+        mask = np.zeros_like(mask)
+    return CompatResult(mask, threshold, hist)

@@ -4,9 +4,11 @@
 ``xi_depth^v`` from GHT on the 256-bin histogram of dD over the whole image.
 The float-depth path runs on the GPU (:mod:`r360gpu.kernels.depth_change`,
 where the dD, binning and missing-depth conventions are written down); the
-``compat`` path reproduces the public reference pipeline's 8-bit PNG round
-trip (:mod:`r360gpu.metrics.compat`).  A view whose target mask is empty is
-excluded (``acc_depth = None``), never scored 0 or 1.
+compat modes (``"public"``, ``"public-default"``) apply the public scripts'
+missing-depth rule and 8-bit thresholding (:mod:`r360gpu.metrics.compat`) to
+the depth arrays given.  A view whose target mask is empty is excluded
+(``acc_depth = None``), never scored 0 or 1; the public scripts score it 0,
+which :mod:`r360gpu.metrics.compat_public` reproduces on public folders.
 """
 from __future__ import annotations
 
@@ -16,7 +18,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels import depth_change as kernel
-from .compat import compat_changed, depth_delta
+from .compat import check_compat, public_changed, public_delta
 from .ght import ght, threshold_value
 
 
@@ -46,7 +48,7 @@ class GeometricView:
     hist: (256,) int64 histogram the threshold was chosen on.
     changed: (H, W) bool changed-pixel mask (for heat maps).
     n_mask, n_changed_in_mask: pixel counts behind acc_depth.
-    mode: "float" or "compat".
+    mode: "float", "public" or "public-default".
     """
 
     acc_depth: float | None
@@ -81,7 +83,7 @@ def acc_depth_view(
     d_post,
     mask,
     *,
-    compat: bool = False,
+    compat: bool | str | None = False,
     ght_params: GhtParams = GhtParams(),
     ctx=None,
 ) -> GeometricView:
@@ -90,20 +92,25 @@ def acc_depth_view(
     d_pre, d_post: float32 (H, W) depth (z-distance), 0 = no coverage; numpy
         arrays or :class:`~r360gpu.kernels.depth_change.DeviceDepth` (float mode).
     mask: (H, W) target mask M^v, non-zero = target.
-    compat: reproduce the reference pipeline's 8-bit quantisation instead.
+    compat: None/False (paper mode), True or "public", or "public-default":
+        the public scripts' missing-depth rule and 8-bit thresholding
+        (:func:`~r360gpu.metrics.compat.public_changed`) on these arrays.  Pass
+        uint8 depths read with :func:`~r360gpu.metrics.compat.read_depth_public`
+        to reproduce the scripts exactly.
     """
     m = np.asarray(mask) != 0
     p = ght_params.as_dict()
-    if compat:
+    mode = check_compat(compat)
+    if mode is not None:
         if isinstance(d_pre, kernel.DeviceDepth) or isinstance(d_post, kernel.DeviceDepth):
             raise InputError("compat mode needs host depth arrays (it reproduces a PNG round trip)")
-        delta = depth_delta(d_pre, d_post)
+        delta = public_delta(d_pre, d_post)
         if m.shape != delta.shape:
             raise InputError(f"target mask is {m.shape[0]}x{m.shape[1]} but the depth images are {delta.shape[0]}x{delta.shape[1]} (H x W)")
-        res = compat_changed(delta, **p)
+        res = public_changed(delta, mode, **p)
         n_mask = int(m.sum())
         n_in = int((res.changed & m).sum())
-        return _view(n_in, n_mask, float(res.threshold), float(res.threshold), 0.0, 255.0, res.hist, res.changed, "compat")
+        return _view(n_in, n_mask, float(res.threshold), float(res.threshold), 0.0, 255.0, res.hist, res.changed, mode)
     stage = kernel.delta_histogram(d_pre, d_post, ctx=ctx)
     split = ght(stage.hist, **p).threshold
     res = kernel.changed_in_mask(stage, m, split, ctx=ctx)

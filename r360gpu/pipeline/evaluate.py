@@ -55,6 +55,10 @@ def evaluate(
     if isinstance(bundles, (str, Path, Bundle)):
         bundles = [bundles]
     loaded = [b if isinstance(b, Bundle) else load_bundle(b) for b in bundles]
+    if opts.compat:  # public folders: depth is read as the public scripts read it (aggregate.compat)
+        from ..bundle.remove360_layout import without_depth
+
+        loaded = [without_depth(b) for b in loaded]
     names = [b.name for b in loaded]
     if len(set(names)) != len(names):
         raise InputError(f"two bundles share a scene name: {names}")
@@ -82,9 +86,14 @@ def evaluate(
         run = SceneRun(bundle, opts, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
                        warnings=warnings)
         try:
-            results["scenes"][bundle.name] = evaluate_scene(run, cache, sink, progress)
+            scene_res = evaluate_scene(run, cache, sink, progress)
         finally:
             run.release()
+        if opts.compat:
+            from ..aggregate.compat import apply_compat
+
+            apply_compat(scene_res, bundle, opts.compat, xis=opts.xis, ght=opts.ght)
+        results["scenes"][bundle.name] = scene_res
         results["probes"] = run.probes_desc
         n_views_done += len(run.views)
     results["timing"] = {"stages_s": {k: round(v, 3) for k, v in timer.totals.items()},

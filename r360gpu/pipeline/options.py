@@ -12,7 +12,9 @@ class EvaluateOptions:
     """Scoring options (the CLI flags of ``r360gpu score``).
 
     xis: acc_seg thresholds reported (0.3 is s_sem).
-    compat: geometric axis in the reference pipeline's 8-bit mode.
+    compat: None/False (paper mode), "public" (True means it) or
+        "public-default": score as the public scripts do (see
+        :mod:`r360gpu.aggregate.compat`).
     ght: GHT parameters (a :class:`~r360gpu.metrics.geometric.GhtParams`; a
         dict with its fields is accepted and converted).
     reference_free: True forces s_str = 1 - sim(pre, post) even with a
@@ -30,7 +32,7 @@ class EvaluateOptions:
     """
 
     xis: tuple = XI_SWEEP
-    compat: bool = False
+    compat: bool | str | None = None
     ght: GhtParams = field(default_factory=GhtParams)
     reference_free: bool | None = None
     depth: str | None = None
@@ -45,6 +47,9 @@ class EvaluateOptions:
     seed: int = 0
 
     def __post_init__(self):
+        from ..metrics.compat import check_compat
+
+        self.compat = check_compat(self.compat)
         if isinstance(self.ght, dict):
             self.ght = GhtParams(**self.ght)
 
