@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import InputError
 from ..gpu.context import GpuContext, get_context
 from .binning import TileWindow, plan_windows, record_counts, record_emit, record_ranges
-from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA
+from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA, RenderOptions
 from .project import Projected, camera_arrays, project, tile_grid
 from .rasterize import PLANES, plane_stride, planes_to_numpy, record_rasterize
 from .scene import DeviceScene
@@ -90,21 +90,25 @@ class Renderer:
     scene : Gaussians (see :mod:`r360gpu.io.gaussians`)
     ctx : GpuContext, optional (default: :func:`r360gpu.gpu.get_context`)
     background : RGB in [0, 1] added with the remaining transmittance
-    near : near-plane depth (scene units) below which Gaussians are culled
+    antialiased, near, no_coverage_alpha, principal_point : the conventions of
+        :class:`~r360gpu.render.conventions.RenderOptions` (defaults: r360gpu's);
+        ``options`` gives them as one object (keywords given override it)
     timed : wait after every stage and record its wall time in :attr:`stats`
     count_work : read back the rasteriser's work counters into :attr:`stats`
     """
 
     def __init__(self, scene, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0),
-                 near: float = NEAR_PLANE, timed: bool = False, count_work: bool = False):
+                 near: float | None = None, antialiased: bool | None = None, no_coverage_alpha: float | None = None,
+                 principal_point: str | None = None, options: RenderOptions | None = None,
+                 timed: bool = False, count_work: bool = False):
         self.ctx = ctx or get_context()
         bg = np.asarray(background, dtype=np.float64).reshape(-1)
         if bg.shape != (3,) or not np.isfinite(bg).all():
             raise InputError(f"background must be 3 finite numbers, got {background!r}")
-        if not (math.isfinite(near) and near > 0):
-            raise InputError(f"near plane must be a positive number, got {near!r}")
+        self.options = (options or RenderOptions()).replace(
+            near=near, antialiased=antialiased, no_coverage_alpha=no_coverage_alpha, principal_point=principal_point)
         self.background = tuple(float(v) for v in bg)
-        self.near = float(near)
+        self.near = self.options.near
         self.timed = timed
         self.count_work = count_work
         self.scene = DeviceScene(self.ctx, scene)
@@ -133,7 +137,7 @@ class Renderer:
     def render_device(self, camera, image=None) -> DeviceRender:
         """Render ``camera`` into a device buffer (a new one unless ``image`` is given)."""
         ctx, scratch, n = self.ctx, self.scratch, self.scene.n
-        cam = camera_arrays(camera)
+        cam = self._camera(camera)
         width, height = cam["width"], cam["height"]
         stride = plane_stride(width, height)
         if stride * 4 > ctx.max_binding_bytes:
@@ -146,7 +150,7 @@ class Renderer:
         t0 = time.perf_counter()
 
         enc = ctx.encoder()
-        proj = project(ctx, enc, self.scene, cam, (gx, gy), self.near, scratch)
+        proj = project(ctx, enc, self.scene, cam, (gx, gy), self.near, scratch, self.options.antialiased)
         ctx.submit(enc)
         t0 = self._mark("project", t0, proj.row_counts)
 
@@ -167,6 +171,12 @@ class Renderer:
                 pending.extend(reversed(window))
             t0 = time.perf_counter()
         return DeviceRender(buffer=image, width=width, height=height, plane_stride=stride)
+
+    def _camera(self, camera) -> dict:
+        cam = camera_arrays(camera)
+        if self.options.principal_point == "centre":
+            cam["cx"], cam["cy"] = 0.5 * cam["width"], 0.5 * cam["height"]
+        return cam
 
     def _key_capacity(self) -> int:
         """Most keys one window may hold: one binding, and one dispatch of one thread per key."""
@@ -205,7 +215,7 @@ class Renderer:
         record_rasterize(ctx, enc, ranges=ranges, vals=vals, num_keys=k, pos_op=proj.pos_op, conic=proj.conic,
                          rgb=proj.rgb, n=n, image=image, width=cam["width"], height=cam["height"], tiles_x=gx,
                          tile_begin=window.begin, num_tiles=num_tiles, background=self.background,
-                         min_alpha=NO_COVERAGE_ALPHA, work=work)
+                         min_alpha=self.options.no_coverage_alpha, work=work)
         ctx.submit(enc)
         self._mark("rasterize", t0, image)
         if self.count_work:
@@ -229,16 +239,20 @@ class Renderer:
 
 
 def render(scene, camera, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0), output: str = "numpy",
-           near: float = NEAR_PLANE):
+           near: float = NEAR_PLANE, antialiased: bool = False, no_coverage_alpha: float = NO_COVERAGE_ALPHA,
+           principal_point: str = "camera"):
     """Render one view of ``scene`` (a :class:`~r360gpu.io.gaussians.Gaussians`).
 
     camera: a :class:`~r360gpu.io.camera.Camera` (world-to-camera R, t; fx, fy,
     cx, cy; width, height).  output: "numpy" -> :class:`Render`; "device" ->
-    :class:`DeviceRender` (buffers stay on ``ctx``'s device).
+    :class:`DeviceRender` (buffers stay on ``ctx``'s device).  near,
+    antialiased, no_coverage_alpha, principal_point: the conventions of
+    :class:`~r360gpu.render.conventions.RenderOptions`.
     """
     if output not in ("numpy", "device"):
         raise InputError(f"output must be 'numpy' or 'device', got {output!r}")
-    renderer = Renderer(scene, ctx=ctx, background=background, near=near)
+    renderer = Renderer(scene, ctx=ctx, background=background, near=near, antialiased=antialiased,
+                        no_coverage_alpha=no_coverage_alpha, principal_point=principal_point)
     try:
         if output == "device":
             return renderer.render_device(camera)
@@ -248,14 +262,17 @@ def render(scene, camera, *, ctx: GpuContext | None = None, background=(0.0, 0.0
 
 
 def render_views(scene, cameras: Iterable, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0),
-                 output: str = "numpy", near: float = NEAR_PLANE, progress: bool = False) -> Iterator:
+                 output: str = "numpy", near: float = NEAR_PLANE, antialiased: bool = False,
+                 no_coverage_alpha: float = NO_COVERAGE_ALPHA, principal_point: str = "camera",
+                 progress: bool = False) -> Iterator:
     """Render many views of one scene, uploading it once; yields one result per camera.
 
-    Results as :func:`render`.  ``progress`` shows a tqdm progress bar.
+    Results and options as :func:`render`.  ``progress`` shows a tqdm progress bar.
     """
     if output not in ("numpy", "device"):
         raise InputError(f"output must be 'numpy' or 'device', got {output!r}")
-    renderer = Renderer(scene, ctx=ctx, background=background, near=near)
+    renderer = Renderer(scene, ctx=ctx, background=background, near=near, antialiased=antialiased,
+                        no_coverage_alpha=no_coverage_alpha, principal_point=principal_point)
     cams = cameras
     if progress:
         from tqdm import tqdm

@@ -68,10 +68,11 @@ def chunk_size(ctx: GpuContext, sh_stride: int) -> int:
 
 
 def project(ctx: GpuContext, enc, scene: DeviceScene, cam: dict, tiles: tuple[int, int],
-            near: float, scratch: Scratch) -> Projected:
+            near: float, scratch: Scratch, antialiased: bool = False) -> Projected:
     """Record the projection of all Gaussians of ``scene`` for camera ``cam`` on ``enc``.
 
-    ``cam`` comes from :func:`camera_arrays`; ``tiles`` is (tiles_x, tiles_y).
+    ``cam`` comes from :func:`camera_arrays`; ``tiles`` is (tiles_x, tiles_y);
+    ``antialiased`` multiplies opacities by the antialiasing compensation.
     """
     n = scene.n
     gx, gy = tiles
@@ -102,6 +103,7 @@ def project(ctx: GpuContext, enc, scene: DeviceScene, cam: dict, tiles: tuple[in
             *(float(v) for v in R.reshape(-1)), *(float(v) for v in t), *(float(v) for v in centre),
             float(fx), float(fy), float(cx), float(cy), *(float(v) for v in lims), float(near),
             int(gx), int(gy), int(count), int(base), int(scene.sh_degree), int(scene.sh_stride),
+            int(bool(antialiased)),
         )
         ctx.dispatch(
             enc, pipe,
