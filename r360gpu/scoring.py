@@ -59,6 +59,7 @@ class EvaluateOptions:
     n_boot: int = 20000
     n_perm: int = 5000
     seed: int = 0
+    antialiased: bool = False  # render every splat scene in the antialiased mode (score --antialiased)
 
     def scoring_key(self) -> dict:
         """The options that change per-view values (for the cache key)."""
@@ -226,6 +227,7 @@ def _evaluate_scene(bundle, opts, ctx, sem_probes, str_probes, probe_cache, cach
     from .probes.cache import cached
     from .render.sources import open_source
 
+    bundle = bundle.with_render_settings(antialiased=True if opts.antialiased else None)
     views = _select_views(bundle.views, opts.views)
     depth_mode = opts.depth or bundle.options.depth
     background = bundle.options.background
