@@ -15,7 +15,9 @@
 //   w = alpha * T: colour += w * rgb, sum_w += w, sum_wz += w * z
 //   the median depth is z of the first blended Gaussian with T * (1 - alpha) <= 0.5
 //   T *= 1 - alpha
-// Outputs (each a separate plane of width * height f32, row-major):
+// Outputs (each a separate plane of f32, row-major, width floats per row, its
+// first row pixel row p.row_base: the host renders images beyond one binding
+// in bands of whole tile rows):
 //   r, g, b = colour + T * background;  alpha = 1 - T;
 //   depth = sum_wz / sum_w and median depth, both 0 where alpha < min_alpha.
 // The workgroup stops early once every pixel is finished.  work[2t], work[2t+1]
@@ -31,6 +33,7 @@ struct Params {
     bg_g: f32,
     bg_b: f32,
     min_alpha: f32,    // coverage threshold for the depth outputs
+    row_base: u32,     // pixel row stored first in the output planes (row bands)
 }
 
 const ALPHA_MAX: f32 = 0.99;
@@ -211,7 +214,7 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>,
         let med = select(zero, median[q], covered);
         for (var l = 0u; l < 4u; l++) {
             if (inside[q][l]) {
-                let pi = ys[q][l] * p.width + xs[l];
+                let pi = (ys[q][l] - p.row_base) * p.width + xs[l];
                 out_r[pi] = col_r[q][l] + t_rem[q][l] * p.bg_r;
                 out_g[pi] = col_g[q][l] + t_rem[q][l] * p.bg_g;
                 out_b[pi] = col_b[q][l] + t_rem[q][l] * p.bg_b;
