@@ -22,6 +22,8 @@
 // identical images, because every dropped pixel-Gaussian pair is below the
 // blend threshold.
 
+//!include common.wgsl
+
 struct Params {
     r00: f32, r01: f32, r02: f32,
     r10: f32, r11: f32, r12: f32,
@@ -39,10 +41,12 @@ struct Params {
     antialiased: u32, // 1: opacity *= sqrt(max(AA_MIN_RATIO, det / det_blurred))
 }
 
-const TILE: f32 = 16.0;
-const BLUR: f32 = 0.3;
-const ALPHA_MIN: f32 = 0.00392156862745098;   // 1 / 255
-const AA_MIN_RATIO: f32 = 0.000025;
+// Set by the host from r360gpu/render/conventions.py (SHADER_CONSTANTS).
+override TILE: f32;
+override COV2D_BLUR: f32;
+override ALPHA_MIN: f32;
+override AA_MIN_RATIO: f32;
+override SIGMA_EXTENT: f32;
 // Margin on log(255 * opacity) so that float rounding cannot drop a pixel
 // whose alpha is at the blend threshold.
 const RADIUS_LOG_MARGIN: f32 = 0.001;
@@ -131,7 +135,7 @@ fn cull(g: u32) {
 fn main(@builtin(local_invocation_index) lidx: u32,
         @builtin(workgroup_id) wid: vec3<u32>,
         @builtin(num_workgroups) nwg: vec3<u32>) {
-    let i = (wid.x + wid.y * nwg.x) * 256u + lidx;
+    let i = workgroup_index(wid, nwg) * 256u + lidx;
     if (i >= p.n) {
         return;
     }
@@ -180,8 +184,8 @@ fn main(@builtin(local_invocation_index) lidx: u32,
     let ca0 = dot(u0, u0);
     let cb = dot(u0, u1);
     let cc0 = dot(u1, u1);
-    let ca = ca0 + BLUR;
-    let cc = cc0 + BLUR;
+    let ca = ca0 + COV2D_BLUR;
+    let cc = cc0 + COV2D_BLUR;
     let det = ca * cc - cb * cb;
     var opacity_eff = opacity;
     if (p.antialiased != 0u) {
@@ -201,12 +205,12 @@ fn main(@builtin(local_invocation_index) lidx: u32,
     // INRIA's rectangle: radius ceil(3 sigma), tiles [floor((p - r) / 16),
     // floor((p + r + 15) / 16)).  (Its upper end can miss a tile the radius
     // reaches; kept as is so images match INRIA's.)
-    let r3 = ceil(3.0 * sqrt(lambda1));
+    let r3 = ceil(SIGMA_EXTENT * sqrt(lambda1));
     var lo = floor((vec2<f32>(px, py) - r3) / TILE);
     var hi = floor((vec2<f32>(px, py) + r3 + TILE - 1.0) / TILE);
     // Intersect with the tiles holding a pixel within the opacity-aware radius;
     // beyond it opacity * exp(-power) < 1/255, so no pixel changes.
-    let r_alpha = sqrt(2.0 * lambda1 * max(log(255.0 * opacity_eff) + RADIUS_LOG_MARGIN, 0.0));
+    let r_alpha = sqrt(2.0 * lambda1 * max(log(opacity_eff / ALPHA_MIN) + RADIUS_LOG_MARGIN, 0.0));
     lo = max(lo, floor(ceil(vec2<f32>(px, py) - r_alpha) / TILE));
     hi = min(hi, floor(floor(vec2<f32>(px, py) + r_alpha) / TILE) + 1.0);
     // Float clamps before the integer conversion keep far-away means in range.

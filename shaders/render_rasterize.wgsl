@@ -23,6 +23,8 @@
 // The workgroup stops early once every pixel is finished.  work[2t], work[2t+1]
 // count the tile's evaluated and blended pixel-Gaussian pairs (for benchmarks).
 
+//!include common.wgsl
+
 struct Params {
     width: u32,
     height: u32,
@@ -36,10 +38,13 @@ struct Params {
     row_base: u32,     // pixel row stored first in the output planes (row bands)
 }
 
-const ALPHA_MAX: f32 = 0.99;
-const ALPHA_MIN: f32 = 0.00392156862745098;  // 1 / 255
-const T_MIN: f32 = 0.0001;
-const MEDIAN_T: f32 = 0.5;
+// Set by the host from r360gpu/render/conventions.py (SHADER_CONSTANTS).
+override ALPHA_MAX: f32;
+override ALPHA_MIN: f32;
+override T_MIN: f32;
+override MEDIAN_T: f32;
+// The 16x16 tile (TILE) is built into the workgroup shape below (8 x 4
+// threads, 2 x 2 pixels each, 2 blocks 8 rows apart); the host checks TILE == 16.
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> ranges: array<u32>;
@@ -78,7 +83,7 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>,
         @builtin(local_invocation_index) tid: u32,
         @builtin(workgroup_id) wid: vec3<u32>,
         @builtin(num_workgroups) nwg: vec3<u32>) {
-    let wtile = wid.x + wid.y * nwg.x;
+    let wtile = workgroup_index(wid, nwg);
     if (wtile >= p.num_tiles) {
         return;
     }

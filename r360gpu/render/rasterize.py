@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..gpu.context import BufferRange, GpuContext
+from ..gpu.uniforms import uniform
+from .kernels import pipeline
 
 #: Plane order in the output buffer.
 PLANES = ("r", "g", "b", "alpha", "depth", "median_depth")
@@ -34,12 +36,12 @@ def record_rasterize(ctx: GpuContext, enc, *, ranges: BufferRange, vals, num_key
     bands).  ``work`` receives two u32 per tile of the window: pixel-Gaussian
     pairs evaluated and blended.
     """
-    params = ctx.uniform(int(width), int(height), int(tiles_x), int(tile_begin), int(num_tiles),
-                         float(background[0]), float(background[1]), float(background[2]), float(min_alpha),
-                         int(row_base))
+    params = uniform(ctx, "render_rasterize", width=width, height=height, tiles_x=tiles_x, tile_begin=tile_begin,
+                     num_tiles=num_tiles, bg_r=background[0], bg_g=background[1], bg_b=background[2],
+                     min_alpha=min_alpha, row_base=row_base)
     per_gaussian = max(16, n * 16)
     ctx.dispatch(
-        enc, ctx.pipeline("render_rasterize"),
+        enc, pipeline(ctx, "render_rasterize"),
         [params, ranges, BufferRange(vals, 0, max(4, num_keys * 4)),
          BufferRange(pos_op, 0, per_gaussian), BufferRange(conic, 0, per_gaussian), BufferRange(rgb, 0, per_gaussian),
          *plane_windows(image, stride), work],
