@@ -21,6 +21,8 @@
 //   changed        changed bits -> changed_words[]; |changed & M| -> stats[2];
 //                  |M| -> stats[3]
 
+//!include common.wgsl
+
 struct Params {
     n_px: u32,     // pixels in this chunk
     pad0: u32,
@@ -71,7 +73,7 @@ const QV: u32 = 4u;
 @compute @workgroup_size(64)
 fn delta_minmax(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                 @builtin(local_invocation_index) lid: u32) {
-    let base = (wid.x + wid.y * nwg.x) * WG * QV + lid;
+    let base = workgroup_index(wid, nwg) * WG * QV + lid;
     var lo = vec4<f32>(F32_MAX);
     var hi = vec4<f32>(0.0);
     let nq = n_vec();
@@ -105,7 +107,7 @@ fn histo(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: ve
     atomicStore(&wg_hist[lid], 0u);
     workgroupBarrier();
     let nq = n_vec();
-    let base = (wid.x + wid.y * nwg.x) * 256u * QV + lid;
+    let base = workgroup_index(wid, nwg) * 256u * QV + lid;
     for (var k = 0u; k < QV; k = k + 1u) {
         let q = base + k * 256u;
         if (q < nq) {
@@ -136,7 +138,7 @@ fn histo_private(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
                  @builtin(local_invocation_index) lid: u32) {
     var h: array<u32, 256>;
     let nq = n_vec();
-    let base = (wid.x + wid.y * nwg.x) * HWG * HQ + lid;
+    let base = workgroup_index(wid, nwg) * HWG * HQ + lid;
     for (var k = 0u; k < HQ; k = k + 1u) {
         let q = base + k * HWG;
         if (q < nq) {
@@ -168,7 +170,7 @@ fn changed(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
         atomicStore(&wg_m, 0u);
     }
     workgroupBarrier();
-    let g = (wid.x + wid.y * nwg.x) * 64u + lid;
+    let g = workgroup_index(wid, nwg) * 64u + lid;
     let n_words = (P.n_px + 31u) / 32u;
     if (g < n_words) {
         var v: u32 = 0u;

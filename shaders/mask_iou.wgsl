@@ -17,6 +17,8 @@
 //              already live on the device (0 = outside, else inside) and
 //              records their boxes with atomics.
 
+//!include common.wgsl
+
 struct Params {
     n_a: u32,        // masks in A (chunk)
     n_b: u32,        // masks in B (chunk)
@@ -85,7 +87,7 @@ fn intersect(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_in
 @compute @workgroup_size(64)
 fn area(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
         @builtin(local_invocation_index) lid: u32) {
-    let k = wid.x + wid.y * nwg.x;
+    let k = workgroup_index(wid, nwg);
     if (lid == 0u) {
         atomicStore(&acc, 0u);
     }

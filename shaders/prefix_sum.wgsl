@@ -20,43 +20,22 @@ const BLOCK: u32 = 2048u;
 @group(0) @binding(1) var<storage, read_write> data: array<u32>;
 @group(0) @binding(2) var<storage, read_write> block_sums: array<u32>;
 
-var<workgroup> partial: array<u32, 256>;
-var<workgroup> seg: array<u32, 16>;
+//!include common.wgsl
+//!include workgroup_scan.wgsl
 
-// Exclusive scan of the threads' totals: two serial levels (16 segments of 16
-// threads, then the 16 segment totals) need three barriers, where a log-step
-// scan needs sixteen; on CPU implementations, which run a workgroup's SIMD
-// slices as coroutines, barriers dominate.  Every thread must call it.
+// Exclusive scan of the threads' totals (256 threads: SCAN_SEG = 16).
 fn scan_threads(tid: u32, own: u32) -> u32 {
-    partial[tid] = own;
-    workgroupBarrier();
-    if (tid < 16u) {
-        var s = 0u;
-        for (var i = 16u * tid; i < 16u * tid + 16u; i++) {
-            let v = partial[i];
-            partial[i] = s;
-            s += v;
-        }
-        seg[tid] = s;
-    }
-    workgroupBarrier();
-    if (tid == 0u) {
-        var s = 0u;
-        for (var i = 0u; i < 16u; i++) {
-            let v = seg[i];
-            seg[i] = s;
-            s += v;
-        }
-    }
-    workgroupBarrier();
-    return partial[tid] + seg[tid / 16u];
+    var v: ScanValue;
+    v.lo = vec4<u32>(own, 0u, 0u, 0u);
+    v.hi = vec4<u32>(0u);
+    return workgroup_scan(tid, v).lo.x - own;
 }
 
 @compute @workgroup_size(256)
 fn scan_blocks(@builtin(local_invocation_index) tid: u32,
                @builtin(workgroup_id) wid: vec3<u32>,
                @builtin(num_workgroups) nwg: vec3<u32>) {
-    let block = wid.x + wid.y * nwg.x;
+    let block = workgroup_index(wid, nwg);
     if (block >= p.num_blocks) {
         return;
     }
@@ -90,7 +69,7 @@ fn scan_blocks(@builtin(local_invocation_index) tid: u32,
 fn add_block_sums(@builtin(local_invocation_index) tid: u32,
                   @builtin(workgroup_id) wid: vec3<u32>,
                   @builtin(num_workgroups) nwg: vec3<u32>) {
-    let block = wid.x + wid.y * nwg.x;
+    let block = workgroup_index(wid, nwg);
     if (block >= p.num_blocks) {
         return;
     }

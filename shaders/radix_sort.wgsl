@@ -38,7 +38,6 @@ const WG: u32 = 64u;
 const ITEMS: u32 = 32u;
 const BLOCK: u32 = 2048u;
 const RADIX: u32 = 16u;
-const SEG: u32 = 8u;  // threads per segment of the two-level scan (SEG * SEG = WG)
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> keys_in: array<u32>;
@@ -52,15 +51,10 @@ const SEG: u32 = 8u;  // threads per segment of the two-level scan (SEG * SEG = 
 // 8-bit fields in a vec4 (digit d in component d / 4, bits 8 * (d % 4));
 // across threads, 16-bit fields in two vec4 (digit d in word d / 2 of lo (d < 8)
 // or hi, bits 16 * (d % 2)), which cannot overflow with 2048 per block.
-struct Packed {
-    lo: vec4<u32>,  // digits 0-7
-    hi: vec4<u32>,  // digits 8-15
-}
-
-var<workgroup> scan_lo: array<vec4<u32>, 64>;
-var<workgroup> scan_hi: array<vec4<u32>, 64>;
-var<workgroup> seg_lo: array<vec4<u32>, 8>;
-var<workgroup> seg_hi: array<vec4<u32>, 8>;
+// (lo: digits 0-7, hi: digits 8-15; scanned by workgroup_scan with SCAN_SEG = 8.)
+//!include common.wgsl
+//!include workgroup_scan.wgsl
+alias Packed = ScanValue;
 
 fn digit_of(key: u32) -> u32 {
     return (key >> p.shift) & 15u;
@@ -105,54 +99,15 @@ fn count_items(base: u32) -> vec4<u32> {
     return c;
 }
 
-// Inclusive scan of the threads' packed counters over the workgroup; every
-// thread must call it.  Two serial levels (8 segments of 8 threads, then the
-// 8 segment totals) need only three barriers.
-fn scan_threads(tid: u32, own: Packed) -> Packed {
-    scan_lo[tid] = own.lo;
-    scan_hi[tid] = own.hi;
-    workgroupBarrier();
-    if (tid < SEG) {
-        var lo = vec4<u32>(0u);
-        var hi = vec4<u32>(0u);
-        for (var i = SEG * tid; i < SEG * tid + SEG; i++) {
-            lo += scan_lo[i];
-            hi += scan_hi[i];
-            scan_lo[i] = lo;
-            scan_hi[i] = hi;
-        }
-        seg_lo[tid] = lo;
-        seg_hi[tid] = hi;
-    }
-    workgroupBarrier();
-    if (tid == 0u) {
-        var lo = vec4<u32>(0u);
-        var hi = vec4<u32>(0u);
-        for (var i = 0u; i < SEG; i++) {
-            let l = seg_lo[i];
-            let h = seg_hi[i];
-            seg_lo[i] = lo;
-            seg_hi[i] = hi;
-            lo += l;
-            hi += h;
-        }
-    }
-    workgroupBarrier();
-    var out: Packed;
-    out.lo = scan_lo[tid] + seg_lo[tid / SEG];
-    out.hi = scan_hi[tid] + seg_hi[tid / SEG];
-    return out;
-}
-
 @compute @workgroup_size(64)
 fn histogram(@builtin(local_invocation_index) tid: u32,
              @builtin(workgroup_id) wid: vec3<u32>,
              @builtin(num_workgroups) nwg: vec3<u32>) {
-    let block = wid.x + wid.y * nwg.x;
+    let block = workgroup_index(wid, nwg);
     if (block >= p.num_blocks) {
         return;
     }
-    let incl = scan_threads(tid, widen(count_items(block * BLOCK + tid * ITEMS)));
+    let incl = workgroup_scan(tid, widen(count_items(block * BLOCK + tid * ITEMS)));
     // The last thread's inclusive counts are the block's totals.
     if (tid == WG - 1u) {
         for (var d = 0u; d < RADIX; d++) {
@@ -165,13 +120,13 @@ fn histogram(@builtin(local_invocation_index) tid: u32,
 fn scatter(@builtin(local_invocation_index) tid: u32,
            @builtin(workgroup_id) wid: vec3<u32>,
            @builtin(num_workgroups) nwg: vec3<u32>) {
-    let block = wid.x + wid.y * nwg.x;
+    let block = workgroup_index(wid, nwg);
     if (block >= p.num_blocks) {
         return;
     }
     let base = block * BLOCK + tid * ITEMS;
     let own = widen(count_items(base));
-    let incl = scan_threads(tid, own);
+    let incl = workgroup_scan(tid, own);
     // Global position of this thread's first element of each digit: the
     // block's scanned histogram plus the elements of that digit in earlier threads.
     let gblock = p.block_base + block;

@@ -19,6 +19,8 @@
 // q = 0.5 (a dx^2 + c dy^2) + b dx dy exceeds log(255 opacity), i.e. when
 // alpha < 1/255 at every pixel of the tile, so no pixel changes.
 
+//!include common.wgsl
+
 struct Params {
     n: u32,           // Gaussians (length of `order`)
     tiles_x: u32,
@@ -35,7 +37,9 @@ struct Params {
 @group(0) @binding(6) var<storage, read> pos_op: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read> conic: array<vec4<f32>>;
 
-const TILE: f32 = 16.0;
+// Set by the host from r360gpu/render/conventions.py (SHADER_CONSTANTS).
+override TILE: f32;
+override ALPHA_MIN: f32;
 // Safety margin on the threshold against float rounding (q is O(10)).
 const Q_MARGIN: f32 = 0.001;
 
@@ -50,7 +54,7 @@ fn footprint(g: u32) -> Footprint {
     var f: Footprint;
     f.mean = po.xy;
     f.conic = conic[g].xyz;
-    f.q_max = log(255.0 * po.w) + Q_MARGIN;
+    f.q_max = log(po.w / ALPHA_MIN) + Q_MARGIN;
     return f;
 }
 
@@ -96,7 +100,7 @@ fn row_ids(r: vec4<u32>, row: u32) -> vec2<u32> {
 fn count(@builtin(local_invocation_index) lidx: u32,
          @builtin(workgroup_id) wid: vec3<u32>,
          @builtin(num_workgroups) nwg: vec3<u32>) {
-    let j = (wid.x + wid.y * nwg.x) * 256u + lidx;
+    let j = workgroup_index(wid, nwg) * 256u + lidx;
     if (j >= p.n) {
         return;
     }
@@ -120,7 +124,7 @@ fn count(@builtin(local_invocation_index) lidx: u32,
 fn emit(@builtin(local_invocation_index) lidx: u32,
         @builtin(workgroup_id) wid: vec3<u32>,
         @builtin(num_workgroups) nwg: vec3<u32>) {
-    let j = (wid.x + wid.y * nwg.x) * 256u + lidx;
+    let j = workgroup_index(wid, nwg) * 256u + lidx;
     if (j >= p.n) {
         return;
     }

@@ -1,7 +1,8 @@
 // 3DGS projection: one thread per Gaussian (INRIA 3DGS preprocess).
 //
 // For Gaussian i (global index base + local index) writes
-//   pos_op[i] = (u, v, z, opacity)   u, v: projected mean in pixel-index
+//   pos_op[i] = (u, v, z, opacity)   opacity times the antialiasing compensation
+//                                    when p.antialiased; u, v: projected mean in pixel-index
 //                                    coordinates (pixel (x, y) has its centre at
 //                                    (x, y), i.e. u = fx * X / Z + cx - 0.5);
 //                                    z: camera-space depth
@@ -14,12 +15,14 @@
 // and adds each touched tile row's tile count to row_counts[row] (the host
 // plans key windows from them).
 //
-// Culling: z <= near, a singular 2D covariance, opacity below 1/255 (can never
-// reach the blend threshold), or an empty tile rectangle.  The tile rectangle
+// Culling: z <= near, a singular 2D covariance, (compensated) opacity below
+// 1/255 (can never reach the blend threshold), or an empty tile rectangle.  The tile rectangle
 // is INRIA's 3-sigma rectangle intersected with the tiles that hold a pixel
 // within the opacity-aware radius sqrt(2 lambda1 log(255 opacity)): fewer keys,
 // identical images, because every dropped pixel-Gaussian pair is below the
 // blend threshold.
+
+//!include common.wgsl
 
 struct Params {
     r00: f32, r01: f32, r02: f32,
@@ -35,11 +38,15 @@ struct Params {
     base: u32,        // global index of the chunk's first Gaussian
     sh_degree: u32,   // degree used for colour (<= stored degree)
     sh_stride: u32,   // floats per Gaussian in `sh` (3 * K)
+    antialiased: u32, // 1: opacity *= sqrt(max(AA_MIN_RATIO, det / det_blurred))
 }
 
-const TILE: f32 = 16.0;
-const BLUR: f32 = 0.3;
-const ALPHA_MIN: f32 = 0.00392156862745098;   // 1 / 255
+// Set by the host from r360gpu/render/conventions.py (SHADER_CONSTANTS).
+override TILE: f32;
+override COV2D_BLUR: f32;
+override ALPHA_MIN: f32;
+override AA_MIN_RATIO: f32;
+override SIGMA_EXTENT: f32;
 // Margin on log(255 * opacity) so that float rounding cannot drop a pixel
 // whose alpha is at the blend threshold.
 const RADIUS_LOG_MARGIN: f32 = 0.001;
@@ -128,7 +135,7 @@ fn cull(g: u32) {
 fn main(@builtin(local_invocation_index) lidx: u32,
         @builtin(workgroup_id) wid: vec3<u32>,
         @builtin(num_workgroups) nwg: vec3<u32>) {
-    let i = (wid.x + wid.y * nwg.x) * 256u + lidx;
+    let i = workgroup_index(wid, nwg) * 256u + lidx;
     if (i >= p.n) {
         return;
     }
@@ -174,11 +181,19 @@ fn main(@builtin(local_invocation_index) lidx: u32,
     // cov2 = (T M)(T M)^T
     let u0 = vec3<f32>(dot(t0, m0), dot(t0, m1), dot(t0, m2));
     let u1 = vec3<f32>(dot(t1, m0), dot(t1, m1), dot(t1, m2));
-    let ca = dot(u0, u0) + BLUR;
+    let ca0 = dot(u0, u0);
     let cb = dot(u0, u1);
-    let cc = dot(u1, u1) + BLUR;
+    let cc0 = dot(u1, u1);
+    let ca = ca0 + COV2D_BLUR;
+    let cc = cc0 + COV2D_BLUR;
     let det = ca * cc - cb * cb;
-    if (!(det > 0.0)) {
+    var opacity_eff = opacity;
+    if (p.antialiased != 0u) {
+        // gsplat's add_blur / INRIA's h_convolution_scaling: the blur's added
+        // area is taken back from the opacity.
+        opacity_eff = opacity * sqrt(max(AA_MIN_RATIO, (ca0 * cc0 - cb * cb) / det));
+    }
+    if (!(det > 0.0) || opacity_eff < ALPHA_MIN) {
         cull(g);
         return;
     }
@@ -190,12 +205,12 @@ fn main(@builtin(local_invocation_index) lidx: u32,
     // INRIA's rectangle: radius ceil(3 sigma), tiles [floor((p - r) / 16),
     // floor((p + r + 15) / 16)).  (Its upper end can miss a tile the radius
     // reaches; kept as is so images match INRIA's.)
-    let r3 = ceil(3.0 * sqrt(lambda1));
+    let r3 = ceil(SIGMA_EXTENT * sqrt(lambda1));
     var lo = floor((vec2<f32>(px, py) - r3) / TILE);
     var hi = floor((vec2<f32>(px, py) + r3 + TILE - 1.0) / TILE);
     // Intersect with the tiles holding a pixel within the opacity-aware radius;
     // beyond it opacity * exp(-power) < 1/255, so no pixel changes.
-    let r_alpha = sqrt(2.0 * lambda1 * max(log(255.0 * opacity) + RADIUS_LOG_MARGIN, 0.0));
+    let r_alpha = sqrt(2.0 * lambda1 * max(log(opacity_eff / ALPHA_MIN) + RADIUS_LOG_MARGIN, 0.0));
     lo = max(lo, floor(ceil(vec2<f32>(px, py) - r_alpha) / TILE));
     hi = min(hi, floor(floor(vec2<f32>(px, py) + r_alpha) / TILE) + 1.0);
     // Float clamps before the integer conversion keep far-away means in range.
@@ -208,7 +223,7 @@ fn main(@builtin(local_invocation_index) lidx: u32,
         cull(g);
         return;
     }
-    pos_op[g] = vec4<f32>(px, py, t.z, opacity);
+    pos_op[g] = vec4<f32>(px, py, t.z, opacity_eff);
     conic[g] = vec4<f32>(cc * inv_det, -cb * inv_det, ca * inv_det, 0.0);
     rgb[g] = vec4<f32>(sh_color(i, mean), 0.0);
     rect[g] = vec4<u32>(x0, y0, x1, y1);

@@ -2,6 +2,8 @@
 // ranges[2t], ranges[2t+1] = (start, end) of tile t's run in the key list.  The host clears
 // `ranges` to zero first, so tiles without keys get the empty range (0, 0).
 
+//!include common.wgsl
+
 struct Params {
     n: u32,  // keys
 }
@@ -14,7 +16,7 @@ struct Params {
 fn main(@builtin(local_invocation_index) lidx: u32,
         @builtin(workgroup_id) wid: vec3<u32>,
         @builtin(num_workgroups) nwg: vec3<u32>) {
-    let k = (wid.x + wid.y * nwg.x) * 256u + lidx;
+    let k = workgroup_index(wid, nwg) * 256u + lidx;
     if (k >= p.n) {
         return;
     }

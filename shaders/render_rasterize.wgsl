@@ -15,11 +15,15 @@
 //   w = alpha * T: colour += w * rgb, sum_w += w, sum_wz += w * z
 //   the median depth is z of the first blended Gaussian with T * (1 - alpha) <= 0.5
 //   T *= 1 - alpha
-// Outputs (each a separate plane of width * height f32, row-major):
+// Outputs (each a separate plane of f32, row-major, width floats per row, its
+// first row pixel row p.row_base: the host renders images beyond one binding
+// in bands of whole tile rows):
 //   r, g, b = colour + T * background;  alpha = 1 - T;
 //   depth = sum_wz / sum_w and median depth, both 0 where alpha < min_alpha.
 // The workgroup stops early once every pixel is finished.  work[2t], work[2t+1]
 // count the tile's evaluated and blended pixel-Gaussian pairs (for benchmarks).
+
+//!include common.wgsl
 
 struct Params {
     width: u32,
@@ -31,12 +35,16 @@ struct Params {
     bg_g: f32,
     bg_b: f32,
     min_alpha: f32,    // coverage threshold for the depth outputs
+    row_base: u32,     // pixel row stored first in the output planes (row bands)
 }
 
-const ALPHA_MAX: f32 = 0.99;
-const ALPHA_MIN: f32 = 0.00392156862745098;  // 1 / 255
-const T_MIN: f32 = 0.0001;
-const MEDIAN_T: f32 = 0.5;
+// Set by the host from r360gpu/render/conventions.py (SHADER_CONSTANTS).
+override ALPHA_MAX: f32;
+override ALPHA_MIN: f32;
+override T_MIN: f32;
+override MEDIAN_T: f32;
+// The 16x16 tile (TILE) is built into the workgroup shape below (8 x 4
+// threads, 2 x 2 pixels each, 2 blocks 8 rows apart); the host checks TILE == 16.
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> ranges: array<u32>;
@@ -75,7 +83,7 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>,
         @builtin(local_invocation_index) tid: u32,
         @builtin(workgroup_id) wid: vec3<u32>,
         @builtin(num_workgroups) nwg: vec3<u32>) {
-    let wtile = wid.x + wid.y * nwg.x;
+    let wtile = workgroup_index(wid, nwg);
     if (wtile >= p.num_tiles) {
         return;
     }
@@ -211,7 +219,7 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>,
         let med = select(zero, median[q], covered);
         for (var l = 0u; l < 4u; l++) {
             if (inside[q][l]) {
-                let pi = ys[q][l] * p.width + xs[l];
+                let pi = (ys[q][l] - p.row_base) * p.width + xs[l];
                 out_r[pi] = col_r[q][l] + t_rem[q][l] * p.bg_r;
                 out_g[pi] = col_g[q][l] + t_rem[q][l] * p.bg_g;
                 out_b[pi] = col_b[q][l] + t_rem[q][l] * p.bg_b;

@@ -16,6 +16,8 @@
 //   depth_range  min / max of the valid depths -> stats[0], stats[1] (f32 bits;
 //                depths are > 0, so u32 order = float order)
 
+//!include common.wgsl
+
 struct Params {
     width: u32,
     height: u32,
@@ -139,7 +141,7 @@ fn overlay(@builtin(global_invocation_id) gid: vec3<u32>) {
 @compute @workgroup_size(64)
 fn depth_range(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                @builtin(local_invocation_index) lid: u32) {
-    let i = (wid.x + wid.y * nwg.x) * 64u + lid;
+    let i = workgroup_index(wid, nwg) * 64u + lid;
     if (i >= P.width * P.height) {
         return;
     }

@@ -12,6 +12,7 @@ import numpy as np
 
 from r360gpu.io.sh import sh_to_color
 from r360gpu.render.conventions import (
+    AA_MIN_RATIO,
     ALPHA_MAX,
     ALPHA_MIN,
     COV2D_BLUR,
@@ -36,8 +37,13 @@ def quat_to_rotation(q: np.ndarray) -> np.ndarray:
     ], 1)
 
 
-def project(scene, camera, near: float = NEAR_PLANE) -> dict:
+def project(scene, camera, near: float = NEAR_PLANE, antialiased: bool = False, principal_point: str = "camera") -> dict:
     """Per-Gaussian screen quantities (float64); ``visible`` marks the kept ones.
+
+    antialiased: opacities times sqrt(max(AA_MIN_RATIO, det / det_blurred)),
+    written from gsplat's ``add_blur`` (``gsplat/cuda/include/Utils.cuh``)
+    and INRIA's ``h_convolution_scaling``.  principal_point "centre": the
+    image centre instead of (cx, cy) (INRIA's original renderer).
 
     Returns dict with mean2d (N, 2) in pixel-index coordinates (pixel (x, y)
     centred at (x, y)), conic (N, 3), depth (N,), rgb (N, 3), opacity (N,),
@@ -47,6 +53,8 @@ def project(scene, camera, near: float = NEAR_PLANE) -> dict:
     t = np.asarray(camera.t, np.float64)
     W, H = int(camera.width), int(camera.height)
     fx, fy, cx, cy = float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy)
+    if principal_point == "centre":
+        cx, cy = W / 2.0, H / 2.0
     means = np.asarray(scene.means, np.float64)
     n = means.shape[0]
     p = means @ R.T + t
@@ -68,10 +76,14 @@ def project(scene, camera, near: float = NEAR_PLANE) -> dict:
     J[:, 1, 2] = -fy * ty / zs**2
     T = J @ R
     cov = T @ sigma @ np.transpose(T, (0, 2, 1))
+    det_orig = cov[:, 0, 0] * cov[:, 1, 1] - cov[:, 0, 1] * cov[:, 1, 0]
     a = cov[:, 0, 0] + COV2D_BLUR
     b = cov[:, 0, 1]
     c = cov[:, 1, 1] + COV2D_BLUR
     det = a * c - b * b
+    opacity = np.asarray(scene.opacities, np.float64)
+    if antialiased:
+        opacity = opacity * np.sqrt(np.maximum(AA_MIN_RATIO, det_orig / np.where(det > 0, det, 1.0)))
     visible &= det > 0
     det = np.where(det > 0, det, 1.0)
     conic = np.stack([c / det, -b / det, a / det], 1)
@@ -87,7 +99,6 @@ def project(scene, camera, near: float = NEAR_PLANE) -> dict:
     x1 = np.clip(np.floor((u + radius + TILE - 1) / TILE), 0, gx)
     y1 = np.clip(np.floor((v + radius + TILE - 1) / TILE), 0, gy)
     visible &= (x1 > x0) & (y1 > y0)
-    opacity = np.asarray(scene.opacities, np.float64)
 
     centre = -R.T @ t
     rgb = sh_to_color(np.asarray(scene.sh, np.float64), means - centre) if n else np.zeros((0, 3))
@@ -95,14 +106,17 @@ def project(scene, camera, near: float = NEAR_PLANE) -> dict:
                 rect=np.stack([x0, y0, x1, y1], 1).astype(np.int64), visible=visible)
 
 
-def render(scene, camera, background=(0.0, 0.0, 0.0), near: float = NEAR_PLANE, window=None) -> dict:
+def render(scene, camera, background=(0.0, 0.0, 0.0), near: float = NEAR_PLANE, window=None,
+           antialiased: bool = False, no_coverage_alpha: float = NO_COVERAGE_ALPHA,
+           principal_point: str = "camera") -> dict:
     """Reference images: rgb (H, W, 3), alpha, depth, median_depth (H, W), float64,
     and ``blended``: the number of pixel-Gaussian pairs composited.
 
     window: optional (x0, y0, width, height) pixel region of the camera's image
     to compute (the arrays then have that size); the default is the whole image.
+    The other options are those of :class:`r360gpu.render.conventions.RenderOptions`.
     """
-    pr = project(scene, camera, near)
+    pr = project(scene, camera, near, antialiased, principal_point)
     x_lo, y_lo, W, H = window or (0, 0, int(camera.width), int(camera.height))
     T = np.ones((H, W))
     color = np.zeros((H, W, 3))
@@ -143,7 +157,7 @@ def render(scene, camera, background=(0.0, 0.0, 0.0), near: float = NEAR_PLANE, 
         median_found[win] |= first
         T[win] = np.where(blend, test_t, t_old)
     alpha_img = 1 - T
-    covered = (alpha_img >= NO_COVERAGE_ALPHA) & (sum_w > 0)
+    covered = (alpha_img >= no_coverage_alpha) & (sum_w > 0)
     depth = np.where(covered, sum_wz / np.where(sum_w > 0, sum_w, 1), 0.0)
     return dict(rgb=color + T[..., None] * np.asarray(background, np.float64), alpha=alpha_img,
                 depth=depth, median_depth=np.where(covered, median, 0.0), blended=blended)

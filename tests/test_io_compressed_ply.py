@@ -72,8 +72,8 @@ def test_chunk_without_colour_bounds_and_with_sh(tmp_path):
     np.testing.assert_allclose(g.sh[0, 0], [-0.5 / C0, 0.5 / C0, (0.2 - 0.5) / C0], rtol=1e-6)
     assert g.opacities[0] == 1.0
     np.testing.assert_allclose(g.quats[0], [1, 0, 0, 0], atol=2e-3)
-    decoded = [-4.0, 4.0, (127.5 / 256 - 0.5) * 8, (128.5 / 256 - 0.5) * 8] + \
-              [((q + 0.5) / 256 - 0.5) * 8 for q in (1, 2, 3, 4, 5)]
+    # The PlayCanvas engine's decoder (gsplat-compressed-data.js): q * (8 / 255) - 4.
+    decoded = [q * (8 / 255) - 4 for q in (0, 255, 127, 128, 1, 2, 3, 4, 5)]
     np.testing.assert_allclose(g.sh[0, 1:], np.array(decoded).reshape(3, 3).T, rtol=1e-6)
 
 
@@ -111,8 +111,8 @@ def test_round_trip_within_documented_bounds(tmp_path):
     delta = math.sqrt(2) / (2 * 1023)
     assert np.linalg.norm(h.quats * sign - g.quats, axis=1).max() <= 4 * math.sqrt(3) * delta
 
-    # random_gaussians keeps f_rest in [-0.3, 0.3]: half a bin of width 8/256.
-    assert np.abs(h.sh[:, 1:] - g.sh[:, 1:]).max() <= 1 / 64 + slack
+    # random_gaussians keeps f_rest in [-0.3, 0.3]: half a step of 8/255.
+    assert np.abs(h.sh[:, 1:] - g.sh[:, 1:]).max() <= 4 / 255 + slack
 
 
 def test_sh_rest_end_bins_and_clipping(tmp_path):
@@ -123,9 +123,9 @@ def test_sh_rest_end_bins_and_clipping(tmp_path):
     g = Gaussians(g.means, g.scales, g.quats, g.opacities, sh)
     save_compressed_ply(tmp_path / "s.ply", g)
     got = load_compressed_ply(tmp_path / "s.ply").sh[:, 1, 0]
-    expect_bound = np.where(np.abs(values) <= 4 - 1 / 32, 1 / 64, 1 / 32) + 1e-6
+    expect_bound = 4 / 255 + 1e-6
     inside = np.abs(values) <= 4
-    assert (np.abs(got - values)[inside] <= expect_bound[inside]).all()
+    assert (np.abs(got - values)[inside] <= expect_bound).all()
     np.testing.assert_array_equal(got[~inside], [-4.0, 4.0])
 
 
@@ -196,3 +196,24 @@ def test_nan_bounds_drop_their_gaussians(tmp_path):
     with pytest.warns(R360Warning, match="dropped 256 of 300"):
         g = load_compressed_ply(p)
     assert g.n == 44
+
+
+def test_sh_bytes_decode_like_the_playcanvas_engine(tmp_path):
+    # Every byte value, against the reference decoder's rule evaluated in float64
+    # (playcanvas/engine src/scene/gsplat/gsplat-compressed-data.js: q * (8 / 255) - 4).
+    q = np.arange(256, dtype=np.uint8)
+    n = 256
+    sh = np.zeros((n, 9), np.uint8)
+    sh[:, 0] = q
+    sh[:, 4] = q[::-1]
+    identity = (512 << 20) | (512 << 10) | 512
+    chunk = [0, 0, 0, 1, 1, 1, 0, 0, 0, 0, 0, 0]
+    verts = [[_pos(0, 0, 0), identity, 0, _rgba(128, 128, 128, 255)]] * n
+    g = load_compressed_ply(_write(tmp_path / "q.ply", [chunk], verts, sh=sh, chunk_props=BOUNDS))
+    expect = q.astype(np.float64) * 8.0 / 255.0 - 4.0
+    got = np.asarray(g.sh, np.float64)
+    # f_rest_0 is coefficient 1 of red; f_rest_4 coefficient 2 of green (channel-major, 3 per channel).
+    assert np.abs(got[:, 1, 0] - expect).max() <= 4e-7 * 4  # float32 storage of the decoded value
+    assert np.abs(got[:, 2, 1] - expect[::-1]).max() <= 4e-7 * 4
+    assert got[0, 1, 0] == -4.0 and got[255, 1, 0] == 4.0
+    assert np.abs(got[:, 1, 0] - np.float32(expect)).max() == 0.0

@@ -210,7 +210,7 @@ def test_bad_input(ctx):
         render(g, object(), ctx=ctx)
     tiny = GpuContext(ctx.device, limit_binding_bytes=1024)
     with pytest.raises(InputError):
-        render(g, camera(64, 48), ctx=tiny)  # one image plane exceeds the binding
+        render(g, camera(64, 48), ctx=tiny)  # not even one row of tiles fits the binding
 
 
 def test_doctor_checks(ctx):

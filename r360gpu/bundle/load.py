@@ -48,13 +48,13 @@ from ..io.load import _latest_inria_iteration, load_cameras
 from ..io.masks import load_mask
 from ..io.ply import read_ply_header
 from ..io.renders import RendersReader, image_size
-from .model import (DEPTH_MODES, RESERVED_METHOD_NAMES, Bundle, BundleError, BundleOptions, Draft, Problem,
-                    SourceSpec)
+from .model import (DEPTH_MODES, PRINCIPAL_POINTS, RENDER_KEYS, RESERVED_METHOD_NAMES, Bundle, BundleError,
+                    BundleOptions, Draft, Problem, RenderSettings, SourceSpec)
 from .remove360_layout import is_remove360_folder, remove360_draft
 
 CONFIG_NAME = "scene.toml"
 TOP_KEYS = ("name", "prompt", "cameras", "masks", "views", "pre", "reference", "methods", "options")
-SOURCE_KEYS = ("scene", "renders", "rgb", "depth", "depth_scale")
+SOURCE_KEYS = ("scene", "renders", "rgb", "depth", "depth_scale") + RENDER_KEYS
 OPTION_KEYS = ("background", "depth", "reference_free")
 # Extensions stripped from camera image names to get view names.
 _IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".bmp", ".webp")
@@ -269,10 +269,11 @@ def _parse_source(table, label: str, root: Path, bad, *, depth_required: bool) -
         bad(f"{label} 'depth' goes with 'rgb' (explicit folders); a renders folder's depth is its depth/ "
             f"sub-folder and a splat scene's depth is rendered")
         ok = False
-    if not ok:
+    render = _parse_render_settings(table, label, bad, scene=key == "scene")
+    if not ok or render is None:
         return None
     if key == "scene":
-        return SourceSpec("scene", root / value)
+        return SourceSpec("scene", root / value, render=render)
     if key == "renders":
         folder = root / value
         depth = folder / "depth"
@@ -285,6 +286,36 @@ def _parse_source(table, label: str, root: Path, bad, *, depth_required: bool) -
         bad(f"{label} 'depth' must be a folder path (a non-empty string)")
         return None
     return SourceSpec("renders", rgb, scale, rgb, None if depth is None else root / depth)
+
+
+def _parse_render_settings(table: dict, label: str, bad, *, scene: bool) -> RenderSettings | None:
+    """The render keys of a source table (None after reporting a problem)."""
+    given = [k for k in RENDER_KEYS if k in table]
+    if given and not scene:
+        bad(f"{label} {', '.join(repr(k) for k in given)} apply to splat scenes only (renders are images already)")
+        return None
+    ok = True
+
+    def number(v) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+    if "antialiased" in table and not isinstance(table["antialiased"], bool):
+        bad(f"{label} 'antialiased' must be true or false, got {table['antialiased']!r}")
+        ok = False
+    if "near" in table and not (number(table["near"]) and table["near"] > 0):
+        bad(f"{label} 'near' must be a positive number (INRIA 0.2, gsplat 0.01), got {table['near']!r}")
+        ok = False
+    if "no_coverage_alpha" in table and not (number(table["no_coverage_alpha"])
+                                             and 0 <= table["no_coverage_alpha"] <= 1):
+        bad(f"{label} 'no_coverage_alpha' must be a number in [0, 1], got {table['no_coverage_alpha']!r}")
+        ok = False
+    if "principal_point" in table and table["principal_point"] not in PRINCIPAL_POINTS:
+        bad(f"{label} 'principal_point' must be {' or '.join(map(repr, PRINCIPAL_POINTS))}, "
+            f"got {table['principal_point']!r}")
+        ok = False
+    if not ok:
+        return None
+    return RenderSettings(**{k: (float(table[k]) if k in ("near", "no_coverage_alpha") else table[k]) for k in given})
 
 
 def _parse_options(table, bad) -> BundleOptions:

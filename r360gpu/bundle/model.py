@@ -26,6 +26,34 @@ DEPTH_MODES = ("expected", "median")
 LAYOUTS = ("scene.toml", "remove360")
 
 
+#: Per-source keys naming how r360gpu renders a splat scene (the conventions of
+#: :class:`r360gpu.render.conventions.RenderOptions`; an absent key keeps r360gpu's default).
+RENDER_KEYS = ("antialiased", "near", "no_coverage_alpha", "principal_point")
+PRINCIPAL_POINTS = ("camera", "centre")  # checked against r360gpu.render.conventions by the tests
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Render conventions set for one splat-scene source; None: r360gpu's default.
+
+    antialiased: the source was trained with antialiasing (gsplat
+    ``rasterize_mode="antialiased"``, INRIA ``antialiasing=True``,
+    Mip-Splatting).  near: near plane (INRIA 0.2, gsplat 0.01).
+    no_coverage_alpha: depth is 0 where alpha is below it (0: keep every
+    depth, as gsplat).  principal_point: "camera" or "centre" (INRIA's
+    original renderer ignores cx, cy).
+    """
+
+    antialiased: bool | None = None
+    near: float | None = None
+    no_coverage_alpha: float | None = None
+    principal_point: str | None = None
+
+    def given(self) -> dict:
+        """The settings that were set, by key."""
+        return {k: getattr(self, k) for k in RENDER_KEYS if getattr(self, k) is not None}
+
+
 @dataclass(frozen=True)
 class SourceSpec:
     """Where one reconstruction's views come from.
@@ -36,6 +64,7 @@ class SourceSpec:
     kind "renders": ``path`` is the renders folder; ``rgb_dir`` holds
     ``<view>.png|jpg`` and ``depth_dir`` (None: no depth) ``<view>.png|exr|npy|tiff``,
     depth values multiplied by ``depth_scale`` (see :mod:`r360gpu.io.renders`).
+    render: how a scene source is rendered (:class:`RenderSettings`).
     """
 
     kind: str
@@ -43,6 +72,7 @@ class SourceSpec:
     depth_scale: float = 1.0
     rgb_dir: Path | None = None
     depth_dir: Path | None = None
+    render: RenderSettings = RenderSettings()
 
     def reader(self) -> RendersReader:
         """A :class:`RendersReader` for a renders source (ValueError for a scene source)."""
@@ -124,6 +154,31 @@ class Bundle:
         out.update(self.methods)
         return out
 
+    def with_render_settings(self, **settings) -> "Bundle":
+        """A copy whose splat-scene sources use ``settings`` (keys of :data:`RENDER_KEYS`;
+        None leaves a source's own value), e.g. ``antialiased=True`` from ``score --antialiased``."""
+        from dataclasses import replace
+
+        settings = {k: v for k, v in settings.items() if v is not None}
+        unknown = set(settings) - set(RENDER_KEYS)
+        if unknown:
+            raise ValueError(f"unknown render settings {sorted(unknown)}")
+        if not settings:
+            return self
+
+        from ..io.gaussians import Gaussians
+
+        def apply(s):
+            if isinstance(s, Gaussians):
+                raise InputError(f"scene {self.name!r}: render settings {settings} cannot be set on Gaussians in "
+                                 "memory; pass r360gpu.render.sources.SceneSource(gaussians, render={...}) instead")
+            if not isinstance(s, SourceSpec) or s.kind != "scene":
+                return s  # renders and device views are images already
+            return replace(s, render=replace(s.render, **settings))
+
+        return replace(self, pre=apply(self.pre), reference=apply(self.reference),
+                       methods={m: apply(s) for m, s in self.methods.items()})
+
     def fingerprint(self) -> str:
         """A hex SHA-256 that changes when anything the scores depend on may have changed.
 
@@ -169,7 +224,8 @@ class Bundle:
 
     def _source_settings(self, s: SourceSpec) -> dict:
         return {"kind": s.kind, "path": self._rel(s.path), "depth_scale": s.depth_scale,
-                "rgb_dir": s.rgb_dir and self._rel(s.rgb_dir), "depth_dir": s.depth_dir and self._rel(s.depth_dir)}
+                "rgb_dir": s.rgb_dir and self._rel(s.rgb_dir), "depth_dir": s.depth_dir and self._rel(s.depth_dir),
+                "render": s.render.given()}
 
     def _referenced_files(self) -> list[Path]:
         files: list[Path] = []

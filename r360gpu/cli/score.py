@@ -25,6 +25,10 @@ def add_scoring_options(p) -> None:
                    help="acc_seg thresholds to report (0.3 is s_sem; default 0.3 0.5 0.7 0.9)")
     g.add_argument("--depth", choices=["expected", "median"], default=None,
                    help="rendered depth used for the geometric axis (default: the bundle's, else expected)")
+    g.add_argument("--antialiased", action="store_true",
+                   help="render every splat scene in the antialiased mode (scenes trained with gsplat "
+                        "rasterize_mode='antialiased', INRIA antialiasing=True or Mip-Splatting); per source: "
+                        "antialiased = true in scene.toml")
     g.add_argument("--views", nargs="+", metavar="PATTERN", default=None,
                    help="score only views whose name matches one of these glob patterns")
     g.add_argument("--lpips", metavar="ONNX", default=None, help="LPIPS ONNX model (else LPIPS is not computed)")
@@ -90,6 +94,7 @@ def options_from_args(args):
         n_boot=args.n_boot,
         n_perm=args.n_perm,
         seed=args.seed,
+        antialiased=getattr(args, "antialiased", False),
     )
 
 

@@ -26,10 +26,12 @@ Layout (binary PLY, as written by SuperSplat and ``splat-transform``):
     A is the opacity (after the sigmoid).
 
 * optional ``sh`` element, one record per Gaussian: uchar ``f_rest_0..M-1``
-  (M in 9, 24, 45; channel-major as in the INRIA layout).  A byte q encodes
-  ``f = (n - 0.5) * 8`` with ``n = (q + 0.5) / 256``, except q = 0 -> n = 0
-  and q = 255 -> n = 1; the writer uses ``q = floor((f / 8 + 0.5) * 256)``
-  clipped to 0..255.
+  (M in 9, 24, 45; channel-major as in the INRIA layout).  A byte q decodes
+  to ``f = q * 8 / 255 - 4``, the format's reference decoder (PlayCanvas
+  engine, ``src/scene/gsplat/gsplat-compressed-data.js``:
+  ``shData[j][i * 16 + k] * (8 / 255) - 4``, and the same in its shader chunk
+  ``compressedSH.js``); the writer stores the nearest byte,
+  ``q = round((f + 4) * 255 / 8)`` clipped to 0..255.
 
 Round-trip error bounds of :func:`save_compressed_ply` then
 :func:`load_compressed_ply` (with ``r`` the range of the quantity over the
@@ -43,8 +45,8 @@ Gaussian's chunk; these are what the tests check):
   delta = sqrt(2) / (2 * 1023) the error of a stored component (the largest
   component is recomputed from the other three, |d m| <= 3 delta, and the
   result is renormalised): about 4.8e-3
-* f_rest:                 1/64 for values in [-4 + 1/32, 4 - 1/32], 1/32 in
-  the two end bins, values outside [-4, 4] are clipped.
+* f_rest:                 4/255 (half a step of 8/255) for values in [-4, 4];
+  values outside [-4, 4] are clipped.
 """
 from __future__ import annotations
 
@@ -67,8 +69,8 @@ _CHUNK_COLOUR = ["min_r", "min_g", "min_b", "max_r", "max_g", "max_b"]
 _PACKED = ["packed_position", "packed_rotation", "packed_scale", "packed_color"]
 _VALID_REST_COUNTS = {9: 1, 24: 2, 45: 3}
 _SQRT2 = float(np.sqrt(2.0))
-# f_rest value of each byte 0..255 (see the module docstring).
-_SH_BYTE_VALUES = (np.concatenate([[0.0], (np.arange(1, 255) + 0.5) / 256.0, [1.0]]) - 0.5) * 8.0
+# f_rest value of each byte 0..255: the PlayCanvas engine's decoder (see the module docstring).
+_SH_BYTE_VALUES = np.arange(256, dtype=np.float64) * (8.0 / 255.0) - 4.0
 
 
 def is_compressed_ply(ply: PlyData) -> bool:
@@ -247,7 +249,7 @@ def save_compressed_ply(path: str | os.PathLike, gaussians: Gaussians) -> None:
     k = g.sh.shape[1]
     if k > 1:
         rest = g.sh[:, 1:, :].astype(np.float64).transpose(0, 2, 1).reshape(n, -1)
-        q8 = np.clip(np.floor((rest / 8.0 + 0.5) * 256.0), 0, 255).astype(np.uint8)
+        q8 = np.clip(np.rint((rest + 4.0) * (255.0 / 8.0)), 0, 255).astype(np.uint8)
         sh = np.zeros(n, dtype=[(f"f_rest_{i}", "u1") for i in range(q8.shape[1])])
         for i in range(q8.shape[1]):
             sh[f"f_rest_{i}"] = q8[:, i]

@@ -55,6 +55,7 @@ def evaluate(
     if isinstance(bundles, (str, Path, Bundle)):
         bundles = [bundles]
     loaded = [b if isinstance(b, Bundle) else load_bundle(b) for b in bundles]
+    loaded = [b.with_render_settings(antialiased=True if opts.antialiased else None) for b in loaded]
     if opts.compat:  # public folders: depth is read as the public scripts read it (aggregate.compat)
         from ..bundle.remove360_layout import without_depth
 

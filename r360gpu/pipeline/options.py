@@ -45,6 +45,7 @@ class EvaluateOptions:
     n_boot: int = 20000
     n_perm: int = 5000
     seed: int = 0
+    antialiased: bool = False  # render every splat scene in the antialiased mode (score --antialiased)
 
     def __post_init__(self):
         from ..metrics.compat import check_compat

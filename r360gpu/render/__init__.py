@@ -8,16 +8,19 @@ under ``shaders/``.
 
 Public API::
 
-    render(scene, camera, *, ctx=None, background=(0, 0, 0), output="numpy", near=NEAR_PLANE)
+    render(scene, camera, *, ctx=None, background=(0, 0, 0), output="numpy", near=NEAR_PLANE,
+           antialiased=False, no_coverage_alpha=NO_COVERAGE_ALPHA, principal_point="camera")
         -> Render(rgb (H, W, 3), depth (H, W), median_depth (H, W), alpha (H, W))   float32
         or DeviceRender (output="device": six f32 planes in one wgpu buffer, see DeviceRender)
     render_views(scene, cameras, *, ..., progress=False) -> iterator of the same, one per camera
-    Renderer(scene, ...)  keeps the scene on the device; .render(camera), .render_device(camera)
+    Renderer(scene, ...)  keeps the scene on the device; .render(camera) (images beyond one device
+        buffer in row bands), .render_device(camera)
+    RenderOptions        the conventions above as one object (r360gpu.render.conventions)
     doctor_checks(ctx, rng) -> [(name, check)]   self-checks for ``r360gpu doctor``
 """
 from __future__ import annotations
 
-from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA
+from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA, RenderOptions
 from .doctor import doctor_checks
 from .pipeline import DeviceRender, Render, Renderer, RenderStats, render, render_views
 from .rasterize import PLANES
@@ -28,6 +31,7 @@ __all__ = [
     "PLANES",
     "DeviceRender",
     "Render",
+    "RenderOptions",
     "RenderStats",
     "doctor_checks",
     "Renderer",

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..gpu.context import BufferRange, GpuContext
+from ..gpu.uniforms import uniform
+from .kernels import pipeline
 from .scan import exclusive_scan
 from .scratch import Scratch
 
@@ -69,8 +71,8 @@ def record_counts(ctx: GpuContext, enc, proj, order, n: int, tiles_x: int, windo
     Returns (offsets window of n u32, 4-byte window holding the total).
     """
     counts = scratch.window("bin.counts", n * 4)
-    params = ctx.uniform(n, tiles_x, window.begin, window.end)
-    ctx.dispatch(enc, ctx.pipeline("render_bin", "count"),
+    params = uniform(ctx, "render_bin", n=n, tiles_x=tiles_x, tile_begin=window.begin, tile_end=window.end)
+    ctx.dispatch(enc, pipeline(ctx, "render_bin", "count"),
                  [params, BufferRange(order, 0, counts.size), _per_gaussian(proj.rect, n), counts, None, None,
                   _per_gaussian(proj.pos_op, n), _per_gaussian(proj.conic, n)],
                  ctx.grid(-(-n // 256)))
@@ -84,8 +86,8 @@ def record_emit(ctx: GpuContext, enc, proj, order, offsets: BufferRange, n: int,
     k = window.keys
     keys = scratch.get("bin.keys", k * 4)
     vals = scratch.get("bin.vals", k * 4)
-    params = ctx.uniform(n, tiles_x, window.begin, window.end)
-    ctx.dispatch(enc, ctx.pipeline("render_bin", "emit"),
+    params = uniform(ctx, "render_bin", n=n, tiles_x=tiles_x, tile_begin=window.begin, tile_end=window.end)
+    ctx.dispatch(enc, pipeline(ctx, "render_bin", "emit"),
                  [params, BufferRange(order, 0, offsets.size), _per_gaussian(proj.rect, n), offsets,
                   BufferRange(keys, 0, k * 4), BufferRange(vals, 0, k * 4),
                   _per_gaussian(proj.pos_op, n), _per_gaussian(proj.conic, n)],
@@ -98,7 +100,7 @@ def record_ranges(ctx: GpuContext, enc, keys, num_keys: int, num_tiles: int, scr
     ranges = scratch.window("bin.ranges", num_tiles * 8)
     enc.clear_buffer(ranges.buffer, 0, ranges.size)
     if num_keys > 0:
-        ctx.dispatch(enc, ctx.pipeline("render_ranges"),
-                     [ctx.uniform(num_keys), BufferRange(keys, 0, num_keys * 4), ranges],
+        ctx.dispatch(enc, pipeline(ctx, "render_ranges"),
+                     [uniform(ctx, "render_ranges", n=num_keys), BufferRange(keys, 0, num_keys * 4), ranges],
                      ctx.grid(-(-num_keys // 256)))
     return ranges

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import InputError
 from ..gpu.context import GpuContext, get_context
 from .binning import TileWindow, plan_windows, record_counts, record_emit, record_ranges
-from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA
+from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA, TILE, RenderOptions
 from .project import Projected, camera_arrays, project, tile_grid
 from .rasterize import PLANES, plane_stride, planes_to_numpy, record_rasterize
 from .scene import DeviceScene
@@ -90,21 +90,25 @@ class Renderer:
     scene : Gaussians (see :mod:`r360gpu.io.gaussians`)
     ctx : GpuContext, optional (default: :func:`r360gpu.gpu.get_context`)
     background : RGB in [0, 1] added with the remaining transmittance
-    near : near-plane depth (scene units) below which Gaussians are culled
+    antialiased, near, no_coverage_alpha, principal_point : the conventions of
+        :class:`~r360gpu.render.conventions.RenderOptions` (defaults: r360gpu's);
+        ``options`` gives them as one object (keywords given override it)
     timed : wait after every stage and record its wall time in :attr:`stats`
     count_work : read back the rasteriser's work counters into :attr:`stats`
     """
 
     def __init__(self, scene, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0),
-                 near: float = NEAR_PLANE, timed: bool = False, count_work: bool = False):
+                 near: float | None = None, antialiased: bool | None = None, no_coverage_alpha: float | None = None,
+                 principal_point: str | None = None, options: RenderOptions | None = None,
+                 timed: bool = False, count_work: bool = False):
         self.ctx = ctx or get_context()
         bg = np.asarray(background, dtype=np.float64).reshape(-1)
         if bg.shape != (3,) or not np.isfinite(bg).all():
             raise InputError(f"background must be 3 finite numbers, got {background!r}")
-        if not (math.isfinite(near) and near > 0):
-            raise InputError(f"near plane must be a positive number, got {near!r}")
+        self.options = (options or RenderOptions()).replace(
+            near=near, antialiased=antialiased, no_coverage_alpha=no_coverage_alpha, principal_point=principal_point)
         self.background = tuple(float(v) for v in bg)
-        self.near = float(near)
+        self.near = self.options.near
         self.timed = timed
         self.count_work = count_work
         self.scene = DeviceScene(self.ctx, scene)
@@ -131,22 +135,54 @@ class Renderer:
 
     # -- one view -----------------------------------------------------------
     def render_device(self, camera, image=None) -> DeviceRender:
-        """Render ``camera`` into a device buffer (a new one unless ``image`` is given)."""
-        ctx, scratch, n = self.ctx, self.scratch, self.scene.n
-        cam = camera_arrays(camera)
+        """Render ``camera`` into a device buffer (a new one unless ``image`` is given).
+
+        The image must fit one buffer whose planes each fit one storage
+        binding (see :meth:`band_rows`); :meth:`render` has no such limit.
+        """
+        cam = self._camera(camera)
         width, height = cam["width"], cam["height"]
+        if self.band_rows(cam) < height:
+            raise InputError(f"{cam['name']}: a {width}x{height} image does not fit one device buffer "
+                             f"({self.ctx.max_binding_bytes}-byte bindings); render it to host memory "
+                             "(Renderer.render, output='numpy'), which renders it in row bands")
         stride = plane_stride(width, height)
-        if stride * 4 > ctx.max_binding_bytes:
-            raise InputError(f"{cam['name']}: a {width}x{height} image plane exceeds one storage binding "
-                             f"({ctx.max_binding_bytes} bytes)")
-        gx, gy = tile_grid(width, height)
         if image is None:
-            image = ctx.buffer(stride * len(PLANES) * 4, label="render.image")
+            image = self.ctx.buffer(stride * len(PLANES) * 4, label="render.image")
+        proj, order, row_counts, gx, t0 = self._prepare(cam)
+        self._render_rows(proj, order, row_counts, cam, gx, 0, len(row_counts), image, stride, t0)
+        return DeviceRender(buffer=image, width=width, height=height, plane_stride=stride)
+
+    def band_rows(self, camera) -> int:
+        """Pixel rows rendered per pass: the whole height when the image fits, else whole tile rows.
+
+        A pass writes six planes into one buffer (at most the device's
+        max-buffer-size), each bound as one storage binding.  InputError when
+        not even one row of tiles fits.
+        """
+        cam = camera if isinstance(camera, dict) else self._camera(camera)
+        width, height = cam["width"], cam["height"]
+        ctx = self.ctx
+        per_plane = min(ctx.max_binding_bytes, int(ctx.limits.get("max-buffer-size", 1 << 62)) // len(PLANES))
+        if plane_stride(width, height) * 4 <= per_plane:
+            return height
+        rows = (per_plane // 4 // width) // TILE * TILE
+        while rows >= TILE and plane_stride(width, rows) * 4 > per_plane:
+            rows -= TILE
+        if rows < TILE:
+            raise InputError(f"{cam['name']}: a {width}x{height} image is too wide for this device: one row of "
+                             f"{TILE}-pixel tiles ({width}x{TILE} pixels) exceeds a {per_plane}-byte storage binding")
+        return rows
+
+    def _prepare(self, cam: dict):
+        """Project and depth-sort every Gaussian for ``cam``; returns (proj, order, row_counts, tiles_x, t0)."""
+        ctx, scratch, n = self.ctx, self.scratch, self.scene.n
+        gx, gy = tile_grid(cam["width"], cam["height"])
         self.stats = RenderStats()
         t0 = time.perf_counter()
 
         enc = ctx.encoder()
-        proj = project(ctx, enc, self.scene, cam, (gx, gy), self.near, scratch)
+        proj = project(ctx, enc, self.scene, cam, (gx, gy), self.near, scratch, self.options.antialiased)
         ctx.submit(enc)
         t0 = self._mark("project", t0, proj.row_counts)
 
@@ -155,24 +191,35 @@ class Renderer:
         ctx.submit(enc)
         row_counts = ctx.read(proj.row_counts, np.uint32, gy).astype(np.int64)
         t0 = self._mark("sort", t0, proj.row_counts)
+        return proj, order, row_counts, gx, t0
 
-        pending = plan_windows(row_counts, gx, self._key_capacity())
+    def _render_rows(self, proj, order, row_counts, cam, gx: int, row0: int, row1: int, image, stride: int,
+                     t0: float) -> None:
+        """Rasterise tile rows [row0, row1) into ``image`` (planes of ``stride`` floats from pixel row 16 row0)."""
+        pending = [TileWindow(w.begin + row0 * gx, w.end + row0 * gx, w.keys)
+                   for w in plan_windows(row_counts[row0:row1], gx, self._key_capacity())]
         pending.reverse()
         while pending:
             window = pending.pop()
             if window.end <= window.begin:
                 continue
-            window = self._render_window(proj, order, window, image, cam, gx, t0)
+            window = self._render_window(proj, order, window, image, cam, gx, t0, stride, row0 * TILE)
             if isinstance(window, list):
                 pending.extend(reversed(window))
             t0 = time.perf_counter()
-        return DeviceRender(buffer=image, width=width, height=height, plane_stride=stride)
+
+    def _camera(self, camera) -> dict:
+        cam = camera_arrays(camera)
+        if self.options.principal_point == "centre":
+            cam["cx"], cam["cy"] = 0.5 * cam["width"], 0.5 * cam["height"]
+        return cam
 
     def _key_capacity(self) -> int:
         """Most keys one window may hold: one binding, and one dispatch of one thread per key."""
         return min(self.ctx.max_binding_bytes // 4, 256 * self.ctx.max_workgroups**2)
 
-    def _render_window(self, proj: Projected, order, window: TileWindow, image, cam: dict, gx: int, t0: float):
+    def _render_window(self, proj: Projected, order, window: TileWindow, image, cam: dict, gx: int, t0: float,
+                       stride: int, row_base: int):
         """Bin, sort and rasterise one key window; returns halves if it had to be split."""
         ctx, scratch, n = self.ctx, self.scratch, self.scene.n
         num_tiles = window.end - window.begin
@@ -203,9 +250,10 @@ class Renderer:
         enc = ctx.encoder()
         work = scratch.window("render.work", num_tiles * 8)
         record_rasterize(ctx, enc, ranges=ranges, vals=vals, num_keys=k, pos_op=proj.pos_op, conic=proj.conic,
-                         rgb=proj.rgb, n=n, image=image, width=cam["width"], height=cam["height"], tiles_x=gx,
+                         rgb=proj.rgb, n=n, image=image, stride=stride, row_base=row_base,
+                         width=cam["width"], height=cam["height"], tiles_x=gx,
                          tile_begin=window.begin, num_tiles=num_tiles, background=self.background,
-                         min_alpha=NO_COVERAGE_ALPHA, work=work)
+                         min_alpha=self.options.no_coverage_alpha, work=work)
         ctx.submit(enc)
         self._mark("rasterize", t0, image)
         if self.count_work:
@@ -215,12 +263,32 @@ class Renderer:
         return window
 
     def render(self, camera) -> Render:
-        """Render ``camera`` and read the result back as numpy arrays."""
-        cam = camera_arrays(camera)
-        stride = plane_stride(cam["width"], cam["height"])
+        """Render ``camera`` and read the result back as numpy arrays.
+
+        An image beyond one device buffer renders in row bands (:meth:`band_rows`),
+        pixel for pixel as one pass would: every band uses the same projection
+        and depth order, and a tile's pixels depend on nothing outside it.
+        """
+        cam = self._camera(camera)
+        width, height = cam["width"], cam["height"]
+        rows = self.band_rows(cam)
+        if rows >= height:
+            image = self.scratch.get("render.image", plane_stride(width, height) * len(PLANES) * 4)
+            return self.render_device(camera, image=image).to_numpy(self.ctx)
+        out = _host_image(cam)
+        stride = plane_stride(width, rows)
         image = self.scratch.get("render.image", stride * len(PLANES) * 4)
-        out = self.render_device(camera, image=image)
-        return out.to_numpy(self.ctx)
+        proj, order, row_counts, gx, t0 = self._prepare(cam)
+        for y0 in range(0, height, rows):
+            h = min(rows, height - y0)
+            self._render_rows(proj, order, row_counts, cam, gx, y0 // TILE, -(-(y0 + h) // TILE), image, stride, t0)
+            planes = planes_to_numpy(self.ctx, image, width, h, stride)
+            for c, name in enumerate("rgb"):
+                out.rgb[y0:y0 + h, :, c] = planes[name]
+            for name in ("alpha", "depth", "median_depth"):
+                getattr(out, name)[y0:y0 + h] = planes[name]
+            t0 = time.perf_counter()
+        return out
 
     def release(self) -> None:
         """Free the scene and every intermediate buffer now."""
@@ -228,17 +296,49 @@ class Renderer:
         self.scratch.release()
 
 
+def _host_image(cam: dict) -> Render:
+    """Empty host arrays for a view, or InputError when this machine's memory cannot hold them."""
+    width, height = cam["width"], cam["height"]
+    need = width * height * 4 * (3 + 3)
+    avail = _available_memory()
+    if avail is not None and need > avail:
+        raise InputError(f"{cam['name']}: a {width}x{height} render needs {need / 2**30:.1f} GiB of host memory; "
+                         f"{avail / 2**30:.1f} GiB are available")
+    try:
+        return Render(rgb=np.empty((height, width, 3), np.float32), depth=np.empty((height, width), np.float32),
+                      median_depth=np.empty((height, width), np.float32), alpha=np.empty((height, width), np.float32))
+    except MemoryError:
+        raise InputError(f"{cam['name']}: not enough host memory for a {width}x{height} render "
+                         f"({need / 2**30:.1f} GiB)") from None
+
+
+def _available_memory() -> int | None:
+    """Bytes of memory available to new allocations (Linux MemAvailable), None when unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
 def render(scene, camera, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0), output: str = "numpy",
-           near: float = NEAR_PLANE):
+           near: float = NEAR_PLANE, antialiased: bool = False, no_coverage_alpha: float = NO_COVERAGE_ALPHA,
+           principal_point: str = "camera"):
     """Render one view of ``scene`` (a :class:`~r360gpu.io.gaussians.Gaussians`).
 
     camera: a :class:`~r360gpu.io.camera.Camera` (world-to-camera R, t; fx, fy,
     cx, cy; width, height).  output: "numpy" -> :class:`Render`; "device" ->
-    :class:`DeviceRender` (buffers stay on ``ctx``'s device).
+    :class:`DeviceRender` (buffers stay on ``ctx``'s device).  near,
+    antialiased, no_coverage_alpha, principal_point: the conventions of
+    :class:`~r360gpu.render.conventions.RenderOptions`.
     """
     if output not in ("numpy", "device"):
         raise InputError(f"output must be 'numpy' or 'device', got {output!r}")
-    renderer = Renderer(scene, ctx=ctx, background=background, near=near)
+    renderer = Renderer(scene, ctx=ctx, background=background, near=near, antialiased=antialiased,
+                        no_coverage_alpha=no_coverage_alpha, principal_point=principal_point)
     try:
         if output == "device":
             return renderer.render_device(camera)
@@ -248,14 +348,17 @@ def render(scene, camera, *, ctx: GpuContext | None = None, background=(0.0, 0.0
 
 
 def render_views(scene, cameras: Iterable, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0),
-                 output: str = "numpy", near: float = NEAR_PLANE, progress: bool = False) -> Iterator:
+                 output: str = "numpy", near: float = NEAR_PLANE, antialiased: bool = False,
+                 no_coverage_alpha: float = NO_COVERAGE_ALPHA, principal_point: str = "camera",
+                 progress: bool = False) -> Iterator:
     """Render many views of one scene, uploading it once; yields one result per camera.
 
-    Results as :func:`render`.  ``progress`` shows a tqdm progress bar.
+    Results and options as :func:`render`.  ``progress`` shows a tqdm progress bar.
     """
     if output not in ("numpy", "device"):
         raise InputError(f"output must be 'numpy' or 'device', got {output!r}")
-    renderer = Renderer(scene, ctx=ctx, background=background, near=near)
+    renderer = Renderer(scene, ctx=ctx, background=background, near=near, antialiased=antialiased,
+                        no_coverage_alpha=no_coverage_alpha, principal_point=principal_point)
     cams = cameras
     if progress:
         from tqdm import tqdm

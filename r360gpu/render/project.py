@@ -12,7 +12,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..gpu.context import BufferRange, GpuContext
+from ..gpu.uniforms import uniform
 from .conventions import FRUSTUM_GUARD, TILE
+from .kernels import pipeline
 from .scene import PARAM_FLOATS, DeviceScene
 from .scratch import Scratch
 
@@ -68,10 +70,11 @@ def chunk_size(ctx: GpuContext, sh_stride: int) -> int:
 
 
 def project(ctx: GpuContext, enc, scene: DeviceScene, cam: dict, tiles: tuple[int, int],
-            near: float, scratch: Scratch) -> Projected:
+            near: float, scratch: Scratch, antialiased: bool = False) -> Projected:
     """Record the projection of all Gaussians of ``scene`` for camera ``cam`` on ``enc``.
 
-    ``cam`` comes from :func:`camera_arrays`; ``tiles`` is (tiles_x, tiles_y).
+    ``cam`` comes from :func:`camera_arrays`; ``tiles`` is (tiles_x, tiles_y);
+    ``antialiased`` multiplies opacities by the antialiasing compensation.
     """
     n = scene.n
     gx, gy = tiles
@@ -91,17 +94,19 @@ def project(ctx: GpuContext, enc, scene: DeviceScene, cam: dict, tiles: tuple[in
     guard_x = FRUSTUM_GUARD * 0.5 * w / fx
     guard_y = FRUSTUM_GUARD * 0.5 * h / fy
     lims = (cx / fx + guard_x, (w - cx) / fx + guard_x, cy / fy + guard_y, (h - cy) / fy + guard_y)
-    pipe = ctx.pipeline("render_project")
+    pipe = pipeline(ctx, "render_project")
     per = chunk_size(ctx, scene.sh_stride)
     whole = [BufferRange(b, 0, max(16, n * s)) for b, s in
              ((out.pos_op, 16), (out.conic, 16), (out.rgb, 16), (out.rect, 16), (out.depth_key, 4), (out.idx, 4))]
     rows = BufferRange(out.row_counts, 0, gy * 4)
     for base in range(0, n, per):
         count = min(per, n - base)
-        params = ctx.uniform(
-            *(float(v) for v in R.reshape(-1)), *(float(v) for v in t), *(float(v) for v in centre),
-            float(fx), float(fy), float(cx), float(cy), *(float(v) for v in lims), float(near),
-            int(gx), int(gy), int(count), int(base), int(scene.sh_degree), int(scene.sh_stride),
+        rot = {f"r{i}{j}": R[i, j] for i in range(3) for j in range(3)}
+        params = uniform(
+            ctx, "render_project", **rot, tx=t[0], ty=t[1], tz=t[2], cam_x=centre[0], cam_y=centre[1],
+            cam_z=centre[2], fx=fx, fy=fy, cx=cx, cy=cy, lim_x_neg=lims[0], lim_x_pos=lims[1], lim_y_neg=lims[2],
+            lim_y_pos=lims[3], near=near, tiles_x=gx, tiles_y=gy, n=count, base=base, sh_degree=scene.sh_degree,
+            sh_stride=scene.sh_stride, antialiased=bool(antialiased),
         )
         ctx.dispatch(
             enc, pipe,

@@ -8,6 +8,8 @@ another (portable to software Vulkan, which has no forward-progress guarantee).
 from __future__ import annotations
 
 from ..gpu.context import BufferRange, GpuContext
+from ..gpu.uniforms import uniform
+from .kernels import pipeline
 from .scratch import Scratch
 
 #: Elements scanned by one workgroup (256 threads x 8 items); must match the shader.
@@ -34,9 +36,9 @@ def exclusive_scan(ctx: GpuContext, enc, data, n: int, scratch: Scratch, tag: st
     while True:
         num_blocks = max(1, -(-n // BLOCK))
         sums = scratch.window(f"{tag}.L{level}", num_blocks * 4)
-        params = ctx.uniform(n, num_blocks)
+        params = uniform(ctx, "prefix_sum", n=n, num_blocks=num_blocks)
         if n > 0:
-            ctx.dispatch(enc, ctx.pipeline("prefix_sum", "scan_blocks"), [params, window, sums], ctx.grid(num_blocks))
+            ctx.dispatch(enc, pipeline(ctx, "prefix_sum", "scan_blocks"), [params, window, sums], ctx.grid(num_blocks))
         else:
             enc.clear_buffer(sums.buffer, 0, 4)
         if num_blocks == 1:
@@ -45,5 +47,5 @@ def exclusive_scan(ctx: GpuContext, enc, data, n: int, scratch: Scratch, tag: st
         pending.append((window, sums, params, num_blocks))
         window, n, level = sums, num_blocks, level + 1
     for window, sums, params, num_blocks in reversed(pending):
-        ctx.dispatch(enc, ctx.pipeline("prefix_sum", "add_block_sums"), [params, window, sums], ctx.grid(num_blocks))
+        ctx.dispatch(enc, pipeline(ctx, "prefix_sum", "add_block_sums"), [params, window, sums], ctx.grid(num_blocks))
     return total

@@ -11,6 +11,8 @@ from __future__ import annotations
 import math
 
 from ..gpu.context import BufferRange, GpuContext
+from ..gpu.uniforms import uniform
+from .kernels import pipeline
 from .scan import exclusive_scan
 from .scratch import Scratch
 
@@ -56,12 +58,13 @@ def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scr
     hist = scratch.window(f"{tag}.hist", hist_bytes)
     src = (keys, vals)
     dst = (scratch.get(f"{tag}.keys", n * 4), scratch.get(f"{tag}.vals", n * 4))
-    pipe_hist = ctx.pipeline("radix_sort", "histogram")
-    pipe_scatter = ctx.pipeline("radix_sort", "scatter")
+    pipe_hist = pipeline(ctx, "radix_sort", "histogram")
+    pipe_scatter = pipeline(ctx, "radix_sort", "scatter")
     for p in range(passes):
         shift = p * DIGIT_BITS
         for start, count, block_base, nb in windows:
-            params = ctx.uniform(count, shift, block_base, total_blocks, 0, 0, nb)
+            params = uniform(ctx, "radix_sort", n=count, shift=shift, block_base=block_base, total_blocks=total_blocks,
+                             out_base=0, out_count=0, num_blocks=nb)
             ctx.dispatch(
                 enc, pipe_hist,
                 [params, BufferRange(src[0], start * 4, count * 4), None, None, None, hist],
@@ -70,7 +73,8 @@ def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scr
         exclusive_scan(ctx, enc, hist, RADIX * total_blocks, scratch, f"{tag}.hscan")
         for start, count, block_base, nb in windows:
             for out_start, out_count, _, _ in windows:
-                params = ctx.uniform(count, shift, block_base, total_blocks, out_start, out_count, nb)
+                params = uniform(ctx, "radix_sort", n=count, shift=shift, block_base=block_base,
+                                 total_blocks=total_blocks, out_base=out_start, out_count=out_count, num_blocks=nb)
                 ctx.dispatch(
                     enc, pipe_scatter,
                     [

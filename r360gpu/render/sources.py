@@ -27,11 +27,16 @@ class SceneSource:
     """A splat scene kept on the device and rendered per camera.
 
     ``scene``: a splat file path, or a :class:`~r360gpu.io.Gaussians` already in memory.
+    ``render``: keywords of :class:`~r360gpu.render.conventions.RenderOptions`
+    (a bundle source's ``render`` settings); absent keys keep the defaults.
     """
 
     kind = "scene"
 
-    def __init__(self, scene, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "expected"):
+    def __init__(self, scene, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "expected",
+                 render: dict | None = None):
+        from .conventions import RenderOptions
+
         from ..io import Gaussians, load_gaussians
         from .pipeline import Renderer
 
@@ -41,7 +46,9 @@ class SceneSource:
         self.path = "<in memory>" if in_memory else scene
         self.depth_mode = depth
         self.gaussians = scene if in_memory else load_gaussians(scene)
-        self.renderer = Renderer(self.gaussians, ctx=ctx, background=tuple(float(c) for c in background))
+        self.render_options = RenderOptions(**(render or {}))
+        self.renderer = Renderer(self.gaussians, ctx=ctx, background=tuple(float(c) for c in background),
+                                 options=self.render_options)
 
     def images(self, view: str, camera) -> ViewImages:
         if camera is None:
@@ -51,8 +58,11 @@ class SceneSource:
         return ViewImages(np.clip(r.rgb, 0.0, 1.0), depth, r.alpha)
 
     def describe(self) -> dict:
+        from dataclasses import asdict
+
         return {"kind": "scene", "path": str(self.path), "n_gaussians": int(self.gaussians.n),
-                "sh_degree": int(self.gaussians.sh_degree), "depth": self.depth_mode}
+                "sh_degree": int(self.gaussians.sh_degree), "depth": self.depth_mode,
+                "render": asdict(self.render_options)}
 
     def release(self) -> None:
         self.renderer.release()
@@ -151,7 +161,9 @@ def open_source(spec, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "exp
     if hasattr(spec, "images") and hasattr(spec, "describe"):
         return spec
     if spec.kind == "scene":
-        return SceneSource(spec.path, ctx=ctx, background=background, depth=depth)
+        settings = getattr(spec, "render", None)
+        return SceneSource(spec.path, ctx=ctx, background=background, depth=depth,
+                           render=settings.given() if settings is not None else None)
     if spec.kind == "renders":
         return RendersSource(spec)
     raise InputError(f"unknown source kind {spec.kind!r} for {spec.path}")
