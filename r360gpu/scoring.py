@@ -24,6 +24,7 @@ import numpy as np
 from . import __version__
 from .errors import InputError
 from .metrics.semantic import XI_SWEEP
+from .util import warning_log
 
 CACHE_DIR = ".r360cache"
 
@@ -177,6 +178,7 @@ def evaluate(
                          "total_s": round(time.perf_counter() - t_start, 3),
                          "views": n_views_done}
     _aggregate(results, opts)
+    results["warnings"], results["warning_counts"] = warning_log.records(), warning_log.counts()
     return results
 
 
@@ -283,13 +285,17 @@ def _evaluate_scene(bundle, opts, ctx, sem_probes, str_probes, probe_cache, cach
         cached_cells = {m: _load_cell(view_cache, m, v) for m in bundle.methods} if view_cache else {}
         if view_cache and all(cached_cells.values()):
             for m, cell in cached_cells.items():
+                warning_log.replay(cell.get("warnings"))
                 _collect(cell, records[m], boundaries[m], pictures[m], v)
             continue
-        cells = _score_view(
+        w_mark = warning_log.mark()
+        with warning_log.where(scene=bundle.name, view=v):
+            cells = _score_view(
             bundle, v, cam(v), mask_of(v), src_pre, src_ref, src_methods, sem, stru, mode, lpips,
             opts, ctx, timer, out, probes_desc,
         )
         for m, cell in cells.items():
+            cell["warnings"] = warning_log.since(w_mark)
             if view_cache is not None:
                 from .util.atomic import write_json
 
@@ -403,6 +409,7 @@ def _probe_views(view, images, rendering, method=None):
 
 def _score_view(bundle, v, camera, mask, src_pre, src_ref, src_methods, sem, stru, mode, lpips, opts, ctx, timer,
                 out, probes_desc):
+    from .metrics import depth_checks
     from .metrics.fidelity import fidelity_view
     from .metrics.geometric import GhtParams, acc_depth_view
     from .metrics.record import ViewRecord
@@ -448,6 +455,9 @@ def _score_view(bundle, v, camera, mask, src_pre, src_ref, src_methods, sem, str
         fid = fidelity_view(post.rgb, ref.rgb, lpips) if ref is not None else None
         record = ViewRecord.build(v, bundle.name, m, probes=probes_desc["semantic"] + probes_desc["structural"],
                                   semantic=sem_views, structural=str_views, geometric=geo, fidelity=fid)
+        if geo is not None:
+            depth_checks.annotate(record, depth_checks.check_view(
+                bundle.name, m, v, pre.depth, post.depth, mask, source=getattr(bundle.methods[m], "path", None)))
         boundary = None
         if opts.boundary and sem and stru:
             p0s, p0t = sem[0].name, stru[0].name
