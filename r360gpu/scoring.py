@@ -253,6 +253,9 @@ def _evaluate_scene(bundle, opts, ctx, sem_probes, str_probes, probe_cache, cach
                 masks[v] = load_mask(m, shape=None if c is None else (c.height, c.width))
         return masks[v]
 
+    from .bundle.load import require_target
+
+    require_target(views, mask_of, bundle.masks)
     # Probes that learn from the scene (the built-in appearance probe) fit on
     # pre renderings of views with a visible target.
     fitted = [p for p in sem_probes + str_probes if hasattr(p, "fit")]
@@ -294,8 +297,8 @@ def _evaluate_scene(bundle, opts, ctx, sem_probes, str_probes, probe_cache, cach
             bundle, v, cam(v), mask_of(v), src_pre, src_ref, src_methods, sem, stru, mode, lpips,
             opts, ctx, timer, out, probes_desc,
         )
-        for m, cell in cells.items():
-            cell["warnings"] = warning_log.since(w_mark)
+        for i, (m, cell) in enumerate(cells.items()):
+            cell["warnings"] = warning_log.since(w_mark) if i == 0 else None  # once per view (counts add up)
             if view_cache is not None:
                 from .util.atomic import write_json
 

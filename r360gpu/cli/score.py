@@ -118,7 +118,9 @@ def score_and_report(bundles, out, args) -> int:
     from ..util.outdir import open_output_folder
     from ..util.warning_log import collecting
 
-    with open_output_folder(out), collecting():
+    from ..util.filehash import memo_file
+
+    with open_output_folder(out), collecting(), memo_file(Path(out) / ".r360hashes.json"):
         return _score_and_report(bundles, Path(out), args)
 
 

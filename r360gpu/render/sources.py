@@ -41,7 +41,13 @@ class SceneSource:
         self.path = "<in memory>" if in_memory else scene
         self.depth_mode = depth
         self.gaussians = scene if in_memory else load_gaussians(scene)
-        self.renderer = Renderer(self.gaussians, ctx=ctx, background=tuple(float(c) for c in background))
+        try:
+            self.renderer = Renderer(self.gaussians, ctx=ctx, background=tuple(float(c) for c in background))
+        except InputError as e:  # e.g. more Gaussians than one binding holds: name the file, say what to do
+            if e.path is not None or in_memory:
+                raise
+            raise InputError(f"{e.problem}; prune or split the scene, or run on an adapter with larger storage "
+                             f"bindings (`r360gpu doctor` lists this adapter's limits)", scene) from None
 
     def images(self, view: str, camera) -> ViewImages:
         if camera is None:
