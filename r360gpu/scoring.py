@@ -168,9 +168,10 @@ def evaluate(
         if list(bundle.methods) != methods:
             log(f"note: scene {bundle.name} has methods {list(bundle.methods)}; "
                 f"cross-scene tables need the same methods everywhere ({methods})")
-        scene_res, n = _evaluate_scene(
-            bundle, opts, ctx, semantic_probes, structural_probes, probe_cache, cache_root, out, timer, progress, log
-        )
+        with warning_log.where(scene=bundle.name):
+            scene_res, n = _evaluate_scene(
+                bundle, opts, ctx, semantic_probes, structural_probes, probe_cache, cache_root, out, timer,
+                progress, log)
         results["scenes"][bundle.name] = scene_res
         results["probes"] = scene_res.pop("_probes")
         n_views_done += n

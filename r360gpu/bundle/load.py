@@ -437,7 +437,11 @@ def _list_masks(folder: Path, problems: list[Problem]) -> dict[str, Path] | None
         problems.append(Problem(str(folder), f"cannot list masks folder: {e.strerror or e}"))
         return None
     for p in entries:
-        if p.name.startswith(".") or not p.is_file():
+        if p.name.startswith("."):
+            continue
+        if not p.is_file():
+            if p.suffix.lower() in _IMAGE_EXTENSIONS:  # e.g. masks/view.png/ made by a script
+                problems.append(Problem(str(p), "is a folder, not a mask image"))
             continue
         if p.suffix.lower() == ".png":
             if p.stem in masks:
@@ -450,6 +454,9 @@ def _list_masks(folder: Path, problems: list[Problem]) -> dict[str, Path] | None
     if not masks:
         found = f" (found {len(other)} other images, e.g. {other[0]}: masks must be PNG)" if other else ""
         problems.append(Problem(str(folder), f"masks folder has no <view>.png masks{found}"))
+    elif other:  # a view's mask in a lossy or other format would silently leave the evaluation
+        problems.append(Problem(str(folder), f"{len(other)} mask(s) not in PNG: {_names(other)}; save them as "
+                                             f"lossless .png (a view's mask is <view>.png)"))
     return masks
 
 
