@@ -141,7 +141,8 @@ def evaluate(
         structural_probes = d_str if structural_probes is None else structural_probes
     if isinstance(bundles, (str, Path, Bundle)):
         bundles = [bundles]
-    loaded = [b if isinstance(b, Bundle) else load_bundle(b) for b in bundles]
+    sel = list(opts.views) if opts.views else None  # validated as `check --views` does
+    loaded = [b if isinstance(b, Bundle) else load_bundle(b, views=sel) for b in bundles]
     names = [b.name for b in loaded]
     if len(set(names)) != len(names):
         raise InputError(f"two bundles share a scene name: {names}")

@@ -213,6 +213,7 @@ def test_unchanged_rerun_is_served_from_the_cache_with_its_warnings(tmp_path, ca
     second = json.loads((out / "results.json").read_text())
     capsys.readouterr()
     assert second["warnings"] == first["warnings"] and len(first["warnings"]) == 1
+    assert "Input warning:" in (out / "report.html").read_text()  # shown in the report's summary
     assert second["scenes"] == first["scenes"]
     assert "view_01" in first["warnings"][0]["view"]
 

@@ -131,11 +131,6 @@ def _score_and_report(bundles, out, args) -> int:
     from ..util.warning_log import counts, records
 
     sem, stru = probes_from_args(args)
-    views = list(args.views) if args.views else None
-    if views is not None:  # the selection `check --views` validates, by the same function
-        from ..bundle import Bundle, load_bundle
-
-        bundles = [b if isinstance(b, Bundle) else load_bundle(b, views=views) for b in bundles]
     results = evaluate(bundles, out=out, semantic_probes=sem, structural_probes=stru,
                        options=options_from_args(args), adapter=args.adapter, force=args.force,
                        progress=not args.quiet)
