@@ -462,8 +462,16 @@ def test_fingerprint(tmp_path):
     assert load_bundle(root, views=["view_00"]).fingerprint() != fp
     assert load_bundle(root, prompt="chair").fingerprint() != fp
 
-    st = (root / "masks" / "view_01.png").stat()
-    os.utime(root / "masks" / "view_01.png", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    # Content, not mtime: touching changes nothing; other bytes of the same size with the mtime
+    # restored (cp -p, rsync -a) change the fingerprint.
+    mask = root / "masks" / "view_01.png"
+    st = mask.stat()
+    os.utime(mask, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    assert load_bundle(root).fingerprint() == fp
+    data = bytearray(mask.read_bytes())
+    data[-20] ^= 0xFF  # inside the PNG's last chunks: same size, other bytes
+    mask.write_bytes(bytes(data))
+    os.utime(mask, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
     fp2 = load_bundle(root).fingerprint()
     assert fp2 != fp
     write_rgb(root / "methods/objectclear/rgb/view_02.png", seed=99)

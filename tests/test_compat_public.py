@@ -16,7 +16,7 @@ import r360gpu.cli as cli
 from r360gpu.errors import InputError
 from r360gpu.metrics.compat import depth_delta, public_changed, read_depth_public
 from r360gpu.metrics.compat_public import evaluate_public_folder, resize_torch_nearest
-from r360gpu.scoring import EvaluateOptions
+from r360gpu.pipeline import EvaluateOptions
 
 DATA = Path(__file__).parent / "data" / "compat_public"
 SCENE = DATA / "office_chair"

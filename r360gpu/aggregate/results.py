@@ -22,6 +22,8 @@ import math
 
 import numpy as np
 
+from ..metrics import depth_checks
+
 from ..metrics.combine import most_alarming_semantic, most_alarming_structural
 from ..metrics.fidelity import fidelity_summary
 from ..metrics.record import ViewRecord
@@ -63,6 +65,7 @@ def method_axes(records: list[ViewRecord], *, xis=XI_SWEEP, boundary: list[dict]
     out["s_geo"] = float(np.mean(scored)) if scored else None
     out["n_geo_excluded"] = len(geo) - len(scored)
     out["n_no_depth"] = len(records) - len(geo)
+    out["geo_notes"] = depth_checks.geo_notes(geo)  # views whose depth is doubtful (warned)
     fid = [r.fidelity for r in records if r.fidelity is not None]
     if fid:
         f = fidelity_summary(fid).to_dict()

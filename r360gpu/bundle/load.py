@@ -35,6 +35,8 @@ import re
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 try:
     import tomllib
 except ModuleNotFoundError:  # Python 3.10
@@ -42,10 +44,10 @@ except ModuleNotFoundError:  # Python 3.10
 
 from ..errors import InputError
 from ..io.camera import Camera
-from ..io.compressed_ply import is_compressed_ply
-from ..io.inria_ply import is_inria_ply
+from ..io.compressed_ply import check_compressed_header, is_compressed_ply
+from ..io.inria_ply import check_inria_header, is_inria_ply
 from ..io.load import _latest_inria_iteration, load_cameras
-from ..io.masks import load_mask
+from ..io.masks import load_mask, mask_size
 from ..io.ply import read_ply_header
 from ..io.renders import RendersReader, image_size
 from .model import (DEPTH_MODES, PRINCIPAL_POINTS, RENDER_KEYS, RESERVED_METHOD_NAMES, Bundle, BundleError,
@@ -142,7 +144,7 @@ def _draft_from_config(root: Path, config: Path, problems: list[Problem], *, vie
         problems.append(Problem(cfg, message))
 
     try:
-        data = tomllib.loads(config.read_text(encoding="utf-8"))
+        data = tomllib.loads(config.read_text(encoding="utf-8-sig"))  # a BOM is accepted
     except OSError as e:
         bad(f"cannot read: {e.strerror or e}")
         return None
@@ -466,7 +468,11 @@ def _list_masks(folder: Path, problems: list[Problem]) -> dict[str, Path] | None
         problems.append(Problem(str(folder), f"cannot list masks folder: {e.strerror or e}"))
         return None
     for p in entries:
-        if p.name.startswith(".") or not p.is_file():
+        if p.name.startswith("."):
+            continue
+        if not p.is_file():
+            if p.suffix.lower() in _IMAGE_EXTENSIONS:  # e.g. masks/view.png/ made by a script
+                problems.append(Problem(str(p), "is a folder, not a mask image"))
             continue
         if p.suffix.lower() == ".png":
             if p.stem in masks:
@@ -479,6 +485,9 @@ def _list_masks(folder: Path, problems: list[Problem]) -> dict[str, Path] | None
     if not masks:
         found = f" (found {len(other)} other images, e.g. {other[0]}: masks must be PNG)" if other else ""
         problems.append(Problem(str(folder), f"masks folder has no <view>.png masks{found}"))
+    elif other:  # a view's mask in a lossy or other format would silently leave the evaluation
+        problems.append(Problem(str(folder), f"{len(other)} mask(s) not in PNG: {_names(other)}; save them as "
+                                             f"lossless .png (a view's mask is <view>.png)"))
     return masks
 
 
@@ -534,10 +543,16 @@ def _check_masks(views: list[str], cameras: dict[str, Camera] | None, masks: dic
     masks whose size differs from the camera's."""
     sizes: dict[str, tuple[int, int]] = {}
     listed: list[Problem] = []
+    n_empty = 0
     for v in views:
         path = masks[v]
         try:
-            hw = load_mask(path).shape if deep else image_size(path)
+            if deep:
+                m = load_mask(path)
+                hw = m.shape
+                n_empty += not m.any()
+            else:
+                hw = mask_size(path)
         except InputError as e:
             listed.append(Problem(str(path), e.problem))
             continue
@@ -549,7 +564,29 @@ def _check_masks(views: list[str], cameras: dict[str, Camera] | None, masks: dic
                 continue
         sizes[v] = (int(hw[0]), int(hw[1]))
     _add_capped(problems, listed, str(draft.masks_dir), "masks")
+    if deep and views and n_empty == len(views):
+        problems.append(Problem(str(draft.masks_dir), no_target_message([masks[v] for v in views])))
     return sizes
+
+
+def no_target_message(paths: list) -> str:
+    """Why a selection whose every target mask is empty cannot be scored (names the masks)."""
+    names = [Path(p).name for p in paths]
+    return (f"every selected target mask is empty ({_names(names)}): no view shows the object, so there is "
+            f"nothing to evaluate (a view with an empty mask is left out of every axis); check the masks "
+            f"(non-zero pixel = target) or the view selection")
+
+
+def require_target(views: list[str], mask_of, mask_paths: dict) -> None:
+    """InputError unless some selected view's decoded target mask has a target pixel
+    (stops at the first one found, so it costs one mask decode in the usual case)."""
+    if views and not any(np.asarray(mask_of(v)).any() for v in views):
+        paths = [mask_paths.get(v, v) for v in views]
+        folder = Path(paths[0]).parent if not isinstance(paths[0], np.ndarray) else None
+        if folder is None:
+            raise InputError(f"every selected target mask is empty (views {_names(list(views))}): nothing to "
+                             f"evaluate")
+        raise InputError(no_target_message(paths), folder)
 
 
 def _add_capped(problems: list[Problem], listed: list[Problem], folder: str, what: str) -> None:
@@ -603,6 +640,11 @@ def _check_ply(p: Path) -> None:
                          "and not a .compressed.ply)", p)
     if ply.element("vertex").count == 0:
         raise InputError("scene has no Gaussians (vertex count 0)", p)
+    # The loaders' own header checks, so that `check OK` means the scene will load.
+    if is_compressed_ply(ply):
+        check_compressed_header(ply)
+    else:
+        check_inria_header(ply)
     if ply.format == "ascii" or any(el.has_lists for el in ply.elements):
         return
     with open(p, "rb") as f:

@@ -17,6 +17,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..io.camera import Camera
 from ..io.renders import RendersReader
+from ..util.filehash import content_digest
 
 # Names of the non-method sources; a method may not use them (case-insensitive):
 # outputs and records key methods and these sources in one namespace.
@@ -183,12 +184,14 @@ class Bundle:
         """A hex SHA-256 that changes when anything the scores depend on may have changed.
 
         Hashed: the resolved settings (name, prompt, views, sources, options,
-        layout), the bytes of scene.toml, and the path, size and modification
-        time (ns) of every file the bundle reads: camera files, the masks and
-        renderings of the evaluation views, the splat files.  File contents
-        other than scene.toml are not read (a cache key must be cheap);
-        touching a file changes the fingerprint, a missing file is hashed as
-        missing.  Paths are taken relative to the bundle root when inside it.
+        layout), the bytes of scene.toml, and the path, size and content
+        digest of every file the bundle reads: camera files, the masks and
+        renderings of the evaluation views, the splat files.  Digests are
+        remembered per file identity and ctime (:mod:`r360gpu.util.filehash`),
+        so an unchanged rerun reads nothing, while other bytes of the same
+        size with a restored mtime still change the fingerprint.  A missing
+        file is hashed as missing.  Paths are taken relative to the bundle
+        root when inside it.
         """
         h = hashlib.sha256()
 
@@ -211,7 +214,7 @@ class Bundle:
         for f in self._referenced_files():
             try:
                 st = f.stat()
-                add("file", self._rel(f), st.st_size, st.st_mtime_ns)
+                add("file", self._rel(f), st.st_size, content_digest(f, st))
             except OSError:
                 add("file", self._rel(f), None, None)
         return h.hexdigest()

@@ -6,7 +6,9 @@ taking the parsed ``argparse.Namespace`` and returning an exit code.
 
 Exit codes: 0 success; 1 a check failed (e.g. ``doctor`` found a mismatch);
 2 bad input or usage (one-line reason on stderr; traceback only with
-``--debug``); 3 no usable GPU adapter.
+``--debug``), including an output that cannot be written (read-only file
+system, disk full); 3 no usable GPU adapter; 130 interrupted (Ctrl-C, at
+any moment: even during the first imports, no traceback is shown).
 """
 from __future__ import annotations
 
@@ -37,11 +39,28 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return 2
+    # Everything, the heavy imports of build_parser() included, runs under the Ctrl-C handler.
+    args = None
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        if not getattr(args, "func", None):
+            parser.print_help()
+            return 2
+        return _run(args)
+    except KeyboardInterrupt:
+        print("r360gpu: interrupted" + _resume_hint(args), file=sys.stderr)
+        return 130
+
+
+def _resume_hint(args) -> str:
+    if args is None or getattr(args, "command", None) not in ("score", "demo"):
+        return ""
+    return ("; run the same command again to resume (finished views are kept in the output folder's "
+            ".r360cache; --force starts over)")
+
+
+def _run(args) -> int:
     try:
         return int(args.func(args) or 0)
     except GpuUnavailableError as e:
@@ -49,14 +68,19 @@ def main(argv: list[str] | None = None) -> int:
             traceback.print_exc()
         print(f"r360gpu: error: {e}", file=sys.stderr)
         return 3
-    except (R360Error, FileNotFoundError, PermissionError) as e:
+    except (R360Error, OSError) as e:
+        # OSError: a file that vanished or cannot be read or written (read-only file system, disk
+        # full) is the user's environment, not a bug: one line naming the file.
         if args.debug:
             traceback.print_exc()
-        print(f"r360gpu: error: {e}", file=sys.stderr)
+        print(f"r360gpu: error: {_one_line(e)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("r360gpu: interrupted", file=sys.stderr)
-        return 130
+
+
+def _one_line(e: BaseException) -> str:
+    if isinstance(e, OSError) and not isinstance(e, R360Error) and e.filename is not None:
+        return f"{e.filename}: {e.strerror or e}"
+    return str(e)
 
 
 if __name__ == "__main__":  # pragma: no cover

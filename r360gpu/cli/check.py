@@ -37,6 +37,13 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``r360gpu check``; returns 0 when every bundle is valid, else 2."""
+    from ..util.warning_log import collecting
+
+    with collecting():  # doubtful inputs (e.g. a mask read from its alpha) are printed as one line each
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     n_bad = n_problems = 0
     for path in args.bundles:
         bundle, problems = inspect_bundle(path, views=args.views, prompt=args.prompt,

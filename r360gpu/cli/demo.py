@@ -27,7 +27,10 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..synthetic import generate_benchmark
 
-    out = Path(args.out)
+    from ..util.outdir import check_output_folder
+
+    out = check_output_folder(args.out)  # before any work
+    check_output_folder(out / "report")
     t = time.perf_counter()
     print(f"generating the synthetic benchmark in {out / 'benchmark'} ...")
     bundles = generate_benchmark(out / "benchmark", seed=args.scene_seed, n_views=args.n_views,

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import InputError
+
 
 def add_scoring_options(p) -> None:
     """Options shared by ``score`` and ``demo``."""
@@ -131,15 +133,40 @@ def probes_from_args(args):
     return sem, stru
 
 
+# The documents of one run: written all together or not at all (see util.atomic.all_or_nothing).
+OUTPUT_DOCUMENTS = ("results.json", "results.csv", "tables.md", "tables.tex", "report.html")
+
+
 def score_and_report(bundles, out, args) -> int:
+    from ..util.outdir import open_output_folder
+    from ..util.warning_log import collecting
+
+    from ..util.filehash import memo_file
+
+    with open_output_folder(out), collecting(), memo_file(Path(out) / ".r360hashes.json"):
+        return _score_and_report(bundles, Path(out), args)
+
+
+def _score_and_report(bundles, out, args) -> int:
     from ..pipeline import evaluate
     from ..report.outputs import summary_lines, write_outputs
+    from ..util.atomic import all_or_nothing
+    from ..util.warning_log import counts, records
 
     sem, stru = probes_from_args(args)
     results = evaluate(bundles, out=out, semantic_probes=sem, structural_probes=stru,
                        options=options_from_args(args), adapter=args.adapter, force=args.force,
                        progress=not args.quiet)
-    paths = write_outputs(results, out)
+    results["warnings"] = records()
+    results["warning_counts"] = counts()
+    try:
+        with all_or_nothing([out / name for name in OUTPUT_DOCUMENTS]):
+            paths = write_outputs(results, out)
+    except OSError as e:
+        from ..util.outdir import _reason
+
+        raise InputError(f"cannot write the results ({_reason(e)}): none of {', '.join(OUTPUT_DOCUMENTS)} "
+                         f"was changed; per-view results are cached, rerun to finish", e.filename or out) from None
     for line in summary_lines(results):
         print(line)
     print(f"\nreport: {paths['html']}")
@@ -148,4 +175,7 @@ def score_and_report(bundles, out, args) -> int:
 
 
 def run(args) -> int:
-    return score_and_report([Path(b) for b in args.bundles], Path(args.out), args)
+    from ..util.outdir import check_output_folder
+
+    out = check_output_folder(args.out)  # before any work
+    return score_and_report([Path(b) for b in args.bundles], out, args)

@@ -93,8 +93,9 @@ def _lerp(lo: np.ndarray, hi: np.ndarray, t: np.ndarray) -> np.ndarray:
     return lo * (1.0 - t) + hi * t
 
 
-def gaussians_from_compressed_ply(ply: PlyData) -> Gaussians:
-    """Decode an already parsed compressed PLY (drop policy of :func:`build_gaussians`)."""
+def check_compressed_header(ply: PlyData) -> None:
+    """Every check of a compressed PLY that its header decides (InputError naming the file);
+    :func:`gaussians_from_compressed_ply` and ``r360gpu check`` both run it."""
     path = ply.path
     chunk_el, vert_el, sh_el = ply.element("chunk"), ply.element("vertex"), ply.element("sh")
     if chunk_el is None or vert_el is None:
@@ -126,6 +127,19 @@ def gaussians_from_compressed_ply(ply: PlyData) -> Gaussians:
             raise InputError("sh element properties must be uchar", path)
         if sh_el.count != n:
             raise InputError(f"wrong element counts: {n} vertices but {sh_el.count} sh records", path)
+    if n == 0:
+        raise InputError("contains no Gaussians", path)
+
+
+def gaussians_from_compressed_ply(ply: PlyData) -> Gaussians:
+    """Decode an already parsed compressed PLY (drop policy of :func:`build_gaussians`)."""
+    check_compressed_header(ply)
+    path = ply.path
+    chunk_el, vert_el, sh_el = ply.element("chunk"), ply.element("vertex"), ply.element("sh")
+    chunk_names, vert_names = chunk_el.property_names(), vert_el.property_names()
+    n = vert_el.count
+    rest_names = sh_el.property_names() if sh_el is not None else []
+    has_colour = [p in chunk_names for p in _CHUNK_COLOUR]
     known_el = {"chunk", "vertex", "sh"}
     extra = [e.name for e in ply.elements if e.name not in known_el] + \
             [f"vertex.{p}" for p in vert_names if p not in _PACKED] + \
@@ -133,8 +147,6 @@ def gaussians_from_compressed_ply(ply: PlyData) -> Gaussians:
     if extra:
         warnings.warn(f"{path}: ignoring {', '.join(extra)} (not part of the compressed layout)",
                       R360Warning, stacklevel=3)
-    if n == 0:
-        raise InputError("contains no Gaussians", path)
 
     ch = ply.arrays["chunk"]
     v = ply.arrays["vertex"]

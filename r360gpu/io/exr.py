@@ -137,6 +137,10 @@ def _parse_header(data: bytes, path: str) -> ExrInfo:
     if len(data) < 8 or data[:4] != _MAGIC:
         raise InputError("not an OpenEXR file (bad magic number)", path)
     (version,) = struct.unpack_from("<I", data, 4)
+    # Version 2 with only the tiled / long-names / deep / multi-part flags: anything else is not a
+    # header OpenEXR ever wrote (garbage after a valid magic), not an unsupported feature.
+    if version & 0xFF != 2 or version & ~0x1EFF:
+        raise InputError(f"corrupt EXR file (invalid version field 0x{version:08x} after the magic number)", path)
     if version & _MULTIPART:
         raise UnsupportedExrError("multi-part EXR files are not supported; save a single-part file", path)
     if version & _DEEP:

@@ -53,8 +53,9 @@ def load_inria_ply(path: str | os.PathLike) -> Gaussians:
     return gaussians_from_inria_ply(read_ply(path))
 
 
-def gaussians_from_inria_ply(ply: PlyData) -> Gaussians:
-    """Decode an already parsed INRIA 3DGS PLY (drop policy of :func:`build_gaussians`)."""
+def check_inria_header(ply: PlyData) -> list[int]:
+    """Every check of an INRIA 3DGS PLY that its header decides (InputError naming the file);
+    returns the f_rest indices.  :func:`gaussians_from_inria_ply` and ``r360gpu check`` both run it."""
     el = ply.element("vertex")
     if el is None:
         raise InputError("PLY file has no 'vertex' element (not a Gaussian-splat PLY)", ply.path)
@@ -62,7 +63,7 @@ def gaussians_from_inria_ply(ply: PlyData) -> Gaussians:
     missing = [p for p in _REQUIRED if p not in names]
     if missing:
         raise InputError(f"missing required 3DGS properties: {', '.join(missing)}", ply.path)
-    if el.name not in ply.arrays:
+    if el.has_lists:
         raise InputError("the 'vertex' element has list properties (a mesh, not Gaussians)", ply.path)
     rest_idx = sorted(int(m.group(1)) for m in map(_F_REST.match, names) if m)
     if rest_idx != list(range(len(rest_idx))):
@@ -71,6 +72,14 @@ def gaussians_from_inria_ply(ply: PlyData) -> Gaussians:
         raise InputError(
             f"{len(rest_idx)} f_rest_* properties; 3DGS files have 0, 9, 24 or 45 "
             f"(SH degree 0..3)", ply.path)
+    return rest_idx
+
+
+def gaussians_from_inria_ply(ply: PlyData) -> Gaussians:
+    """Decode an already parsed INRIA 3DGS PLY (drop policy of :func:`build_gaussians`)."""
+    rest_idx = check_inria_header(ply)
+    el = ply.element("vertex")
+    names = el.property_names()
     _warn_ignored(ply, known=set(_REQUIRED) | set(_OPTIONAL) | {f"f_rest_{i}" for i in rest_idx})
 
     v = ply.arrays["vertex"]

@@ -1,9 +1,16 @@
 """Ground-truth target masks M^v: an image file where any non-zero pixel is target.
 
 Grey-level, RGB and 8- or 16-bit images are accepted (anything OpenCV
-decodes; the protocol uses PNG).  A pixel is target when any of its colour
-channels is non-zero; an alpha channel is ignored (a transparent-background
-PNG would otherwise be all target).
+decodes losslessly; the protocol uses PNG).  A pixel is target when any of
+its colour channels is non-zero; an alpha channel is ignored (a
+transparent-background PNG would otherwise be all target), except when every
+colour channel is 0 and the alpha channel varies: then the target can only
+be in the alpha channel (a cut-out exported as black with the object opaque),
+which is read as the target, with a warning.
+
+JPEG data are refused, whatever the file's extension (JPEG bytes saved as
+``.png`` happen): lossy compression puts non-zero noise around every edge,
+which would silently grow the target by a few percent.
 """
 from __future__ import annotations
 
@@ -33,6 +40,7 @@ def load_mask(path: str | os.PathLike, shape: tuple[int, int] | None = None) -> 
         raw = np.fromfile(path, dtype=np.uint8)
     except OSError as e:
         raise InputError(f"cannot read mask: {e.strerror or e}", path) from None
+    _refuse_jpeg(raw[:3].tobytes(), path)
     img = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED) if raw.size else None
     if img is None:
         raise InputError("cannot decode mask image (not an image file, or corrupt)", path)
@@ -40,6 +48,14 @@ def load_mask(path: str | os.PathLike, shape: tuple[int, int] | None = None) -> 
         channels = img.shape[2]
         colour = img[:, :, : channels - 1] if channels in (2, 4) else img
         mask = np.any(colour != 0, axis=2)
+        if channels in (2, 4) and not mask.any():
+            alpha = img[:, :, channels - 1]
+            if alpha.min() != alpha.max():
+                from ..util.warning_log import warn
+
+                mask = alpha != 0
+                warn("mask has black colour channels and the target in its alpha channel; the alpha channel "
+                     "is read as the target (save a grey mask to silence this)", file=path)
     else:
         mask = img != 0
     if shape is not None and mask.shape != tuple(shape):
@@ -51,3 +67,26 @@ def load_mask(path: str | os.PathLike, shape: tuple[int, int] | None = None) -> 
                       R360Warning, stacklevel=2)
         mask = cv2.resize(mask.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
     return mask
+
+
+_JPEG_MAGIC = b"\xff\xd8\xff"
+
+
+def _refuse_jpeg(head: bytes, path) -> None:
+    if head.startswith(_JPEG_MAGIC):
+        raise InputError("mask holds JPEG data (whatever its extension): JPEG compression adds non-zero noise "
+                         "around the target's edges; save the mask as a real (lossless) PNG", path)
+
+
+def mask_size(path: str | os.PathLike) -> tuple[int, int]:
+    """(H, W) of a mask from its header, with the same refusals as :func:`load_mask` that the
+    header decides (JPEG data)."""
+    from .renders import image_size
+
+    try:
+        with open(path, "rb") as f:
+            head = f.read(3)
+    except OSError as e:
+        raise InputError(f"cannot read mask: {e.strerror or e}", path) from None
+    _refuse_jpeg(head, path)
+    return image_size(path)

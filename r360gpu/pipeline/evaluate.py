@@ -6,6 +6,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..errors import InputError
+from ..util import warning_log
 from .cache import RunCache, fingerprint
 from .options import EvaluateOptions, default_probes
 from .pictures import PictureSink
@@ -42,7 +43,6 @@ def evaluate(
         ``wgpu.GPUDevice``.
     force: recompute everything (the cache under ``out`` is cleared first).
     """
-    from ..aggregate.pooling import aggregate_results
     from ..bundle import Bundle, load_bundle
     from ..gpu import get_context
 
@@ -54,7 +54,8 @@ def evaluate(
         structural_probes = d_str if structural_probes is None else structural_probes
     if isinstance(bundles, (str, Path, Bundle)):
         bundles = [bundles]
-    loaded = [b if isinstance(b, Bundle) else load_bundle(b) for b in bundles]
+    sel = list(opts.views) if opts.views else None  # validated as `check --views` does
+    loaded = [b if isinstance(b, Bundle) else load_bundle(b, views=sel) for b in bundles]
     loaded = [b.with_render_settings(antialiased=True if opts.antialiased else None) for b in loaded]
     if opts.compat:  # public folders: depth is read as the public scripts read it (aggregate.compat)
         from ..bundle.remove360_layout import without_depth
@@ -63,12 +64,19 @@ def evaluate(
     names = [b.name for b in loaded]
     if len(set(names)) != len(names):
         raise InputError(f"two bundles share a scene name: {names}")
-    methods = list(loaded[0].methods)
     out = Path(out) if out is not None else None
     cache = RunCache(out, force=force)
     sink = PictureSink(out, opts.pictures)
+    with warning_log.collecting():
+        return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, progress, log)
+
+
+def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, progress, log) -> dict:
+    from ..aggregate.pooling import aggregate_results
+
+    methods = list(loaded[0].methods)
     timer = Timer()
-    warnings = WarningLog(log=log)
+    warnings = WarningLog()
     results = {
         "schema": "r360gpu.results/1",
         "r360gpu_version": __version__,
@@ -84,12 +92,13 @@ def evaluate(
         if list(bundle.methods) != methods:
             log(f"note: scene {bundle.name} has methods {list(bundle.methods)}; "
                 f"cross-scene tables need the same methods everywhere ({methods})")
-        run = SceneRun(bundle, opts, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
-                       warnings=warnings)
-        try:
-            scene_res = evaluate_scene(run, cache, sink, progress)
-        finally:
-            run.release()
+        with warning_log.where(scene=bundle.name):
+            run = SceneRun(bundle, opts, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
+                           warnings=warnings)
+            try:
+                scene_res = evaluate_scene(run, cache, sink, progress)
+            finally:
+                run.release()
         if opts.compat:
             from ..aggregate.compat import apply_compat
 
@@ -100,9 +109,8 @@ def evaluate(
     results["timing"] = {"stages_s": {k: round(v, 3) for k, v in timer.totals.items()},
                          "total_s": round(time.perf_counter() - t_start, 3),
                          "views": n_views_done}
-    if warnings.items:
-        results["warnings"] = warnings.items
     aggregate_results(results, n_boot=opts.n_boot, n_perm=opts.n_perm, seed=opts.seed)
+    results["warnings"], results["warning_counts"] = warning_log.records(), warning_log.counts()
     return results
 
 
@@ -128,8 +136,14 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
             if cells is not None:
                 ctl = view_cache.load_view(run.controls.values(), v, pictures=False)
                 cells = None if ctl is None else {**cells, **ctl}
-        if cells is None:
-            cells = score_view(run, v, sink)
+        if cells is not None:
+            warning_log.replay(next(iter(cells.values())).get("warnings"))
+        else:
+            w_mark = warning_log.mark()
+            with warning_log.where(view=v):
+                cells = score_view(run, v, sink)
+            for i, cell in enumerate(cells.values()):  # a view's warnings once (counts add up on replay)
+                cell["warnings"] = warning_log.since(w_mark) if i == 0 else None
             if view_cache is not None:
                 for m, cell in cells.items():
                     view_cache.store(m, v, cell)

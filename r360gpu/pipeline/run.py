@@ -41,20 +41,14 @@ class Timer:
         return t
 
 
-@dataclass
 class WarningLog:
-    """Doubtful but usable inputs met during the run, each with where it was met."""
-
-    items: list = field(default_factory=list)
-    log: object = None  # print-like; each warning is printed once when given
+    """The stages' handle on the run's warnings (:mod:`r360gpu.util.warning_log`, printed once
+    and recorded in results.json with scene, method, view and file)."""
 
     def add(self, message: str, *, scene=None, method=None, view=None, file=None) -> None:
-        item = {"scene": scene, "method": method, "view": view, "file": None if file is None else str(file),
-                "message": message}
-        if item not in self.items:
-            self.items.append(item)
-            if self.log is not None:
-                self.log(f"warning: {message}")
+        from ..util import warning_log
+
+        warning_log.warn(message, file=file, scene=scene, method=method, view=view)
 
 
 def select_views(names: list[str], patterns) -> list[str]:
@@ -103,6 +97,9 @@ class SceneRun:
         timer.add("load", t0)
         self._masks: dict = {}
         self._fit_renders: dict = {}
+        from ..bundle.load import require_target
+
+        require_target(self.views, self.mask, bundle.masks)
         self._fit(sem_probes + str_probes)
         self.sem = [cache.wrap_probe(p) for p in sem_probes]
         self.stru = [cache.wrap_probe(p) for p in str_probes]

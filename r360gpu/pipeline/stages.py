@@ -116,6 +116,14 @@ def measure_method(run, method: str, view: str, mask, controls: Controls, post, 
     record = ViewRecord.build(view, run.bundle.name, method,
                               probes=run.probes_desc["semantic"] + run.probes_desc["structural"],
                               semantic=sem_views, structural=str_views, geometric=geo, fidelity=fid)
+    if geo is not None:
+        from ..metrics import depth_checks
+
+        is_method = method in run.bundle.methods  # else a control: the "pre" or "reference" source
+        source = run.bundle.methods[method] if is_method else getattr(run.bundle, method, None)
+        depth_checks.annotate(record, depth_checks.check_view(
+            run.bundle.name, method, view, pre.depth, post.depth, mask, source=getattr(source, "path", None),
+            label=None if is_method else f"[{method}]"))
     boundary = None
     if boundary_sweep and opts.boundary and run.sem and run.stru:
         p0s, p0t = run.sem[0].name, run.stru[0].name

@@ -198,7 +198,11 @@ def _rendering_dirs(spec: str, kind: str, body: str) -> tuple[dict[str, Path], s
     # sub-folder of the post folder named like the method (post/<method>/).
     post = dirs.get("post")
     if post is not None:
-        for sub in sorted(p for p in post.iterdir() if p.is_dir() and p.name != "mask"):
+        from r360gpu.probes.precomputed import is_amg_view_folder
+
+        # (SAM amg.py output holds one folder per view, with metadata.csv: not method folders.)
+        for sub in sorted(p for p in post.iterdir() if p.is_dir() and p.name != "mask"
+                          and not is_amg_view_folder(p)):
             dirs[f"post/{sub.name}"] = sub
     if kind == "png":
         dirs = {r: (d / "mask" if (d / "mask").is_dir() else d) for r, d in dirs.items()}

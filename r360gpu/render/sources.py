@@ -47,8 +47,14 @@ class SceneSource:
         self.depth_mode = depth
         self.gaussians = scene if in_memory else load_gaussians(scene)
         self.render_options = RenderOptions(**(render or {}))
-        self.renderer = Renderer(self.gaussians, ctx=ctx, background=tuple(float(c) for c in background),
-                                 options=self.render_options)
+        try:
+            self.renderer = Renderer(self.gaussians, ctx=ctx, background=tuple(float(c) for c in background),
+                                     options=self.render_options)
+        except InputError as e:  # e.g. more Gaussians than one binding holds: name the file, say what to do
+            if e.path is not None or in_memory:
+                raise
+            raise InputError(f"{e.problem}; prune or split the scene, or run on an adapter with larger storage "
+                             f"bindings (`r360gpu doctor` lists this adapter's limits)", scene) from None
 
     def images(self, view: str, camera) -> ViewImages:
         if camera is None:

@@ -32,6 +32,7 @@ from ..errors import R360Warning
 from ..metrics.semantic import SemanticView, semantic_summary
 from ..metrics.structural import StructuralView, structural_summary
 from ..util.atomic import write_text
+from ..util.warning_log import format_record
 from .plots import axes_overview_png, view_series
 from .results_io import method_entry, method_names, number, scene_names, structural_mode
 from .results_tables import (
@@ -436,6 +437,11 @@ def report_html(results: dict, out_dir: str | os.PathLike, *,
     h.append('<section id="summary"><h2>Summary</h2>')
     for line in low_axis_warnings(results):
         h.append(f'<div class="warn"><strong>Warning:</strong> {_e(line)}</div>')
+    input_warnings = results.get("warnings") or []  # recorded by r360gpu.util.warning_log
+    for w in input_warnings[:50]:
+        h.append(f'<div class="warn"><strong>Input warning:</strong> {_e(format_record(w))}</div>')
+    if len(input_warnings) > 50:
+        h.append(f'<div class="warn">... and {len(input_warnings) - 50} more input warnings in results.json</div>')
     free = _weight_free_probes(results)
     if free:
         names = ", ".join(f"{p.get('name', '?')} ({p['kind']})" for p in free)
