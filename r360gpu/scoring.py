@@ -314,6 +314,8 @@ def _evaluate_scene(bundle, opts, ctx, sem_probes, str_probes, probe_cache, cach
         "methods": {},
         "_probes": probes_desc,
     }
+    if bundle.expected:  # scene.toml [expected.METHOD]: known failures, checked by the report
+        scene["expected"] = bundle.expected
     for m in bundle.methods:
         axes = method_axes(records[m], xis=opts.xis, boundary=boundaries[m] if opts.boundary else None)
         scene["methods"][m] = {"axes": axes, "views": [r.to_dict() for r in records[m]], "pictures": pictures[m]}
@@ -472,13 +474,15 @@ def _score_view(bundle, v, camera, mask, src_pre, src_ref, src_methods, sem, str
             picture = _write_picture(
                 out, bundle.name, m, v, pre, post, ref, mask, geo, opts.compat,
                 semantic=(sem_pre[first], sem_post[first]) if first else None, structural=structural,
+                record=record.to_dict(),
             )
             t = timer.add("pictures", t)
         cells[m] = {"record": record.to_dict(), "boundary": boundary, "picture": picture}
     return cells
 
 
-def _write_picture(out, scene, method, view, pre, post, ref, mask, geo, compat, *, semantic, structural):
+def _write_picture(out, scene, method, view, pre, post, ref, mask, geo, compat, *, semantic, structural,
+                   record=None):
     """The per-view contact sheet; returns its path relative to ``out``."""
     from .metrics.compat import compat_quantise, depth_delta
     from .report.pictures import view_contact_sheet
@@ -497,6 +501,6 @@ def _write_picture(out, scene, method, view, pre, post, ref, mask, geo, compat, 
         ref=None if ref is None else ref.rgb, delta=delta, threshold=threshold, changed=changed,
         semantic_pre=None if semantic is None else semantic[0].union(),
         semantic_post=None if semantic is None else semantic[1].union(),
-        structural=[(t, rgb, ms.masks) for t, rgb, ms in structural],
+        structural=[(t, rgb, ms.masks) for t, rgb, ms in structural], record=record,
     )
     return rel.as_posix()
