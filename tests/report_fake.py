@@ -215,3 +215,31 @@ def fake_results(out_dir: Path | None = None, *, methods=METHODS, pictures: bool
         "aggregate": agg,
         "sensitivity": {"xi": xi, "boundary": boundary},
     }
+
+
+def add_probe_checks(results: dict) -> dict:
+    """Fabricated probe verdicts and control scores, the way the probe-validity step stores them:
+    room: s_geo weak; garden: s_sem blind; the others ok."""
+    verdicts = {"room": {"s_sem": "ok", "s_geo": "weak", "s_str": "ok"},
+                "garden": {"s_sem": "blind", "s_geo": "ok", "s_str": "ok"}}
+    for s in SCENES:
+        sd = results["scenes"][s]
+        sd["validity"] = dict(verdicts[s])
+        sd["controls"] = {
+            "identity": {"axes": {"s_sem": 0.9 if s == "garden" else 0.1, "s_geo": 0.3 if s == "room" else 0.02,
+                                  "s_str": 0.2, "rqs": 0.1}},
+            "reference": {"axes": {"s_sem": 1.0, "s_geo": 0.45 if s == "room" else 0.95, "s_str": 0.97,
+                                   "rqs": 0.7}},
+        }
+    return results
+
+
+def add_expected(results: dict) -> dict:
+    """Fabricated known failures (scene.toml [expected.METHOD]) for the three fake methods."""
+    for s in SCENES:
+        results["scenes"][s]["expected"] = {
+            "clean": {"failure": "none", "caught_by": []},
+            "blurry": {"failure": "a faint copy of the object stays", "caught_by": ["s_sem"]},
+            "ghost": {"failure": "half-transparent object at its old depth", "caught_by": ["s_geo", "s_str"]},
+        }
+    return results

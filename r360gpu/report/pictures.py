@@ -388,6 +388,24 @@ def contact_sheet(path: str | os.PathLike, panels: Sequence[tuple[str, np.ndarra
     return path
 
 
+def sheet_panel(sheet: np.ndarray, index: int, *, n_lines: int, title: bool = True,
+                panel_width: int = PANEL_WIDTH) -> np.ndarray | None:
+    """Panel ``index`` of the first row of a sheet written by :func:`sheet_image` (``n_lines``
+    text lines under the title), or None when the sheet does not have that layout.
+
+    The panel's height is where its column turns white (the gap before the next row)."""
+    h, w = sheet.shape[:2]
+    cols = (w - _PAD) // (panel_width + _PAD)
+    if cols < 1 or index >= cols or w != _PAD + cols * (panel_width + _PAD):
+        return None
+    y0 = (_TITLE_H + 4 if title else 0) + _TITLE_H * n_lines + _PAD + _TITLE_H
+    x0 = _PAD + index * (panel_width + _PAD)
+    block = sheet[y0:, x0 : x0 + panel_width]
+    white = np.flatnonzero((block >= 255).all(axis=(1, 2)))
+    end = int(white[0]) if white.size else block.shape[0]
+    return block[:end].copy() if end >= 16 else None
+
+
 def _num(x, decimals: int) -> str:
     try:
         v = float(x)
