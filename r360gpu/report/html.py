@@ -73,7 +73,7 @@ h3{font-size:1.08em;margin:0.9em 0 0.3em}.meta{color:#555;font-size:0.92em;margi
 .scroll{overflow-x:auto;max-width:100%}
 table{border-collapse:collapse;margin:6px 0 4px;font-size:0.88em}
 caption{caption-side:top;text-align:left;font-weight:600;padding:4px 0}
-th,td{padding:3px 8px;border-bottom:1px solid #e3e3e3}td{white-space:nowrap}
+th,td{padding:3px 8px;border-bottom:1px solid #e3e3e3;overflow-wrap:normal}td{white-space:nowrap}
 th{background:#f4f4f6;border-bottom:2px solid #bbb;font-weight:600}td.num,th.num{text-align:right}
 td.lab,th.lab{text-align:left}tr.rule td{border-top:2px solid #999}.vr{border-left:2px solid #999}
 td.wrap{white-space:normal;min-width:12em}
@@ -135,14 +135,15 @@ def _scroll(inner: str) -> str:
 
 # -- tables --------------------------------------------------------------------
 
-def table_html(table: Table, *, flags: dict[int, str] | None = None) -> str:
+def table_html(table: Table, *, flags: dict[int, str] | None = None, caption: bool = True) -> str:
     """One table as an HTML ``<table>`` (caption = title) followed by its notes, in a box that
     scrolls sideways when the table is wider than the page.
 
     Best values are ``<strong>``, second best ``<u>``; a rule before a row is a
     thicker top border; label columns are left-aligned, numbers right-aligned.
     flags: {column index: reason}: body cells of those columns are marked
-    (class ``doubt``, a dagger) with the reason as tooltip.
+    (class ``doubt``, a dagger) with the reason as tooltip.  caption: False
+    leaves the title out (when a ``<summary>`` already shows it).
     """
     n_label = table.label_columns
     flags = flags or {}
@@ -161,7 +162,7 @@ def table_html(table: Table, *, flags: dict[int, str] | None = None) -> str:
             title = f' title="{_e(flags[j])}"'
         return f'<{tag} class="{" ".join(cls)}"{title}>{body}</{tag}>'
 
-    out = [f"<table><caption>{_e(table.title)}</caption>",
+    out = [f"<table><caption>{_e(table.title)}</caption>" if caption else "<table>",
            "<thead><tr>" + "".join(cell(c, j, "th") for j, c in enumerate(table.header)) + "</tr></thead><tbody>"]
     for i, row in enumerate(table.rows):
         cls = ' class="rule"' if i in table.rule_before else ""
@@ -768,7 +769,7 @@ def report_html(results: dict, out_dir: str | os.PathLike, *,
     tables, notes = build_results_tables(results)
     h.append('<section id="tables"><h2>Tables</h2>')
     for t in tables[1:]:
-        h.append(f"<details open><summary>{_e(t.title)}</summary>{table_html(t)}</details>")
+        h.append(f"<details open><summary>{_e(t.title)}</summary>{table_html(t, caption=False)}</details>")
     for n in notes:
         h.append(f'<p class="notes">Note: {_e(n)}</p>')
     h.append("</section>")
