@@ -173,7 +173,8 @@ def fake_results(out_dir: Path | None = None, *, methods=METHODS, pictures: bool
                     view_contact_sheet(out_dir / rel, pre=pre, post=post, ref=ref, target=t, delta=delta,
                                        threshold=0.25, semantic_post=sem_mask,
                                        structural=[("structural masks on I_post", post, struct)],
-                                       width=128, title=f"{scene} / {method} / {view}")
+                                       width=128, title=f"{scene} / {method} / {view}",
+                                       record=recs[VIEWS.index(view)].to_dict())
                     pics[view] = rel
                 plot = f"plots/{scene}/{method}.png"
                 view_axes_plot(out_dir / plot, recs, title=f"{scene} / {method}")

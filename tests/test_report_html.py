@@ -285,7 +285,9 @@ def test_first_screen_main_table_verdicts_and_worst_views(checked_report):
     results, out, path = checked_report
     text = path.read_text(encoding="utf-8")
     leaks = text[text.index('<section id="leaks">'):text.index('<section id="summary">')]
-    assert leaks.index("<table") < leaks.index("Probe checks") < leaks.index("Where each method leaks most")
+    assert leaks.index("<table") < leaks.index("Probe checks") < leaks.index("Where each method leaks most") \
+        < leaks.index("Controls behind the probe checks")
+    assert '<td class="lab">garden</td><td class="lab">identity</td><td class="num">0.900</td>' in leaks
     # verdict cells and one sentence per verdict that is not ok, citing the controls
     assert '<td class="lab v-weak">weak</td>' in leaks and '<td class="lab v-blind">blind</td>' in leaks
     vis = _visible(leaks)

@@ -194,3 +194,18 @@ def test_axes_overview_png():
     img = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
     assert img is not None and img.shape[0] == 280 and img.std() > 10
     assert png == axes_overview_png(overall, title="t")
+
+
+@pytest.mark.parametrize("n_lines", [0, 2])
+@pytest.mark.parametrize("width", [64, 128])
+def test_sheet_panel_cuts_out_one_panel(n_lines, width):
+    from r360gpu.report.pictures import sheet_panel
+
+    rng = np.random.default_rng(3)
+    panels = [(f"p{i}", rng.integers(0, 250, (30 + 4 * i, 40, 3)).astype(np.uint8)) for i in range(7)]
+    sheet = sheet_image(panels, panel_width=width, title="t", lines=["a line"] * n_lines)
+    got = sheet_panel(sheet, 1, n_lines=n_lines)
+    expected = cv2.resize(panels[1][1], (width, round(34 * width / 40)), interpolation=cv2.INTER_NEAREST)
+    assert got is not None and np.array_equal(got, expected)
+    assert sheet_panel(sheet, 9, n_lines=n_lines) is None  # only 4 columns
+    assert sheet_panel(np.full((200, 300, 3), 255, np.uint8), 1, n_lines=0) is None  # not a sheet

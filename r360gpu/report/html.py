@@ -66,10 +66,10 @@ _CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,"DejaVu Sans",sans-serif;color:#1d1d1f;
  margin:0 auto;max-width:1240px;padding:12px 20px 48px;line-height:1.4;background:#fff;overflow-wrap:anywhere}
 h1{font-size:1.5em;margin:0.1em 0}h2{font-size:1.3em;border-bottom:2px solid #ddd;padding-bottom:4px;margin-top:1.4em}
-h3{font-size:1.08em;margin:0.9em 0 0.3em}.meta{color:#555;font-size:0.92em;margin:2px 0}
+h3{font-size:1.08em;margin:0.9em 0 0.3em}h4{font-size:1em;margin:0.8em 0 0.2em}.meta{color:#555;font-size:0.92em;margin:2px 0}
 .warn{background:#fff4e5;border-left:5px solid #e67700;padding:6px 10px;margin:6px 0;font-size:0.95em}
 .info{background:#eef5ff;border-left:5px solid #3b7dd8;padding:6px 10px;margin:6px 0;font-size:0.95em}
-.info ul{margin:4px 0 0;padding-left:20px}
+.info ul{margin:4px 0 0;padding-left:20px}ul.notes{padding-left:20px;margin:2px 0 6px}
 .scroll{overflow-x:auto;max-width:100%}
 table{border-collapse:collapse;margin:6px 0 4px;font-size:0.88em}
 caption{caption-side:top;text-align:left;font-weight:600;padding:4px 0}
@@ -89,7 +89,7 @@ details.method{border:1px solid #ddd;border-radius:6px;padding:4px 12px;margin:1
 img{max-width:100%;height:auto;display:block}
 code,pre{font-family:ui-monospace,"DejaVu Sans Mono",monospace;font-size:0.85em}
 pre{white-space:pre-wrap;background:#f7f7f7;padding:6px;max-height:360px;overflow:auto}
-table.kv td{white-space:normal;vertical-align:top}table.kv td:first-child{color:#555;white-space:nowrap}
+table.kv td{white-space:normal;vertical-align:top;overflow-wrap:anywhere}table.kv td:first-child{color:#555;white-space:nowrap}
 table.kv table.kv{margin:0;font-size:1em}
 table.sortable th{cursor:pointer;user-select:none}table.sortable th[aria-sort=ascending]::after{content:" \\25B2"}
 table.sortable th[aria-sort=descending]::after{content:" \\25BC"}
@@ -392,11 +392,14 @@ def _pic_id(results: dict, scene: str, method: str, view: str) -> str:
 def _value_text(v) -> str:
     n = number(v)
     if n is not None and not isinstance(v, int):
-        return _fmt(n, 3) if math.isfinite(n) else str(n)
+        if not math.isfinite(n):
+            return str(n)
+        # 3 decimals like the tables; tiny and large values keep 4 significant digits
+        return f"{n:.3f}" if n == 0 or 0.01 <= abs(n) < 1000 else f"{n:.4g}"
     if isinstance(v, (list, tuple)):
         if v and all(not isinstance(x, (dict, list)) for x in v):
             distinct = list(dict.fromkeys(str(x) for x in v))
-            if len(distinct) == 1 and len(v) > 1:
+            if len(distinct) == 1 and len(v) > 4:  # e.g. the same probe name once per view
                 return f"{distinct[0]} (x{len(v)})"
             return ", ".join(_value_text(x) for x in v)
         return json.dumps(v, sort_keys=True, ensure_ascii=False)
@@ -487,47 +490,51 @@ def worst_views_html(results: dict, out_dir: Path, rows: list[dict], problems: l
 
 
 def verdicts_html(results: dict) -> str:
-    """Probe verdicts per scene and axis, one sentence per verdict that is not "ok", and the control
-    scores; empty when the results have neither."""
+    """Probe verdicts per scene and axis with one sentence per verdict that is not "ok"; empty when
+    the results have none."""
     verdicts = findings.probe_verdicts(results)
-    ctrl = findings.controls(results)
-    if not verdicts and not ctrl:
+    if not verdicts:
         return ""
-    h = ["<h3>Probe checks</h3>"]
-    if verdicts:
-        h.append('<p class="notes">Can each axis see this scene\'s object? "ok": its probe separates the '
-                 'unchanged scene from the true removal; "weak": only partly; "blind": not at all.</p>')
-        scenes = list(dict.fromkeys(v.scene for v in verdicts))
-        by = {(v.scene, v.axis): v for v in verdicts}
-        t = ['<table><thead><tr><th class="lab">Scene</th>'
-             + "".join(f'<th class="lab">{a}</th>' for a in findings.AXES) + "</tr></thead><tbody>"]
-        for s in scenes:
-            cells = []
-            for a in findings.AXES:
-                v = by.get((s, a))
-                text = v.verdict if v is not None and v.verdict else "--"
-                cls = f"v-{text}" if text in findings.VERDICTS else ""
-                cells.append(f'<td class="lab {cls}">{_e(text)}</td>')
-            t.append(f'<tr><td class="lab">{_e(s)}</td>{"".join(cells)}</tr>')
-        t.append("</tbody></table>")
-        h.append(_scroll("".join(t)))
-        sentences = [v for v in verdicts if v.sentence]
-        if sentences:
-            h.append("<ul>" + "".join(f"<li><strong>{_e(v.scene)}:</strong> {_e(v.sentence)}</li>"
-                                      for v in sentences) + "</ul>")
-    if ctrl:
-        t = ['<table><caption>Controls: identity = the pre scene scored as a method (nothing removed; every axis '
-             'should be low), reference = the reference scored as a method (the true removal; every axis should be '
-             'high).</caption><thead><tr><th class="lab">Scene</th><th class="lab">Control</th>'
-             + "".join(f'<th class="num">{k}</th>' for k in ("s_sem", "s_geo", "s_str", "rqs"))
-             + "</tr></thead><tbody>"]
-        for s, name, axes in ctrl:
-            t.append(f'<tr><td class="lab">{_e(s)}</td><td class="lab">{_e(name)}</td>'
-                     + "".join(f'<td class="num">{_e(_fmt(number(axes.get(k)), 3))}</td>'
-                               for k in ("s_sem", "s_geo", "s_str", "rqs")) + "</tr>")
-        t.append("</tbody></table>")
-        h.append(_scroll("".join(t)))
+    h = ["<h3>Probe checks</h3>",
+         '<p class="notes">Can each axis see this scene\'s object? "ok": its probe separates the unchanged scene '
+         'from the true removal; "weak": only partly; "blind": not at all (scores of both controls below).</p>']
+    scenes = list(dict.fromkeys(v.scene for v in verdicts))
+    by = {(v.scene, v.axis): v for v in verdicts}
+    t = ['<table><thead><tr><th class="lab">Scene</th>'
+         + "".join(f'<th class="lab">{a}</th>' for a in findings.AXES) + "</tr></thead><tbody>"]
+    for s in scenes:
+        cells = []
+        for a in findings.AXES:
+            v = by.get((s, a))
+            text = v.verdict if v is not None and v.verdict else "--"
+            cls = f"v-{text}" if text in findings.VERDICTS else ""
+            cells.append(f'<td class="lab {cls}">{_e(text)}</td>')
+        t.append(f'<tr><td class="lab">{_e(s)}</td>{"".join(cells)}</tr>')
+    t.append("</tbody></table>")
+    h.append(_scroll("".join(t)))
+    sentences = [v for v in verdicts if v.sentence]
+    if sentences:
+        h.append('<ul class="notes">' + "".join(f"<li><strong>{_e(v.scene)}:</strong> {_e(v.sentence)}</li>"
+                                               for v in sentences) + "</ul>")
     return "\n".join(h)
+
+
+def controls_html(results: dict) -> str:
+    """The control scores (``scenes.S.controls``) as a collapsed table; empty without controls."""
+    ctrl = findings.controls(results)
+    if not ctrl:
+        return ""
+    keys = ("s_sem", "s_geo", "s_str", "rqs")
+    t = ['<table><thead><tr><th class="lab">Scene</th><th class="lab">Control</th>'
+         + "".join(f'<th class="num">{k}</th>' for k in keys) + "</tr></thead><tbody>"]
+    for s, name, axes in ctrl:
+        t.append(f'<tr><td class="lab">{_e(s)}</td><td class="lab">{_e(name)}</td>'
+                 + "".join(f'<td class="num">{_e(_fmt(number(axes.get(k)), 3))}</td>' for k in keys) + "</tr>")
+    t.append("</tbody></table>")
+    return ("<details><summary>Controls behind the probe checks</summary>"
+            '<p class="notes">identity = the pre scene scored as a method (nothing removed: every axis should be '
+            "low); reference = the reference scored as a method (the true removal: every axis should be high).</p>"
+            + _scroll("".join(t)) + "</details>")
 
 
 def expectations_html(results: dict) -> str:
@@ -670,25 +677,23 @@ def _method_section(results: dict, out_dir: Path, scene: str, method: str, probl
 
 
 def _probes_html(results: dict) -> str:
+    """One block per probe: axis, name, models, weight-free, parameters and notes as a wrapping table."""
     probes = results.get("probes") or {}
-    rows = []
+    out = []
     for kind in ("semantic", "structural"):
         for p in probes.get(kind) or []:
             if not isinstance(p, dict):
                 continue
             models = p.get("models") or {}
-            mtext = ", ".join(f"{f} (sha256 {str(h)[:12]})" for f, h in models.items()) or "none"
-            extra = {k: p[k] for k in ("limitations", "prompt_use", "fit") if p.get(k)}
-            rows.append(
-                f'<tr><td class="lab">{_e(kind)}</td><td class="lab">{_e(p.get("name", "?"))}</td>'
-                f'<td class="lab wrap">{_e(mtext)}</td><td class="lab">{"yes" if p.get("weight_free") else "no"}</td>'
-                f'<td class="lab wrap">{kv_html(p.get("params") or {}, depth=2)}</td>'
-                f'<td class="lab wrap">{kv_html(extra, depth=2) if extra else ""}</td></tr>')
-    if not rows:
+            info = {"axis": kind,
+                    "models": ", ".join(f"{f} (sha256 {str(h)[:12]})" for f, h in models.items()) or "none",
+                    "weight-free": "yes" if p.get("weight_free") else "no"}
+            info.update({k: p[k] for k in ("limitations", "prompt_use", "fit") if p.get(k)})
+            info["parameters"] = p.get("params") or {}
+            out.append(f"<h4>{_e(p.get('name', '?'))} ({_e(kind)})</h4>" + _kv_table(info))
+    if not out:
         return "<p>No probe descriptions in the results.</p>"
-    return _scroll('<table class="kv"><thead><tr><th class="lab">Axis</th><th class="lab">Probe</th>'
-                   '<th class="lab">Models</th><th class="lab">Weight-free</th><th class="lab">Parameters</th>'
-                   '<th class="lab">Notes</th></tr></thead><tbody>' + "".join(rows) + "</tbody></table>")
+    return "\n".join(out)
 
 
 def _weight_free_note(results: dict) -> str:
@@ -745,6 +750,7 @@ def report_html(results: dict, out_dir: str | os.PathLike, *,
         h.append(f'<p class="notes">{_e(n)}</p>')
     h.append(verdicts_html(results))
     h.append(worst_views_html(results, out, rows, problems))
+    h.append(controls_html(results))
     h.append("</section>")
 
     # Summary

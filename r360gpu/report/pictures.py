@@ -388,17 +388,35 @@ def contact_sheet(path: str | os.PathLike, panels: Sequence[tuple[str, np.ndarra
     return path
 
 
-def sheet_panel(sheet: np.ndarray, index: int, *, n_lines: int, title: bool = True,
-                panel_width: int = PANEL_WIDTH) -> np.ndarray | None:
+def _panel_columns(sheet: np.ndarray, y0: int) -> tuple[int, int] | None:
+    """(columns, panel width) of a :func:`sheet_image` sheet whose first panel row starts at ``y0``:
+    the most columns whose gaps are white over the first 16 rows of the panels."""
+    h, w = sheet.shape[:2]
+    band = sheet[y0 : y0 + 16]
+    if band.shape[0] < 16:
+        return None
+    for cols in range(12, 1, -1):
+        pw, rem = divmod(w - _PAD, cols)
+        pw -= _PAD
+        if rem or pw < 16:
+            continue
+        gaps = [k * (pw + _PAD) for k in range(1, cols)]  # x of the gap before panel k (_PAD wide)
+        if all((band[:, x : x + _PAD] >= 255).all() and not (band[:, x - 1] >= 255).all() for x in gaps):
+            return cols, pw
+    return None
+
+
+def sheet_panel(sheet: np.ndarray, index: int, *, n_lines: int, title: bool = True) -> np.ndarray | None:
     """Panel ``index`` of the first row of a sheet written by :func:`sheet_image` (``n_lines``
     text lines under the title), or None when the sheet does not have that layout.
 
-    The panel's height is where its column turns white (the gap before the next row)."""
-    h, w = sheet.shape[:2]
-    cols = (w - _PAD) // (panel_width + _PAD)
-    if cols < 1 or index >= cols or w != _PAD + cols * (panel_width + _PAD):
-        return None
+    The panel width is found from the white gaps between the panels; the panel's height is
+    where its column turns white (the gap before the next row)."""
     y0 = (_TITLE_H + 4 if title else 0) + _TITLE_H * n_lines + _PAD + _TITLE_H
+    found = _panel_columns(sheet, y0)
+    if found is None or index >= found[0]:
+        return None
+    panel_width = found[1]
     x0 = _PAD + index * (panel_width + _PAD)
     block = sheet[y0:, x0 : x0 + panel_width]
     white = np.flatnonzero((block >= 255).all(axis=(1, 2)))
