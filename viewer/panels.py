@@ -384,6 +384,9 @@ class Panels:
 
     def help_contents(self) -> None:
         if imgui.begin_table("keys", 2, imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v):
+            imgui.table_setup_column("keys", imgui.TableColumnFlags_.width_fixed,
+                                     max(imgui.calc_text_size(k).x for k, _ in KEY_BINDINGS) + 8)
+            imgui.table_setup_column("action", imgui.TableColumnFlags_.width_stretch)
             for keys, what in KEY_BINDINGS:
                 imgui.table_next_row()
                 imgui.table_next_column()
