@@ -173,7 +173,8 @@ def fake_results(out_dir: Path | None = None, *, methods=METHODS, pictures: bool
                     view_contact_sheet(out_dir / rel, pre=pre, post=post, ref=ref, target=t, delta=delta,
                                        threshold=0.25, semantic_post=sem_mask,
                                        structural=[("structural masks on I_post", post, struct)],
-                                       width=128, title=f"{scene} / {method} / {view}")
+                                       width=128, title=f"{scene} / {method} / {view}",
+                                       record=recs[VIEWS.index(view)].to_dict())
                     pics[view] = rel
                 plot = f"plots/{scene}/{method}.png"
                 view_axes_plot(out_dir / plot, recs, title=f"{scene} / {method}")
@@ -215,3 +216,31 @@ def fake_results(out_dir: Path | None = None, *, methods=METHODS, pictures: bool
         "aggregate": agg,
         "sensitivity": {"xi": xi, "boundary": boundary},
     }
+
+
+def add_probe_checks(results: dict) -> dict:
+    """Fabricated probe verdicts and control scores, the way the probe-validity step stores them:
+    room: s_geo weak; garden: s_sem blind; the others ok."""
+    verdicts = {"room": {"s_sem": "ok", "s_geo": "weak", "s_str": "ok"},
+                "garden": {"s_sem": "blind", "s_geo": "ok", "s_str": "ok"}}
+    for s in SCENES:
+        sd = results["scenes"][s]
+        sd["validity"] = dict(verdicts[s])
+        sd["controls"] = {
+            "identity": {"axes": {"s_sem": 0.9 if s == "garden" else 0.1, "s_geo": 0.3 if s == "room" else 0.02,
+                                  "s_str": 0.2, "rqs": 0.1}},
+            "reference": {"axes": {"s_sem": 1.0, "s_geo": 0.45 if s == "room" else 0.95, "s_str": 0.97,
+                                   "rqs": 0.7}},
+        }
+    return results
+
+
+def add_expected(results: dict) -> dict:
+    """Fabricated known failures (scene.toml [expected.METHOD]) for the three fake methods."""
+    for s in SCENES:
+        results["scenes"][s]["expected"] = {
+            "clean": {"failure": "none", "caught_by": []},
+            "blurry": {"failure": "a faint copy of the object stays", "caught_by": ["s_sem"]},
+            "ghost": {"failure": "half-transparent object at its old depth", "caught_by": ["s_geo", "s_str"]},
+        }
+    return results

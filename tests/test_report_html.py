@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import base64
 import json
+import re
 import shutil
 import subprocess
 import warnings
+from html import unescape as html_unescape
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -80,14 +82,15 @@ def test_page_is_self_contained_and_every_image_decodes(report):
     page.feed(text)
     page.close()
     assert page.stack == []
-    # overview chart + one plot per (scene, method) + one sheet per view
+    # overview chart + one worst-view thumbnail per method + one plot per (scene, method) + one sheet per view
     n_methods = len(SCENES) * len(METHODS)
-    assert len(page.imgs) == 1 + n_methods + n_methods * len(VIEWS)
+    assert len(page.imgs) == 1 + len(METHODS) + n_methods + n_methods * len(VIEWS)
     for uri in page.imgs:
         img = _decode(uri)
         assert img.std() > 5  # not blank
-    # no external resources, no scripts
-    assert "script" not in page.tags and "link" not in page.tags and "iframe" not in page.tags
+    # no external resources; one inline script (table sorting, opening linked sections)
+    assert page.tags.count("script") == 1 and "<script>" in text and "<script src" not in text
+    assert "link" not in page.tags and "iframe" not in page.tags
     assert all(u.startswith("#") for u in page.attrs_with_urls)
     assert "http://" not in text and "https://" not in text
     # embedded sheets are the files written by the picture functions (re-encoded as JPEG)
@@ -130,7 +133,7 @@ def test_text_is_escaped(tmp_path):
     results["scenes"]["room"]["prompt"] = "<script>alert(1)</script>"
     path = write_html(results, tmp_path)
     text = path.read_text(encoding="utf-8")
-    assert "<script>" not in text and "<b>o</b>" not in text
+    assert text.count("<script>") == 1 and "<script>alert" not in text and "<b>o</b>" not in text
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text
     assert "gh&lt;b&gt;o&lt;/b&gt;st &amp; &quot;co&quot;" in text
     assert '<td class="lab">gh&lt;b&gt;o&lt;/b&gt;st &amp; &quot;co&quot;</td>' in table_html(main_table(results))
@@ -165,8 +168,8 @@ def test_pick_views_and_limit(report, tmp_path):
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     text = write_html(results, copy, max_views=2).read_text(encoding="utf-8")
-    assert text.count("<img") == 1 + 6 + 6 * 2
-    assert "Per-view pictures (2 of 3 views)" in text
+    assert text.count("<img") == 1 + 3 + 6 + 6 * 2
+    assert "Per-view contact sheets (2 of 3 views)" in text
     assert "every view's picture is in the pictures/room/clean folder" in text
 
 
@@ -237,7 +240,7 @@ def test_renders_in_headless_chromium(report, tmp_path):
     dom = res.stdout
     start = dom.index('<pre id="r360-probe">') + len('<pre id="r360-probe">')
     boxes = json.loads(dom[start:dom.index("</pre>", start)].replace("&quot;", '"').replace("&amp;", "&"))
-    assert len(boxes) == 1 + len(SCENES) * len(METHODS) * (1 + len(VIEWS))
+    assert len(boxes) == 1 + len(METHODS) + len(SCENES) * len(METHODS) * (1 + len(VIEWS))
     broken = [b for b in boxes if not b["ok"]]
     assert broken == []
     # every image laid out inside the screenshot shows content, not a blank box
@@ -247,3 +250,162 @@ def test_renders_in_headless_chromium(report, tmp_path):
         x0, y0 = int(b["x"]) + 2, int(b["y"]) + 2
         crop = img[y0 : int(b["y"] + b["bh"]) - 2, x0 : int(b["x"] + b["bw"]) - 2]
         assert crop.size and crop.std() > 10, b
+
+
+# -- issue 16: first screen, per-view table, probe checks, known failures --------------
+
+from report_fake import add_expected, add_probe_checks  # noqa: E402
+
+from r360gpu.report import findings  # noqa: E402
+from r360gpu.report.tables import render_latex  # noqa: E402
+
+
+def _visible(text: str) -> str:
+    page = _Page()
+    page.feed(text)
+    return " ".join(" ".join(page.text).split())
+
+
+@pytest.fixture(scope="module")
+def checked_report(tmp_path_factory):
+    """The fake results with probe verdicts, controls, known failures and a long probe parameter
+    list (like the built-in appearance probe's, which made the page 3,637 px wide)."""
+    out = tmp_path_factory.mktemp("checked")
+    results = add_expected(add_probe_checks(fake_results(out)))
+    params = {f"parameter_{i}": [0.25 * k for k in range(12)] for i in range(12)}
+    params["model_sha256"] = "0123456789abcdef" * 8
+    results["probes"]["semantic"][0]["params"] = params
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", R360Warning)
+        path = write_html(results, out)
+    return results, out, path
+
+
+def test_first_screen_main_table_verdicts_and_worst_views(checked_report):
+    results, out, path = checked_report
+    text = path.read_text(encoding="utf-8")
+    leaks = text[text.index('<section id="leaks">'):text.index('<section id="summary">')]
+    assert leaks.index("<table") < leaks.index("Probe checks") < leaks.index("Where each method leaks most") \
+        < leaks.index("Controls behind the probe checks")
+    assert '<td class="lab">garden</td><td class="lab">identity</td><td class="num">0.900</td>' in leaks
+    # verdict cells and one sentence per verdict that is not ok, citing the controls
+    assert '<td class="lab v-weak">weak</td>' in leaks and '<td class="lab v-blind">blind</td>' in leaks
+    vis = _visible(leaks)
+    assert "room: s_geo is weak here" in vis and "0.300 on the identity control" in vis
+    assert "garden: s_sem is blind here" in vis and "0.900 on the identity control (nothing removed)" in vis
+    assert vis.count(" is weak here") == 1 and vis.count(" is blind here") == 1
+    # Overall cells of a doubtful axis are marked (acc_seg: blind in garden, acc_depth: weak in room)
+    main = leaks[:leaks.index("</table>")]
+    assert main.count('class="num doubt"') == 2 * len(METHODS)
+    assert "acc_seg (s_sem): the probe check is not ok in scene(s) garden (blind)" in vis
+    # worst view per method: ghost's is a room view with the lowest acc_depth (0.2 at view 00)
+    worst = findings.worst_views(results)
+    assert worst["ghost"]["scene"] == "room" and worst["ghost"]["view"] == "00"
+    assert leaks.count("<figure>") == len(METHODS)
+    anchor = f'href="#pic-0-{METHODS.index("ghost")}-0"'
+    assert anchor in leaks and f'id="pic-0-{METHODS.index("ghost")}-0"' in text
+
+
+def test_report_without_checks_has_no_verdicts(report):
+    _, _, path = report
+    text = path.read_text(encoding="utf-8")
+    assert "Probe checks" not in text and "doubt" not in text.split("<style>")[1].split("</style>")[1]
+    assert "Known failure modes" not in text
+
+
+def test_known_failures_caught_or_missed(checked_report):
+    results, _, path = checked_report
+    checks = {(c.scene, c.method): c for c in findings.expectation_checks(results)}
+    assert checks["room", "clean"].outcome == "passes"
+    assert checks["room", "blurry"].outcome == "caught"  # s_sem 1/3
+    assert checks["garden", "blurry"].outcome == "missed"  # s_sem 0.5 is not below 0.5
+    assert checks["room", "ghost"].outcome == "partly"  # s_geo 0.25 caught, s_str 0.6 missed
+    vis = _visible(path.read_text(encoding="utf-8")).replace(" :", ":")
+    assert "Known failure modes: caught?" in vis
+    assert "caught: s_sem 0.333 caught" in vis and "missed: s_sem 0.500 missed" in vis
+    assert "partly: s_geo 0.250 caught, s_str 0.600 missed" in vis
+    assert "3 of 6 as expected" in vis  # room clean + blurry, garden clean
+
+
+def test_per_view_table_every_view_linked(checked_report):
+    results, _, path = checked_report
+    text = path.read_text(encoding="utf-8")
+    assert text.count('<table class="sortable perview">') == len(SCENES)
+    ids = set(re.findall(r'<figure id="(pic-[^"]+)"', text))
+    links = re.findall(r'<a href="#(pic-[^"]+)">sheet</a>', text)
+    assert len(links) == len(SCENES) * len(METHODS) * len(VIEWS) and set(links) == ids
+    # every view's contact sheet shown, with its numbers beside it
+    assert "Per-view contact sheets (3 views)" in text
+    # the axis record is a table, not a JSON dump
+    assert "Axis record (as stored)" not in text and "<pre>" not in text
+    rec = text[text.index("<summary>Axis record</summary>"):]
+    assert rec.index('<table class="kv">') < 60 and "0.3: 1.000, 0.5: 1.000" in rec[:6000]
+
+
+def test_note_box_one_item_per_probe(checked_report):
+    _, _, path = checked_report
+    text = path.read_text(encoding="utf-8")
+    note = text[text.index('<div class="info">'):]
+    note = note[:note.index("</div>")]
+    assert "<li><strong>builtin-appearance</strong> (semantic): colour statistics only</li>" in note
+    assert "<li><strong>builtin-graphseg</strong> (structural): graph segmentation</li>" in note
+
+
+def test_no_lpips_column_without_a_model(tmp_path):
+    results = fake_results(None)
+    for sd in results["scenes"].values():
+        for entry in sd["methods"].values():
+            entry["axes"]["lpips"] = None
+            for rec in entry["views"]:
+                rec["fidelity"].update(lpips=None, lpips_reason="no LPIPS model given", lpips_model=None)
+    text = write_html(results, tmp_path).read_text(encoding="utf-8")
+    assert "LPIPS (lower is better)" not in text and "LPIPS not computed: no LPIPS model given." in text
+    md, tex = write_tables(results, tmp_path)
+    tex_text = tex.read_text()
+    assert "% Note: LPIPS omitted: no LPIPS model ran" in tex_text
+    assert "LPIPS" not in "".join(ln for ln in tex_text.splitlines() if not ln.startswith("%"))
+    assert "LPIPS omitted: no LPIPS model ran" in md.read_text()
+    assert "LPIPS" not in render_latex(main_table(results))
+
+
+# Test instrumentation: page width against the window, then sorting the first per-view table by
+# its acc_depth column (twice: ascending, descending).
+_LAYOUT_PROBE = """<script>
+window.addEventListener('load', function () {
+  var d = document.documentElement, out = {sw: d.scrollWidth, iw: window.innerWidth, wide: []};
+  document.querySelectorAll('body *').forEach(function (e) {
+    var b = e.getBoundingClientRect();
+    if (b.right > window.innerWidth + 1 && !e.closest('.scroll')) out.wide.push(e.tagName + '.' + e.className);
+  });
+  var t = document.querySelector('table.sortable'), hs = t.tHead.rows[0].cells, j = -1;
+  for (var i = 0; i < hs.length; i++) if (hs[i].textContent.indexOf('acc_depth') === 0) j = i;
+  function col() { return Array.prototype.map.call(t.tBodies[0].rows, function (r) { return r.cells[j].textContent; }); }
+  out.before = col(); hs[j].click(); out.asc = col(); hs[j].click(); out.desc = col();
+  var p = document.createElement('pre'); p.id = 'r360-probe'; p.textContent = JSON.stringify(out);
+  document.body.appendChild(p);
+});
+</script>"""
+
+
+@pytest.mark.parametrize("width", [1400, 800])
+def test_no_sideways_scroll_and_sorting_in_chromium(checked_report, tmp_path, width):
+    exe = _chromium()
+    if exe is None:
+        pytest.skip("Chromium is not installed (Debian package 'chromium'); the browser check needs it")
+    _, _, path = checked_report
+    page = tmp_path / "probe.html"
+    page.write_text(path.read_text(encoding="utf-8").replace("</body>", _LAYOUT_PROBE + "</body>"), encoding="utf-8")
+    res = _run_chromium(exe, ["--dump-dom", "--virtual-time-budget=5000", f"--window-size={width},900",
+                              page.as_uri()], tmp_path)
+    assert res.returncode == 0, res.stderr[-2000:]
+    dom = res.stdout
+    start = dom.index('<pre id="r360-probe">') + len('<pre id="r360-probe">')
+    got = json.loads(html_unescape(dom[start:dom.index("</pre>", start)]))
+    assert got["sw"] <= got["iw"], f"page {got['sw']} px wide in a {got['iw']} px window: {got['wide'][:10]}"
+    assert got["wide"] == []
+    nums = [float(x) for x in got["asc"] if x != "--"]
+    assert nums == sorted(nums) and len(nums) >= 6
+    if "--" in got["asc"]:  # missing values last either way
+        assert got["asc"][-1] == "--" and got["desc"][-1] == "--"
+    assert [float(x) for x in got["desc"] if x != "--"] == sorted(nums, reverse=True)
+    assert sorted(got["before"]) == sorted(got["asc"])

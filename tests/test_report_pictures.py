@@ -7,6 +7,12 @@ import pytest
 
 from r360gpu.errors import InputError
 from r360gpu.report.pictures import (
+    BACKGROUND_RGB,
+    CHANGED_OUTSIDE_RGB,
+    _legend_rows,
+    balanced_columns,
+    legend_items,
+    view_numbers,
     CHANGED_IN_TARGET_RGB,
     MISSED_IN_TARGET_RGB,
     SEMANTIC_RGB,
@@ -124,14 +130,37 @@ def test_view_contact_sheet_from_fake_view(tmp_path):
     panels = view_panels(pre=pre, post=post, ref=ref, target=t, delta=np.abs(d_pre - d_post), threshold=0.25,
                          semantic_post=t, structural=[("masks", post, np.stack([t, ~t]))], width=96)
     assert [p[0] for p in panels] == ["I_pre (target outlined)", "I_post (target outlined)", "I_ref",
-                                      "|dD|, xi_depth = 0.25", "changed (yellow: in M)", "semantic probe on I_post",
-                                      "masks"]
+                                      "|dD|, t_depth (GHT) = 0.25", "changed |dD| > t_depth (legend below)",
+                                      "semantic probe on I_post", "masks"]
     assert all(p[1].shape[1] == 96 for p in panels)
+    rec = view_record("room", "ghost", "01").to_dict()
     path = view_contact_sheet(tmp_path / "v.png", pre=pre, post=post, ref=ref, target=t,
-                              delta=np.abs(d_pre - d_post), threshold=0.25, semantic_post=t, width=96, title="v")
+                              delta=np.abs(d_pre - d_post), threshold=0.25, semantic_post=t, width=96, title="v",
+                              record=rec)
     img = cv2.imread(str(path))
-    assert img.shape[1] == 4 + 4 * 100 and img.shape[1] <= 4 + 4 * (320 + 4)
+    # 6 panels -> 2 rows of 3 (balanced, no lone panel)
+    assert img.shape[1] == 4 + 3 * 100
     assert img.std() > 20
+    lines = view_numbers(rec)
+    assert lines == ["semantic: builtin-appearance: IoU 0.87 -> 0.10 (not found at xi=0.3)",
+                     "acc_depth 0.250 (t_depth 0.260) | sim_SAM 0.600 [builtin-graphseg] | "
+                     "PSNR 22.0 dB, SSIM 0.700, LPIPS 0.300"]
+    # the numbers and the legend are drawn: the sheet is taller than the same sheet without them
+    plain = sheet_image(panels[:6], panel_width=96, title="v")
+    assert img.shape[0] == plain.shape[0] + 2 * 18 + len(_legend_rows(legend_items(panels[:6]), img.shape[1] - 8)) * 18 + 4
+    # every colour of the changed panel is explained, dark red and light grey included
+    texts = [t for _, t in legend_items(panels)]
+    for needle in ("dark red", "light grey", "yellow", "dark grey", "green outline", "magenta", "cyan tick"):
+        assert any(needle in t for t in texts), needle
+    colours = {c for c, _ in legend_items(panels)}
+    assert {MISSED_IN_TARGET_RGB, CHANGED_OUTSIDE_RGB, CHANGED_IN_TARGET_RGB, BACKGROUND_RGB} <= colours
+
+
+@pytest.mark.parametrize("n, cols", [(1, 1), (4, 4), (5, 5), (6, 3), (7, 4), (8, 4), (9, 5), (10, 5), (11, 4)])
+def test_balanced_columns_leave_no_lone_panel(n, cols):
+    assert balanced_columns(n) == cols
+    last = n - (-(-n // cols) - 1) * cols
+    assert n == 1 or last >= 2
 
 
 def test_view_series_and_plot(tmp_path):
@@ -165,3 +194,18 @@ def test_axes_overview_png():
     img = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
     assert img is not None and img.shape[0] == 280 and img.std() > 10
     assert png == axes_overview_png(overall, title="t")
+
+
+@pytest.mark.parametrize("n_lines", [0, 2])
+@pytest.mark.parametrize("width", [64, 128])
+def test_sheet_panel_cuts_out_one_panel(n_lines, width):
+    from r360gpu.report.pictures import sheet_panel
+
+    rng = np.random.default_rng(3)
+    panels = [(f"p{i}", rng.integers(0, 250, (30 + 4 * i, 40, 3)).astype(np.uint8)) for i in range(7)]
+    sheet = sheet_image(panels, panel_width=width, title="t", lines=["a line"] * n_lines)
+    got = sheet_panel(sheet, 1, n_lines=n_lines)
+    expected = cv2.resize(panels[1][1], (width, round(34 * width / 40)), interpolation=cv2.INTER_NEAREST)
+    assert got is not None and np.array_equal(got, expected)
+    assert sheet_panel(sheet, 9, n_lines=n_lines) is None  # only 4 columns
+    assert sheet_panel(np.full((200, 300, 3), 255, np.uint8), 1, n_lines=0) is None  # not a sheet

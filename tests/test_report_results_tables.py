@@ -43,9 +43,10 @@ def test_main_table_numbers_and_emphasis(results):
     assert _shown(_row(t, "clean")[1:]) == [
         ("0.815", "best"), ("1.000", "best"), ("0.862", "best"), ("0.800", "best"), ("0.884", "best"),
         ("1.17", "best"), ("26.00", "best"), ("0.800", "best"), ("0.200", "best")]
-    # blurry: acc_seg (1/3 + 1/2) / 2 = 0.417; LPIPS 0.4 is the worst (lower is better)
+    # blurry: acc_seg (1/3 + 1/2) / 2 = 0.417, not underlined: clean and ghost share first place, so
+    # 0.417 ranks third (and is the worst); LPIPS 0.4 is the worst (lower is better)
     assert _shown(_row(t, "blurry")[1:]) == [
-        ("0.590", ""), ("0.417", "second"), ("0.825", "second"), ("0.500", ""), ("0.556", "second"),
+        ("0.590", ""), ("0.417", ""), ("0.825", "second"), ("0.500", ""), ("0.556", "second"),
         ("2.67", ""), ("20.00", ""), ("0.600", ""), ("0.400", "")]
     # ghost ties clean on acc_seg (shares the bold), is second on LPIPS 0.3
     assert _shown(_row(t, "ghost")[1:3]) == [("0.765", "second"), ("1.000", "best")]
@@ -55,7 +56,7 @@ def test_main_table_numbers_and_emphasis(results):
     assert "| clean | **0.815** | **1.000** | **0.862** | **0.800** | **0.884** | **1.17** | **26.00** |" in md
     tex = render_latex(t)
     assert r"\begin{tabular}{lcccccc|ccc}" in tex
-    assert r"blurry & 0.590 & \underline{0.417} & \underline{0.825}" in tex
+    assert r"blurry & 0.590 & 0.417 & \underline{0.825}" in tex
 
 
 def test_main_table_without_references_drops_fidelity(results):
@@ -100,7 +101,8 @@ def test_axis_tables_per_scene_with_overall(results):
     assert _shown(_row(lp, "room")[1:]) == [("0.200", "best"), ("0.400", ""), ("0.300", "second")]
     assert lp.rows[-1][0].text == "Overall (pooled views)"
     sem = axis_table(results, "s_sem")
-    assert _shown(_row(sem, "room")[1:]) == [("1.000", "best"), ("0.333", "second"), ("1.000", "best")]
+    # ties fill first place: the worst value is not underlined
+    assert _shown(_row(sem, "room")[1:]) == [("1.000", "best"), ("0.333", ""), ("1.000", "best")]
 
 
 def test_iou_table(results):

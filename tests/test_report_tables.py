@@ -56,7 +56,19 @@ def test_emphasis_ties_share_best_at_printed_precision():
     tables, _ = build_tables(aggregate_tables(cells))
     overall = next(t for t in tables if t.key == "overall")
     sem = [row[1] for row in overall.rows]
-    assert [(c.text, c.emphasis) for c in sem] == [("1.000", "best"), ("1.000", "best"), ("0.500", "second")]
+    assert [(c.text, c.emphasis) for c in sem] == [("1.000", "best"), ("1.000", "best"), ("0.500", "")]
+
+
+def test_second_best_never_marks_the_worst():
+    from r360gpu.report.tables import _emphasis
+
+    # garden acc_seg of the demo: four methods at 1.000, one at 0.000 -> nothing underlined
+    assert _emphasis([1.0, 0.0, 1.0, 1.0, 1.0], 3, True) == ["best", "", "best", "best", "best"]
+    # a single best: the next distinct value is second, unless it is also the worst
+    assert _emphasis([0.9, 0.5, 0.7, 0.7], 3, True) == ["best", "", "second", "second"]
+    assert _emphasis([0.9, 0.5], 3, True) == ["best", ""]
+    assert _emphasis([0.2, 0.3, 0.4], 3, False) == ["best", "second", ""]
+    assert _emphasis([0.9, None, 0.8, 0.1], 3, True) == ["best", "", "second", ""]
 
 
 def test_render_tables_md_and_latex(paper_result):

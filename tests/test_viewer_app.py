@@ -90,7 +90,9 @@ def test_frame_is_the_renderers_output(bundle, ctx, renderers, tmp_path):
 
 def test_side_by_side_and_wipe(bundle, ctx, renderers, tmp_path):
     app, canvas, clock = make_app(bundle, ctx, tmp_path, size=(2 * W, H))
+    assert app.state.name_b == "reference"  # B defaults to what a method is compared against
     app.key("3")
+    app.key("$", ("Shift",))  # B = scene 4 (floaters)
     app.key("Tab")
     img = draw(canvas, clock)
     lay, cam = app.last_layout, app.last_camera

@@ -24,7 +24,9 @@ def s0():
 
 
 def test_initial(s0):
-    assert (s0.name_a, s0.name_b, s0.compare) == ("pre", "floaters", "none")
+    # B defaults to the reference (what a method is compared against), pre without one
+    assert (s0.name_a, s0.name_b, s0.compare) == ("pre", "reference", "none")
+    assert ViewerState.initial(["pre", "clean", "floaters"], 2).name_b == "pre"
     assert s0.shown() == ("pre",) and s0.view_index == 0 and s0.on_view
     assert ViewerState.initial(["pre"], 0).view_index is None
     with pytest.raises(ValueError):
@@ -51,7 +53,7 @@ def test_compare_modes_cycle(s0):
         seen.append(s.compare)
     assert seen == ["side", "wipe", "none"]
     s, _ = press(s0, "Tab")
-    assert s.shown() == ("pre", "floaters")
+    assert s.shown() == ("pre", "reference")
     assert s.with_wipe(1.7).wipe == 1.0 and s.with_wipe(-1).wipe == 0.0
 
 
@@ -127,9 +129,17 @@ def test_camera_and_capture_actions(s0):
 
 
 def test_unknown_keys_and_releases_do_nothing(s0):
-    for key in ("j", "Escape", "F7", "~"):
+    for key in ("j", "F7", "~"):
         assert handle_key(s0, key, ()) == (s0, ())
     assert handle_key(s0, "Tab", (), down=False) == (s0, ())
+
+
+def test_escape_and_q_close_c_moves_down(s0):
+    for key in ("Escape", "q", "Q"):
+        assert handle_key(s0, key, ()) == (s0, (Action("quit"),))
+        assert handle_key(s0, key, (), down=False) == (s0, ())
+    s, acts = handle_key(s0, "c", ())
+    assert acts == () and s.movement() == (0, 0, -1)
 
 
 def test_every_letter_key_is_documented(s0):

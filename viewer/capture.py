@@ -9,6 +9,9 @@
   replayed or rendered again.
 * :func:`path_through`: cameras interpolated between consecutive evaluation
   cameras (a fly-through of the evaluation path).
+* :class:`Captures`: the app's screenshots (of the pictures, or of the whole
+  window with the panels), recordings and fly-throughs, taken at the end of
+  a frame.
 """
 from __future__ import annotations
 
@@ -27,6 +30,8 @@ from .camera import interpolate
 
 #: Recordings stop by themselves after this many frames.
 MAX_RECORD_FRAMES = 600
+#: Offscreen format of view-only captures.
+CAPTURE_FORMAT = "rgba8unorm"
 
 
 def read_texture(device, texture) -> np.ndarray:
@@ -104,3 +109,142 @@ def path_through(cameras: list[Camera], steps: int, width: int, height: int) -> 
     if cameras:
         out.append(interpolate(cameras[-1], cameras[-1], 0.0, width, height))
     return out
+
+
+def unique_path(path: Path) -> Path:
+    """``path``, or ``stem_1``, ``stem_2``, ... when it exists."""
+    k, p = 1, path
+    while p.exists():
+        p = path.with_name(f"{path.stem}_{k}{path.suffix}")
+        k += 1
+    return p
+
+
+class Captures:
+    """Screenshots, recordings and fly-throughs of one :class:`viewer.app.ViewerApp`.
+
+    pending: (kind, path or None) of the screenshots asked for and not yet
+    written; recorder: the :class:`PathRecorder` of the recording under way
+    (None when not recording); flight: cameras still to visit on a recorded
+    fly-through; last_shot: the last file written.
+    """
+
+    def __init__(self, app, folder: Path):
+        self.app = app
+        self.folder = Path(folder)
+        self.pending: list[tuple[str, Path | None]] = []
+        self.recorder: PathRecorder | None = None
+        self.flight: list = []
+        self.flight_done = False
+        self.last_shot: Path | None = None
+        self._last_recorded = None
+
+    def request_screenshot(self, kind: str = "view", path: str | Path | None = None) -> None:
+        """Save a screenshot at the end of the next frame: ``kind`` "view" (the pictures only) or
+        "window" (with the panels); ``path`` None: a new file in :attr:`folder`."""
+        if kind not in ("view", "window"):
+            raise ValueError(f"screenshot kind must be 'view' or 'window', got {kind!r}")
+        self.pending.append((kind, Path(path) if path is not None else None))
+        self.app.request_draw()
+
+    def _name(self) -> str:
+        app = self.app
+        shown = "_vs_".join(app.state.shown())
+        where = app.current_view() or "free"
+        return f"{app.bundle.name}_{shown}_{where}_{timestamp()}"
+
+    def view_image(self, lay, pictures: list) -> np.ndarray:
+        """The composed pictures (no panels) as (H, W, 4) uint8 RGBA, cropped to the pictures."""
+        import wgpu
+
+        app = self.app
+        fb_w, fb_h = app.framebuffer_size()
+        tex = app.ctx.device.create_texture(size=(fb_w, fb_h, 1), format=CAPTURE_FORMAT,
+                                            usage=wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC)
+        enc = app.ctx.encoder()
+        app.compositor.record(enc, tex.create_view(), CAPTURE_FORMAT, lay, pictures)
+        app.ctx.submit(enc)
+        img = read_texture(app.ctx.device, tex)
+        x0 = min(r[0] for r in lay.rects)
+        y0 = min(r[1] for r in lay.rects)
+        x1 = max(r[0] + r[2] for r in lay.rects)
+        y1 = max(r[1] + r[3] for r in lay.rects)
+        return img[max(0, y0):y1, max(0, x0):x1].copy()
+
+    def after_pictures(self, lay, pictures: list, cam) -> None:
+        """View screenshots and recording frames of this frame (before the panels are drawn)."""
+        from .layers import camera_key
+
+        shots = [p for p in self.pending if p[0] == "view"]
+        if not (shots or self.recorder is not None):
+            return
+        img = self.view_image(lay, pictures)
+        for shot in shots:
+            self.pending.remove(shot)
+            path = shot[1] or unique_path(self.folder / f"{self._name()}.png")
+            self.last_shot = save_png(path, img)
+            self.app.notify(f"screenshot: {path}")
+        if self.recorder is not None:
+            # One frame per new camera: a resting camera adds nothing.
+            key = camera_key(cam)
+            if key != self._last_recorded:
+                self._last_recorded = key
+                self.recorder.add(img, cam)
+            if self.recorder.full:
+                self.set_recording(False)
+
+    def after_panels(self, texture) -> None:
+        """Window screenshots (with the panels) of this frame."""
+        for shot in [p for p in self.pending if p[0] == "window"]:
+            self.pending.remove(shot)
+            self._save_window(texture, shot[1])
+
+    def _save_window(self, texture, path: Path | None) -> None:
+        app = self.app
+        if not app.window_copyable:
+            app.notify("this window cannot be read back; saving the view only")
+            self.pending.append(("view", path))
+            return
+        img = read_texture(app.ctx.device, texture)
+        path = path or unique_path(self.folder / f"{self._name()}_window.png")
+        self.last_shot = save_png(path, img)
+        app.notify(f"screenshot: {path}")
+
+    def fly_evaluation_path(self, steps: int = 8) -> None:
+        """Record a fly-through of the evaluation cameras: ``steps`` frames from each to the next."""
+        app = self.app
+        if len(app.cameras) < 2 or not app.can_move:
+            app.notify("a fly-through needs at least two evaluation cameras and a splat scene")
+            return
+        first = app.cameras[0]
+        self.flight = path_through(app.cameras, steps, first.width, first.height)
+        self.flight_done = False
+        self.set_recording(True)
+        app.request_draw()
+
+    def next_flight_camera(self):
+        """The next camera of the fly-through under way, or None."""
+        if not self.flight:
+            return None
+        cam = self.flight.pop(0)
+        if not self.flight:
+            self.flight_done = True
+        return cam
+
+    def set_recording(self, on: bool) -> None:
+        """Start or stop recording the camera path to numbered PNGs (+ cameras.json)."""
+        from dataclasses import replace
+
+        app = self.app
+        if on and self.recorder is None:
+            self._last_recorded = None
+            folder = unique_path(self.folder / f"record_{app.bundle.name}_{timestamp()}")
+            self.recorder = PathRecorder(folder)
+            app.notify(f"recording to {self.recorder.folder}")
+        elif not on and self.recorder is not None:
+            self.flight = []
+            folder = self.recorder.close()
+            app.notify(f"recorded {len(self.recorder.cameras)} frames to {folder}")
+            self.recorder = None
+        if app.state.recording != on:
+            app.state = replace(app.state, recording=on)

@@ -41,7 +41,7 @@ class LiveAxis:
     """The geometric axis at the current viewpoint.
 
     acc_depth: |changed ∩ M| / |M| (None when the mask is empty);
-    threshold: xi_depth (depth units); n_mask, n_changed_in_mask: pixel
+    threshold: the GHT threshold t_depth (depth units); n_mask, n_changed_in_mask: pixel
     counts; changed_fraction: changed pixels over the whole image;
     mask_kind: "evaluation" (the view's target mask) or "projected"
     (the estimated 3D target's silhouette); width, height: resolution.
@@ -65,3 +65,66 @@ def live_axis(ctx, pre: PlaneImage, post: PlaneImage, mask: np.ndarray, mask_kin
     frac = float(view.changed.mean()) if view.changed.size else 0.0
     return LiveAxis(view.acc_depth, float(view.threshold), int(view.n_mask), int(view.n_changed_in_mask), frac,
                     mask_kind, post.width, post.height, stats_of(view))
+
+
+class LiveMeter:
+    """The live geometric axis of the app's shown methods at the current viewpoint, measured once
+    per resting pose.
+
+    live: {scene: LiveAxis}; note: why nothing was measured (empty when something was);
+    stale: the camera moved since the values were measured.
+    """
+
+    def __init__(self, app):
+        self.app = app
+        self.live: dict[str, LiveAxis] = {}
+        self.note = ""
+        self.stale = False
+        self._key = None
+
+    def update(self, cam, view: str | None) -> None:
+        """Measure acc_depth of each shown non-pre scene at this viewpoint (once per still pose)."""
+        from .layers import camera_key
+
+        app = self.app
+        key = (camera_key(cam), view, app.state.shown())
+        if key == self._key:
+            self.stale = False
+            return
+        self._key = key
+        self.live = {}
+        self.stale = False
+        targets = [n for n in dict.fromkeys(app.state.shown()) if n != "pre"]
+        if not targets:
+            self.note = "pre vs pre: show a method to measure it"
+            return
+        pre_layer = app.layers["pre"]
+        if view is not None and app.view_cameras[app.views.index(view)] is not None:
+            mcam = app.view_cameras[app.views.index(view)]
+            kind = "evaluation"
+        elif view is not None:
+            mcam, kind = cam, "evaluation"
+        else:
+            mcam, kind = cam, "projected"
+        if not pre_layer.has_depth:
+            self.note = "pre has no depth (renders without a depth folder): no geometric axis"
+            return
+        pre = pre_layer.image(mcam, view)
+        if pre is None:
+            self.note = "pre has no image here (renders source off the evaluation views)"
+            return
+        if kind == "evaluation":
+            mask = app.pictures.mask_of(view, pre.width, pre.height)
+        else:
+            mask = app.target.projected_mask(mcam, pre)
+            if mask is None:
+                self.note = "no target estimate: the live axis needs a mask off the evaluation views"
+                return
+        self.note = ""
+        for name in targets:
+            if not app.layers[name].has_depth:
+                continue
+            img = app.layers[name].image(mcam, view)
+            if img is None or img.size != pre.size:
+                continue
+            self.live[name] = live_axis(app.ctx, pre, img, mask, kind)

@@ -1,14 +1,20 @@
 """imgui panels of the viewer (wgpu-py's imgui renderer, imgui-bundle, implot).
 
-Three windows over the view:
+Two docked windows beside the pictures (never over them: the pictures are
+laid out in what the docks leave, :mod:`viewer.docking`):
 
-* "r360gpu viewer" (left): scenes A / B, comparison mode, camera, overlays
-  with colour map / range / opacity and a colour bar, captures, status;
-* "Metrics" (right): per-view axes of the shown methods from results.json
-  at evaluation views, the scene-level axes and RQS, the live geometric axis
-  at any viewpoint, and an implot chart of the per-view axes along the
-  evaluation camera path with the current view marked (click to jump);
-* "Keys" (when toggled with H / F1): the key bindings.
+* "r360gpu viewer" (left edge): scenes A / B, comparison mode, camera,
+  overlays with colour map / range / opacity and a colour bar, captures, status;
+* "Metrics" (right edge or bottom, whichever leaves the larger pictures):
+  per-view axes of the shown methods from results.json at evaluation views,
+  the scene-level axes and RQS, the live geometric axis at any viewpoint,
+  and an implot chart of the per-view axes along the evaluation camera path
+  with the current view marked (click to jump); the key bindings instead
+  while they are toggled on (H / F1).
+
+On the panes themselves, also with the panels hidden (I): an "A: scene" /
+"B: scene" label, and where a scene has no picture (a renders-only source
+away from the evaluation cameras) the reason and what to press.
 
 Widgets change the app through :meth:`ViewerApp.set_state` and
 :meth:`ViewerApp.apply`, the same paths the keys take.
@@ -26,7 +32,11 @@ from .state import COLORMAPS, COMPARE_MODES, KEY_BINDINGS, Action
 
 PANEL_WIDTH = 330
 METRICS_WIDTH = 380
-WINDOW_ALPHA = 0.85
+#: Height of the Metrics dock when it runs along the bottom (logical px).
+METRICS_HEIGHT = 270
+LABEL_BG = (0.05, 0.05, 0.06, 0.75)
+LABEL_FG = (1.0, 1.0, 1.0, 1.0)
+MISSING_FG = (1.0, 0.85, 0.45, 1.0)
 _AXIS_LABEL = {"s_sem": "s_sem", "s_geo": "s_geo", "s_str": "s_str"}
 _COMPARE_LABEL = {"none": "single", "side": "side by side", "wipe": "A/B wipe"}
 
@@ -53,6 +63,12 @@ class Panels:
         """Width (logical pixels) of the side panel docked at the window's left edge."""
         return float(PANEL_WIDTH)
 
+    @staticmethod
+    def dock_sizes() -> tuple[float, float, float]:
+        """(left panel width, Metrics width when docked right, Metrics height when docked at the
+        bottom), logical pixels."""
+        return float(PANEL_WIDTH), float(METRICS_WIDTH), float(METRICS_HEIGHT)
+
     def render(self) -> None:
         """Draw the panels over the current canvas texture."""
         self.renderer.render()
@@ -60,29 +76,79 @@ class Panels:
     # -- windows --------------------------------------------------------------
     def draw(self) -> None:
         app = self.app
+        self.pane_labels()
         if not app.state.show_ui:
             return
-        self.main_window()
-        self.metrics_window()
-        if app.state.show_help:
-            self.help_window()
+        docks = app.loop.docks
+        self.main_window(docks.controls if docks is not None else None)
+        rect = docks.metrics if docks is not None else None
+        if rect is not None:
+            self._dock_window(rect)
+            imgui.begin("Keys (H)" if app.state.show_help else "Metrics", None, _docked_flags())
+            if app.state.show_help:
+                self.help_contents()
+            else:
+                self.metrics_contents(docks.metrics_side, rect)
+            imgui.end()
 
-    def main_window(self) -> None:
+    def _ratio(self) -> float:
+        return float(self.app.canvas.get_pixel_ratio() or 1.0)
+
+    def _dock_window(self, rect) -> None:
+        """Place the next window exactly on a dock rectangle (framebuffer px)."""
+        r = self._ratio()
+        x, y, w, h = rect
+        imgui.set_next_window_pos((x / r, y / r), imgui.Cond_.always)
+        imgui.set_next_window_size((w / r, h / r), imgui.Cond_.always)
+
+    def main_window(self, rect=None) -> None:
         app = self.app
-        _, fb_h = app.framebuffer_size()
-        ratio = float(app.canvas.get_pixel_ratio() or 1.0)
-        # Docked: the pictures are laid out in the rest of the window (ViewerApp.view_area).
-        imgui.set_next_window_pos((0, 0), imgui.Cond_.always)
-        imgui.set_next_window_size((PANEL_WIDTH, fb_h / ratio), imgui.Cond_.always)
-        imgui.begin("r360gpu viewer", None,
-                    imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse)
+        if rect is None:
+            _, fb_h = app.framebuffer_size()
+            rect = (0, 0, int(PANEL_WIDTH * self._ratio()), fb_h)
+        self._dock_window(rect)
+        imgui.begin("r360gpu viewer", None, _docked_flags())
         imgui.text(f"{app.bundle.name}  (prompt: {app.bundle.prompt})")
         self.scenes_section()
         self.camera_section()
         self.overlay_section()
         self.capture_section()
         self.status_section()
+        if app.loop.docks is not None and app.loop.docks.metrics is None:
+            # No room for the Metrics dock: its contents here, below the controls.
+            if imgui.collapsing_header("Keys" if app.state.show_help else "Metrics",
+                                       imgui.TreeNodeFlags_.default_open):
+                if app.state.show_help:
+                    self.help_contents()
+                else:
+                    self.metrics_contents("left", None)
         imgui.end()
+
+    # -- on the panes ------------------------------------------------------------
+    def pane_labels(self) -> None:
+        """"A: scene" / "B: scene" on the panes, and the reason where a scene has no picture."""
+        app = self.app
+        lay = app.last_layout
+        if lay is None:
+            return
+        r = self._ratio()
+        dl = imgui.get_background_draw_list(imgui.get_main_viewport())
+        shown = app.state.shown()
+        missing = set(app.pictures.missing)
+        for i, name in enumerate(shown):
+            x, y, w, h = (v / r for v in lay.rects[min(i, len(lay.rects) - 1)])
+            if lay.mode == "wipe":  # one rectangle: A on the left of the line, B on the right
+                wx = lay.wipe_x / r
+                x, w = (x, wx - x) if i == 0 else (wx, x + w - wx)
+            label = f"{'AB'[i]}: {name}"
+            size = imgui.calc_text_size(label)
+            lx = x + 6 if i == 0 or lay.mode != "wipe" else x + w - size.x - 14
+            _boxed_text(dl, (lx, y + 6), label, LABEL_FG)
+            if name in missing:
+                text = app.pictures.missing_reason(name)
+                wrap = max(80.0, w - 24)
+                tsize = imgui.calc_text_size(text, False, wrap)
+                _boxed_text(dl, (x + (w - tsize.x) / 2, y + (h - tsize.y) / 2), text, MISSING_FG, wrap=wrap)
 
     def scenes_section(self) -> None:
         app, s = self.app, self.app.state
@@ -166,9 +232,9 @@ class Panels:
             imgui.text(f"    |dD| range {st.lo:.3g} .. {st.hi:.3g}")
         if ov.probes and app.probe_found:
             names = [f"{p.probe} ({p.kind}, {p.masks.shape[0]})" for p in app.probe_found]
-            changed, k = imgui.combo("probe", min(app.probe_choice, len(names) - 1), names)
+            changed, k = imgui.combo("probe", min(app.pictures.probe_choice, len(names) - 1), names)
             if changed:
-                app.probe_choice = k
+                app.pictures.probe_choice = k
                 app.request_draw()
         elif ov.probes:
             imgui.text_disabled("no cached probe masks for this view")
@@ -232,14 +298,31 @@ class Panels:
                 imgui.text_wrapped(text)
 
     # -- metrics --------------------------------------------------------------
-    def metrics_window(self) -> None:
+    def metrics_contents(self, side: str, rect) -> None:
+        """The Metrics dock: text, and the per-view chart beside it (bottom dock) or below it."""
         app = self.app
-        fb_w, _ = app.framebuffer_size()
-        ratio = float(app.canvas.get_pixel_ratio() or 1.0)
-        imgui.set_next_window_pos((fb_w / ratio - METRICS_WIDTH - 8, 8), imgui.Cond_.first_use_ever)
-        imgui.set_next_window_size_constraints((METRICS_WIDTH, 0), (METRICS_WIDTH, 10000))
-        imgui.set_next_window_bg_alpha(WINDOW_ALPHA)
-        imgui.begin("Metrics", None, imgui.WindowFlags_.always_auto_resize)
+        charted = [n for n in dict.fromkeys(app.state.shown())
+                   if n != "pre" and app.results is not None and n in app.results.methods]
+        chart = bool(charted and app.views)
+        if side == "bottom" and chart:
+            r = self._ratio()
+            width = rect[2] / r
+            if imgui.begin_table("metrics-dock", 2, imgui.TableFlags_.sizing_stretch_prop):
+                imgui.table_setup_column("numbers", imgui.TableColumnFlags_.width_fixed, min(420.0, width * 0.45))
+                imgui.table_setup_column("chart", imgui.TableColumnFlags_.width_stretch)
+                imgui.table_next_row()
+                imgui.table_next_column()
+                self.metrics_text()
+                imgui.table_next_column()
+                self.chart(charted[0], (imgui.get_content_region_avail().x, rect[3] / r - 40))
+                imgui.end_table()
+            return
+        self.metrics_text()
+        if chart:
+            self.chart(charted[0], (imgui.get_content_region_avail().x, 230))
+
+    def metrics_text(self) -> None:
+        app = self.app
         methods = [n for n in dict.fromkeys(app.state.shown()) if n != "pre"]
         view = app.current_view()
         res = app.results
@@ -265,24 +348,20 @@ class Panels:
             live = app.live.get(name)
             if live is not None:
                 stale = "  (moving...)" if app.live_stale else ""
-                imgui.text(f"live:   s_geo {_fmt(live.acc_depth)}  xi_depth {live.threshold:.4g}{stale}")
+                imgui.text(f"live:   s_geo {_fmt(live.acc_depth)}  t_depth (GHT) {live.threshold:.4g}{stale}")
                 imgui.text(f"        {live.n_changed_in_mask}/{live.n_mask} target px changed")
                 imgui.text(f"        {live.mask_kind} mask, {live.width}x{live.height}")
         if app.live_note:
             imgui.text_disabled(app.live_note)
         elif not app.live and methods:
             imgui.text_disabled("live axis: measured when the camera rests")
-        charted = [n for n in methods if res is not None and n in res.methods]
-        if charted and app.views:
-            self.chart(charted[0])
-        imgui.end()
 
-    def chart(self, method: str) -> None:
+    def chart(self, method: str, size=(METRICS_WIDTH - 16, 230)) -> None:
         """Per-view axes of ``method`` along the evaluation path; the current view marked; click to jump."""
         app = self.app
         x = np.arange(len(app.views), dtype=np.float64)
         m = app.results.methods[method]
-        if implot.begin_plot(f"per-view axes: {method}", (METRICS_WIDTH - 16, 230)):
+        if implot.begin_plot(f"per-view axes: {method}", (max(120.0, size[0]), max(120.0, size[1]))):
             implot.setup_axes("evaluation view", "score")
             implot.setup_axis_limits(implot.ImAxis_.y1, -0.05, 1.05, implot.Cond_.always)
             implot.setup_axis_limits(implot.ImAxis_.x1, -0.5, len(app.views) - 0.5, implot.Cond_.once)
@@ -303,10 +382,11 @@ class Panels:
                 app.request_draw()
             implot.end_plot()
 
-    def help_window(self) -> None:
-        imgui.set_next_window_size((560, 0), imgui.Cond_.first_use_ever)
-        _, opened = imgui.begin("Keys", True)
+    def help_contents(self) -> None:
         if imgui.begin_table("keys", 2, imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v):
+            imgui.table_setup_column("keys", imgui.TableColumnFlags_.width_fixed,
+                                     max(imgui.calc_text_size(k).x for k, _ in KEY_BINDINGS) + 8)
+            imgui.table_setup_column("action", imgui.TableColumnFlags_.width_stretch)
             for keys, what in KEY_BINDINGS:
                 imgui.table_next_row()
                 imgui.table_next_column()
@@ -314,9 +394,22 @@ class Panels:
                 imgui.table_next_column()
                 imgui.text_wrapped(what)
             imgui.end_table()
-        imgui.end()
-        if opened is False:
-            self.app.set_state(_replace(self.app.state, show_help=False))
+
+
+def _docked_flags():
+    f = imgui.WindowFlags_
+    return f.no_move | f.no_resize | f.no_collapse
+
+
+def _boxed_text(dl, pos, text: str, rgba, *, wrap: float = 0.0) -> None:
+    """``text`` at ``pos`` (logical px) on a dark box, on draw list ``dl``."""
+    size = imgui.calc_text_size(text, False, wrap if wrap else -1.0)
+    x, y = pos
+    dl.add_rect_filled((x - 5, y - 3), (x + size.x + 5, y + size.y + 3), imgui.get_color_u32(LABEL_BG), 4.0)
+    if wrap:
+        dl.add_text(imgui.get_font(), imgui.get_font_size(), (x, y), imgui.get_color_u32(rgba), text, wrap)
+    else:
+        dl.add_text((x, y), imgui.get_color_u32(rgba), text)
 
 
 def _replace(state, **changes):

@@ -25,7 +25,10 @@ COLORMAPS = ("turbo", "viridis", "inferno", "gray")
 #: Overlay switches and the key toggling each.
 OVERLAY_KEYS = {"z": "depth", "x": "delta", "v": "changed", "b": "outline", "n": "probes"}
 #: Movement keys -> (forward, right, up) unit steps.
-MOVE_KEYS = {"w": (1, 0, 0), "s": (-1, 0, 0), "d": (0, 1, 0), "a": (0, -1, 0), "e": (0, 0, 1), "q": (0, 0, -1)}
+#: (Q closes the window, so down is C.)
+MOVE_KEYS = {"w": (1, 0, 0), "s": (-1, 0, 0), "d": (0, 1, 0), "a": (0, -1, 0), "e": (0, 0, 1), "c": (0, 0, -1)}
+#: Keys that close the window.
+QUIT_KEYS = ("Escape", "q", "Q")
 #: US-layout characters of Shift + digit, accepted as the digit with Shift.
 _SHIFTED_DIGITS = {"!": "1", "@": "2", "#": "3", "$": "4", "%": "5", "^": "6", "&": "7", "*": "8", "(": "9"}
 #: Opacity change per [ / ] press.
@@ -36,14 +39,14 @@ FOV_STEP = 5.0
 #: (keys, what they do), for the help panel and the README.
 KEY_BINDINGS = (
     ("1 .. 9", "show scene n as A (1 = pre, then reference if any, then the methods)"),
-    ("Shift + 1 .. 9", "make scene n the B side of the comparison"),
+    ("Shift + 1 .. 9", "make scene n the B side of the comparison (default: the reference, else pre)"),
     ("T", "swap A and B"),
     ("Tab", "comparison: single -> side by side -> A/B wipe (drag the wipe line with the left mouse button)"),
     ("Left mouse drag", "orbit around the pivot (orbit mode) / look around (fly mode)"),
     ("Right / middle mouse drag", "pan (also Shift + left drag)"),
     ("Mouse wheel", "zoom to the pivot (orbit) / step forward (fly)"),
     ("W A S D", "move forward / left / back / right"),
-    ("Q / E", "move down / up along the world up axis"),
+    ("C / E", "move down / up along the world up axis"),
     ("Shift / Control (held)", "move 4x faster / 4x slower"),
     ("G", "switch orbit / fly camera"),
     ("R", "reset the camera"),
@@ -64,6 +67,7 @@ KEY_BINDINGS = (
     ("K", "start / stop recording the camera path to images"),
     ("I", "show / hide the panels"),
     ("H or F1", "show / hide this help"),
+    ("Esc or Q", "close the window"),
 )
 
 
@@ -74,7 +78,8 @@ class Action:
     kinds: "view" (arg: evaluation view index to jump to), "snap" (to the
     closest evaluation camera), "reset", "focus", "fov" (arg: degrees to
     add), "up" (cycle the up axis), "level", "screenshot" (arg: "view" or
-    "window"), "record" (arg: True to start, False to stop).
+    "window"), "record" (arg: True to start, False to stop), "quit" (close
+    the window).
     """
 
     kind: str
@@ -138,12 +143,13 @@ class ViewerState:
 
     @classmethod
     def initial(cls, scenes, n_views: int, *, on_view: bool = True) -> "ViewerState":
-        """Start on scene 0 (pre) as A and the first method (last scene) as B, at view 0."""
+        """Start on scene 0 (pre) as A and the reference as B (pre when there is none): what a
+        method is compared against; at view 0."""
         scenes = tuple(str(s) for s in scenes)
         if not scenes:
             raise ValueError("the viewer needs at least one scene")
         has_view = n_views > 0 and on_view
-        return cls(scenes=scenes, scene_a=0, scene_b=len(scenes) - 1 if len(scenes) > 1 else 0,
+        return cls(scenes=scenes, scene_a=0, scene_b=scenes.index("reference") if "reference" in scenes else 0,
                    n_views=int(n_views), view_index=0 if n_views > 0 else None, on_view=has_view)
 
     # -- derived ------------------------------------------------------------
@@ -222,6 +228,8 @@ def handle_key(state: ViewerState, key: str, modifiers=(), *, down: bool = True)
     the held movement keys.  Unknown keys leave the state unchanged.
     """
     mods = set(modifiers)
+    if key in QUIT_KEYS:
+        return state, (Action("quit"),) if down else ()
     if key in _SHIFTED_DIGITS:
         mods.add("Shift")
     low = key.lower() if len(key) == 1 else key

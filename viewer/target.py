@@ -93,3 +93,62 @@ def projected_mask(target_alpha: np.ndarray, target_depth: np.ndarray, pre_depth
     covered = (a >= 0.5) & (td > 0)
     visible = (pd <= 0) | (td <= np.float32(VISIBLE_TOLERANCE) * pd)
     return covered & visible
+
+
+class SceneTarget:
+    """The app's target estimate: made once on first use (pre splat + cameras + masks), then used
+    to focus the camera and to give a target mask away from the evaluation views."""
+
+    def __init__(self, app):
+        self.app = app
+        self.target: Target | None = None
+        self.layer = None  # the target's Gaussians alone, as a SplatLayer
+        self._done = False
+
+    def ensure(self) -> Target | None:
+        """Estimate the 3D target once, None when impossible."""
+        from .layers import SplatLayer
+
+        if self._done:
+            return self.target
+        self._done = True
+        app = self.app
+        pre = app.layers.get("pre")
+        if not isinstance(pre, SplatLayer) or not app.cameras:
+            return None
+        pairs = [(v, c) for v, c in zip(app.views, app.view_cameras) if c is not None and v in app.bundle.masks]
+        pairs = [pairs[i] for i in voting_views(len(pairs))]
+        cams = [c for _, c in pairs]
+        masks = [app.pictures.mask_of(v, c.width, c.height) for v, c in pairs]
+        self.target = estimate_target(pre.gaussians.means, cams, masks)
+        if self.target is not None:
+            gauss = pre.gaussians.subset(self.target.indices)
+            self.layer = SplatLayer.from_gaussians("target", gauss, ctx=app.ctx,
+                                                   background=app.bundle.options.background)
+        return self.target
+
+    def focus(self) -> None:
+        """Point the camera at the target (at the pivot when there is no estimate)."""
+        app = self.app
+        target = self.ensure()
+        if target is not None:
+            app.camera.focus(target.centre, target.radius)
+        else:
+            app.camera.focus(app.camera.pivot, app.scale_length * 0.5)
+            app.notify("no target estimate (needs a splat pre scene, cameras and masks): focused on the pivot")
+
+    def projected_mask(self, cam, pre) -> np.ndarray | None:
+        """The estimated target's visible silhouette at ``cam`` against pre's image (bool (H, W)), or None."""
+        if self.ensure() is None or self.layer is None:
+            return None
+        from r360gpu.render.rasterize import planes_to_numpy
+
+        t = self.layer.image(cam)
+        tp = planes_to_numpy(self.app.ctx, t.buffer, t.width, t.height)
+        pp = planes_to_numpy(self.app.ctx, pre.buffer, pre.width, pre.height)
+        plane = "depth" if pre.depth_plane == 4 else "median_depth"
+        return projected_mask(tp["alpha"], tp[plane], pp[plane])
+
+    def release(self) -> None:
+        if self.layer is not None:
+            self.layer.release()

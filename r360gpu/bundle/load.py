@@ -55,7 +55,7 @@ from .model import (DEPTH_MODES, PRINCIPAL_POINTS, RENDER_KEYS, RESERVED_METHOD_
 from .remove360_layout import is_remove360_folder, remove360_draft
 
 CONFIG_NAME = "scene.toml"
-TOP_KEYS = ("name", "prompt", "cameras", "masks", "views", "pre", "reference", "methods", "options")
+TOP_KEYS = ("name", "prompt", "cameras", "masks", "views", "pre", "reference", "methods", "options", "expected")
 SOURCE_KEYS = ("scene", "renders", "rgb", "depth", "depth_scale") + RENDER_KEYS
 OPTION_KEYS = ("background", "depth", "reference_free")
 # Extensions stripped from camera image names to get view names.
@@ -223,6 +223,10 @@ def _draft_from_config(root: Path, config: Path, problems: list[Problem], *, vie
 
     if "options" in data:
         d.options = _parse_options(data["options"], bad)
+    if "expected" in data:
+        from .expected import parse_expected
+
+        d.expected = parse_expected(data["expected"], list(d.methods), bad)
     return d
 
 
@@ -408,7 +412,7 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
         masks={v: masks[v] for v in views}, pre=resolved["pre", None],
         reference=resolved.get(("reference", None)),
         methods={name: resolved["method", name] for name in draft.methods}, options=draft.options,
-        layout=draft.layout, config=draft.config, cameras_path=draft.cameras_path)
+        layout=draft.layout, config=draft.config, cameras_path=draft.cameras_path, expected=draft.expected)
 
 
 def _check_method_names(draft: Draft, where: str, problems: list[Problem]) -> None:

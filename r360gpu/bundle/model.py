@@ -146,6 +146,8 @@ class Bundle:
     layout: str = "scene.toml"
     config: Path | None = None
     cameras_path: Path | None = None
+    #: [expected.METHOD] of scene.toml: {method: {"failure", "caught_by"}} (r360gpu.bundle.expected)
+    expected: dict = field(default_factory=dict)
 
     def sources(self) -> dict[str, SourceSpec]:
         """Every source by name: "pre", "reference" (when present), then the methods."""
@@ -289,3 +291,4 @@ class Draft:
     reference: SourceSpec | None = None
     methods: dict[str, SourceSpec | None] = field(default_factory=dict)
     options: BundleOptions = field(default_factory=BundleOptions)
+    expected: dict = field(default_factory=dict)

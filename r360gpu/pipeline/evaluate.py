@@ -163,6 +163,8 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
         "sources": run.describe_sources(),
         "methods": {},
     }
+    if getattr(bundle, "expected", None):  # scene.toml [expected.METHOD]: known failures, checked by the report
+        scene["expected"] = bundle.expected
     for m in bundle.methods:
         axes = method_axes(records[m], xis=opts.xis, boundary=boundaries[m] if opts.boundary else None)
         scene["methods"][m] = {"axes": axes, "views": [r.to_dict() for r in records[m]], "pictures": pictures[m]}

@@ -16,12 +16,13 @@ class PictureSink:
         self.enabled = out is not None and enabled
 
     def method_view(self, scene: str, method: str, view: str, *, pre, post, ref, mask, geo, compat: bool,
-                    semantic, structural) -> str | None:
+                    semantic, structural, record: dict | None = None) -> str | None:
         """Write the sheet of one method at one view; returns its path relative to ``out``.
 
         pre, post, ref: ViewImages; geo: GeometricView or None; semantic:
         (pre, post) predictions of the first semantic probe or None;
-        structural: [(title, rgb, MaskSet)] of the first structural probe.
+        structural: [(title, rgb, MaskSet)] of the first structural probe;
+        record: the view's record (its numbers are drawn on the sheet).
         """
         if not self.enabled:
             return None
@@ -41,6 +42,6 @@ class PictureSink:
             ref=None if ref is None else ref.rgb, delta=delta, threshold=threshold, changed=changed,
             semantic_pre=None if semantic is None else semantic[0].union(),
             semantic_post=None if semantic is None else semantic[1].union(),
-            structural=[(t, rgb, ms.masks) for t, rgb, ms in structural],
+            structural=[(t, rgb, ms.masks) for t, rgb, ms in structural], record=record,
         )
         return rel.as_posix()

@@ -139,7 +139,8 @@ def measure_method(run, method: str, view: str, mask, controls: Controls, post, 
     return record, boundary, geo
 
 
-def picture_method(run, sink, method: str, view: str, mask, controls: Controls, post, sem_post, pairs, geo):
+def picture_method(run, sink, method: str, view: str, mask, controls: Controls, post, sem_post, pairs, geo,
+                   record=None):
     """Hand one method-view to the picture sink; returns the picture's path or None."""
     if not sink.enabled:
         return None
@@ -154,7 +155,8 @@ def picture_method(run, sink, method: str, view: str, mask, controls: Controls, 
         structural = [(f"{run.stru[0].name} on {n}", img.rgb, ms) for (n, img), ms in zip(names, (a, b))]
     semantic = (controls.sem_pre[run.pre_of[method]][first], sem_post[first]) if first else None
     rel = sink.method_view(run.bundle.name, method, view, pre=pre, post=post, ref=ref, mask=mask, geo=geo,
-                           compat=run.opts.compat, semantic=semantic, structural=structural)
+                           compat=run.opts.compat, semantic=semantic, structural=structural,
+                           record=None if record is None else record.to_dict())
     run.timer.add("pictures", t)
     return rel
 
@@ -169,7 +171,7 @@ def score_view(run, view: str, sink) -> dict:
         sem_post, str_post = probe_method(run, m, view, post)
         pairs = structural_pairs(run, controls, run.pre_of[m], str_post)
         record, boundary, geo = measure_method(run, m, view, mask, controls, post, sem_post, pairs)
-        picture = picture_method(run, sink, m, view, mask, controls, post, sem_post, pairs, geo)
+        picture = picture_method(run, sink, m, view, mask, controls, post, sem_post, pairs, geo, record)
         cells[m] = {"record": record.to_dict(), "boundary": boundary, "picture": picture}
     cells.update(score_controls(run, view, mask, controls))
     return cells

@@ -10,7 +10,9 @@ Hershey font, ASCII).
 Colours: target outline green; semantic prediction magenta; structural
 masks random colours from a seeded generator (same input -> same picture);
 depth change with the "inferno" colour map over a colour bar whose cyan
-tick marks the GHT threshold xi_depth.
+tick marks the GHT threshold t_depth (not the IoU threshold xi of acc_seg).
+A view's contact sheet carries its numbers under the title (so they survive
+copying the picture) and a legend of every colour at the bottom.
 """
 from __future__ import annotations
 
@@ -150,7 +152,7 @@ def depth_change_panel(delta, threshold: float | None, width: int = PANEL_WIDTH,
     """Heat map of the depth change |dD| above a colour bar that marks the threshold.
 
     delta: float (H, W) |D_pre - D_post| (non-finite values shown as 0).
-    threshold: xi_depth in the units of ``delta``: a cyan tick on the colour
+    threshold: the GHT threshold t_depth in the units of ``delta``: a cyan tick on the colour
         bar (pixels above it count as changed); None draws no tick.
     width: panel width in px (heat map and bar).
     vmax: top of the colour scale (default: the largest finite |dD|; 1 when
@@ -184,7 +186,7 @@ def depth_change_panel(delta, threshold: float | None, width: int = PANEL_WIDTH,
     if threshold is not None and np.isfinite(threshold):
         x = int(round(min(max(float(threshold) / top, 0.0), 1.0) * (width - 1)))
         cv2.line(panel, (x, y0 - 3), (x, y0 + bar_h + 1), THRESHOLD_RGB, 2)
-        label = f"xi {float(threshold):.3g}"
+        label = f"t_depth {float(threshold):.3g}"
         lw = cv2.getTextSize(label, _FONT, 0.33, 1)[0][0]
         # Beside the tick, on the side with room, clear of the "0" and vmax labels.
         lx = max(x + 5, 12)
@@ -197,7 +199,7 @@ def depth_change_panel(delta, threshold: float | None, width: int = PANEL_WIDTH,
 def changed_panel(changed, target, width: int = PANEL_WIDTH) -> np.ndarray:
     """The changed-pixel mask against the target.
 
-    changed: (H, W) bool, |dD| > xi_depth.  target: (H, W) target mask M
+    changed: (H, W) bool, |dD| > t_depth (the GHT threshold).  target: (H, W) target mask M
     (non-zero = target).  Colours: changed inside M yellow (what acc_depth
     counts), unchanged inside M dark red (missed), changed outside M grey,
     the rest dark; the outline of M in green.
@@ -268,27 +270,103 @@ def encode_png(image) -> bytes:
     return buf.tobytes()
 
 
-def sheet_image(panels: Sequence[tuple[str, np.ndarray]], *, columns: int = 4, panel_width: int = PANEL_WIDTH,
-                title: str | None = None) -> np.ndarray:
+def balanced_columns(n: int, max_columns: int = 5) -> int:
+    """Columns for ``n`` panels: the fewest rows of at most ``max_columns``, filled evenly,
+    so no row holds a lone panel (9 panels: 5 + 4, not 4 + 4 + 1)."""
+    n, max_columns = max(1, int(n)), max(1, int(max_columns))
+    rows = -(-n // max_columns)
+    return -(-n // rows)
+
+
+#: (colour, meaning) of every colour a view's panels use; :func:`legend_items` picks those shown.
+LEGEND = {
+    "target": (TARGET_RGB, "green outline: target mask M"),
+    "changed_in": (CHANGED_IN_TARGET_RGB, "yellow: in M, depth changed (counted by acc_depth)"),
+    "missed": (MISSED_IN_TARGET_RGB, "dark red: in M, depth unchanged (missed)"),
+    "changed_out": (CHANGED_OUTSIDE_RGB, "light grey: outside M, depth changed"),
+    "unchanged": (BACKGROUND_RGB, "dark grey: outside M, unchanged"),
+    "threshold": (THRESHOLD_RGB, "cyan tick: GHT threshold t_depth on the |dD| scale"),
+    "semantic": (SEMANTIC_RGB, "magenta: semantic probe's prediction"),
+    "structural": (None, "random colours: structural probe masks"),
+}
+
+
+def legend_items(panels: Sequence[tuple[str, np.ndarray]]) -> list[tuple[tuple[int, int, int] | None, str]]:
+    """The legend entries that apply to ``panels`` (by their titles, as :func:`view_panels` names them)."""
+    titles = " ".join(t for t, _ in panels)
+    keys = ["target"]
+    if "|dD|" in titles and "t_depth" in titles:
+        keys.append("threshold")
+    if "changed" in titles:
+        keys += ["changed_in", "missed", "changed_out", "unchanged"]
+    if "semantic probe" in titles:
+        keys.append("semantic")
+    if any(t.split(" on ")[0] not in ("semantic probe",) and " on I_" in t for t, _ in panels):
+        keys.append("structural")
+    return [LEGEND[k] for k in keys]
+
+
+def _legend_rows(items, width: int, scale: float = 0.38) -> list[list[tuple[tuple | None, str, int]]]:
+    """Legend entries packed into lines of at most ``width`` px: [(colour, text, entry width)]."""
+    rows: list[list] = [[]]
+    used = 0
+    for rgb, text in items:
+        w = 16 + cv2.getTextSize(_ascii(text), _FONT, scale, 1)[0][0] + 14
+        if rows[-1] and used + w > width:
+            rows.append([])
+            used = 0
+        rows[-1].append((rgb, text, w))
+        used += w
+    return rows if rows[0] else []
+
+
+def _draw_legend(sheet: np.ndarray, rows, y: int, scale: float = 0.38) -> None:
+    for r in rows:
+        x = _PAD
+        for rgb, text, w in r:
+            if rgb is None:  # several random colours
+                for k, col in enumerate(mask_colors(3, seed=1)):
+                    cv2.rectangle(sheet, (x + 4 * k, y + 3), (x + 4 * k + 3, y + 13), tuple(int(c) for c in col), -1)
+            else:
+                cv2.rectangle(sheet, (x, y + 3), (x + 11, y + 13), tuple(int(c) for c in rgb), -1)
+                cv2.rectangle(sheet, (x, y + 3), (x + 11, y + 13), (90, 90, 90), 1)
+            _put_text(sheet, text, (x + 16, y + 13), scale=scale)
+            x += w
+        y += _TITLE_H
+
+
+def sheet_image(panels: Sequence[tuple[str, np.ndarray]], *, columns: int | None = None,
+                panel_width: int = PANEL_WIDTH, title: str | None = None, lines: Sequence[str] = (),
+                legend: Sequence[tuple[tuple[int, int, int] | None, str]] = ()) -> np.ndarray:
     """Titled panels on a white grid, as uint8 (H, W, 3) RGB.
 
     panels: (title, image) pairs; images of any size / kind accepted by
         :func:`as_rgb8`, each resized to ``panel_width``.
-    columns: panels per row.  title: optional line above the grid.
+    columns: panels per row (default :func:`balanced_columns`).  title:
+    optional line above the grid; lines: text lines under it (e.g. the
+    view's numbers); legend: (colour or None, meaning) entries drawn under
+    the grid.
     """
     if not panels:
         raise InputError("a contact sheet needs at least one panel")
     width = _check_width(panel_width)
-    cols = max(1, min(int(columns), len(panels)))
+    cols = balanced_columns(len(panels)) if columns is None else max(1, min(int(columns), len(panels)))
     imgs = [(t, _resize_rgb(as_rgb8(p, f"panel {t!r}"), width)) for t, p in panels]
     rows = [imgs[i : i + cols] for i in range(0, len(imgs), cols)]
     row_h = [_TITLE_H + max(im.shape[0] for _, im in r) for r in rows]
-    head = _TITLE_H + 4 if title else 0
     sheet_w = _PAD + cols * (width + _PAD)
-    sheet_h = head + _PAD + sum(h + _PAD for h in row_h)
+    head = (_TITLE_H + 4 if title else 0) + _TITLE_H * len(lines)
+    legend_rows = _legend_rows(legend, sheet_w - 2 * _PAD)
+    foot = _TITLE_H * len(legend_rows) + (_PAD if legend_rows else 0)
+    sheet_h = head + _PAD + sum(h + _PAD for h in row_h) + foot
     sheet = np.full((sheet_h, sheet_w, 3), 255, np.uint8)
+    y = 0
     if title:
         _put_text(sheet, title, (_PAD, _TITLE_H - 2), scale=0.5, max_width=sheet_w - 2 * _PAD)
+        y = _TITLE_H + 4
+    for line in lines:
+        _put_text(sheet, line, (_PAD, y + _TITLE_H - 5), rgb=(20, 20, 90), max_width=sheet_w - 2 * _PAD)
+        y += _TITLE_H
     y = head + _PAD
     for r, h in zip(rows, row_h):
         for i, (t, im) in enumerate(r):
@@ -296,15 +374,99 @@ def sheet_image(panels: Sequence[tuple[str, np.ndarray]], *, columns: int = 4, p
             _put_text(sheet, t, (x + 1, y + _TITLE_H - 5), max_width=width - 2)
             sheet[y + _TITLE_H : y + _TITLE_H + im.shape[0], x : x + width] = im
         y += h + _PAD
+    _draw_legend(sheet, legend_rows, y)
     return sheet
 
 
-def contact_sheet(path: str | os.PathLike, panels: Sequence[tuple[str, np.ndarray]], *, columns: int = 4,
-                  panel_width: int = PANEL_WIDTH, title: str | None = None) -> Path:
+def contact_sheet(path: str | os.PathLike, panels: Sequence[tuple[str, np.ndarray]], *, columns: int | None = None,
+                  panel_width: int = PANEL_WIDTH, title: str | None = None, lines: Sequence[str] = (),
+                  legend: Sequence = ()) -> Path:
     """Write :func:`sheet_image` of ``panels`` as a PNG (atomically); returns the path."""
     path = Path(path)
-    write_bytes(path, encode_png(sheet_image(panels, columns=columns, panel_width=panel_width, title=title)))
+    write_bytes(path, encode_png(sheet_image(panels, columns=columns, panel_width=panel_width, title=title,
+                                             lines=lines, legend=legend)))
     return path
+
+
+def _panel_columns(sheet: np.ndarray, y0: int) -> tuple[int, int] | None:
+    """(columns, panel width) of a :func:`sheet_image` sheet whose first panel row starts at ``y0``:
+    the most columns whose gaps are white over the first 16 rows of the panels."""
+    h, w = sheet.shape[:2]
+    band = sheet[y0 : y0 + 16]
+    if band.shape[0] < 16:
+        return None
+    for cols in range(12, 1, -1):
+        pw, rem = divmod(w - _PAD, cols)
+        pw -= _PAD
+        if rem or pw < 16:
+            continue
+        gaps = [k * (pw + _PAD) for k in range(1, cols)]  # x of the gap before panel k (_PAD wide)
+        if all((band[:, x : x + _PAD] >= 255).all() and not (band[:, x - 1] >= 255).all() for x in gaps):
+            return cols, pw
+    return None
+
+
+def sheet_panel(sheet: np.ndarray, index: int, *, n_lines: int, title: bool = True) -> np.ndarray | None:
+    """Panel ``index`` of the first row of a sheet written by :func:`sheet_image` (``n_lines``
+    text lines under the title), or None when the sheet does not have that layout.
+
+    The panel width is found from the white gaps between the panels; the panel's height is
+    where its column turns white (the gap before the next row)."""
+    y0 = (_TITLE_H + 4 if title else 0) + _TITLE_H * n_lines + _PAD + _TITLE_H
+    found = _panel_columns(sheet, y0)
+    if found is None or index >= found[0]:
+        return None
+    panel_width = found[1]
+    x0 = _PAD + index * (panel_width + _PAD)
+    block = sheet[y0:, x0 : x0 + panel_width]
+    white = np.flatnonzero((block >= 255).all(axis=(1, 2)))
+    end = int(white[0]) if white.size else block.shape[0]
+    return block[:end].copy() if end >= 16 else None
+
+
+def _num(x, decimals: int) -> str:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return "--"
+    if v != v:
+        return "--"
+    if v in (float("inf"), float("-inf")):
+        return "inf" if v > 0 else "-inf"
+    return f"{v:.{decimals}f}"
+
+
+def view_numbers(record: dict | None, xi: float = 0.3) -> list[str]:
+    """One view's numbers as short ASCII lines (per semantic / structural probe, the geometric axis,
+    fidelity), from a view record (:meth:`r360gpu.metrics.record.ViewRecord.to_dict`)."""
+    if not record:
+        return []
+    sem_parts, rest = [], []
+    for p, v in (record.get("semantic") or {}).items():
+        if v.get("empty_target"):
+            sem_parts.append(f"{p}: empty target (excluded)")
+            continue
+        post = v.get("iou_post")
+        found = "found" if isinstance(post, (int, float)) and post >= xi else "not found"
+        sem_parts.append(f"{p}: IoU {_num(v.get('iou_pre'), 2)} -> {_num(post, 2)} ({found} at xi={xi:g})")
+    geo = record.get("geometric") or {}
+    if geo:
+        if geo.get("excluded"):
+            rest.append("acc_depth excluded")
+        else:
+            rest.append(f"acc_depth {_num(geo.get('acc_depth'), 3)} (t_depth {_num(geo.get('threshold'), 3)})")
+    for p, v in (record.get("structural") or {}).items():
+        rest.append(f"sim_SAM {_num(v.get('sim_sam'), 3)} [{p}]")
+    fid = record.get("fidelity") or {}
+    if fid:
+        f = f"PSNR {_num(fid.get('psnr'), 1)} dB, SSIM {_num(fid.get('ssim'), 3)}"
+        if fid.get("lpips") is not None:
+            f += f", LPIPS {_num(fid.get('lpips'), 3)}"
+        rest.append(f)
+    lines = ["semantic: " + "; ".join(sem_parts)] if sem_parts else []
+    if rest:
+        lines.append(" | ".join(rest))
+    return lines
 
 
 def view_panels(
@@ -326,7 +488,7 @@ def view_panels(
 
     pre, post, ref: RGB renderings I_pre, I_post, I_ref (ref optional).
     target: (H, W) target mask M (outlined in green on every panel but the heat map).
-    delta, threshold: |dD| and xi_depth in the same units for the heat map
+    delta, threshold: |dD| and the GHT threshold t_depth in the same units for the heat map
         (skipped when delta is None).  In compat mode pass the 8-bit
         normalised |dD| and the gray-level threshold.
     changed: (H, W) bool changed mask; pass ``GeometricView.changed`` to show
@@ -342,12 +504,12 @@ def view_panels(
     if ref is not None:
         out.append(("I_ref", rgb_panel(ref, width, target=target)))
     if delta is not None:
-        label = "|dD|" if threshold is None else f"|dD|, xi_depth = {float(threshold):.3g}"
+        label = "|dD|" if threshold is None else f"|dD|, t_depth (GHT) = {float(threshold):.3g}"
         out.append((label, depth_change_panel(delta, threshold, width)))
         if changed is None and threshold is not None:
             changed = np.abs(np.nan_to_num(np.asarray(delta, np.float64))) > float(threshold)
     if changed is not None:
-        out.append(("changed (yellow: in M)", changed_panel(changed, target, width)))
+        out.append(("changed |dD| > t_depth (legend below)", changed_panel(changed, target, width)))
     if semantic_pre is not None:
         out.append(("semantic probe on I_pre",
                     mask_overlay(pre, semantic_pre, width, color=SEMANTIC_RGB, target=target)))
@@ -359,8 +521,11 @@ def view_panels(
     return out
 
 
-def view_contact_sheet(path: str | os.PathLike, *, title: str | None = None, columns: int = 4,
-                       width: int = PANEL_WIDTH, **panels) -> Path:
+def view_contact_sheet(path: str | os.PathLike, *, title: str | None = None, columns: int | None = None,
+                       width: int = PANEL_WIDTH, record: dict | None = None, **panels) -> Path:
     """Write the contact sheet of one view (panels from :func:`view_panels`, same keyword
-    arguments); returns the path."""
-    return contact_sheet(path, view_panels(width=width, **panels), columns=columns, panel_width=width, title=title)
+    arguments) with the view's numbers from ``record`` (a view record dict; see
+    :func:`view_numbers`) under the title and the colour legend at the bottom; returns the path."""
+    ps = view_panels(width=width, **panels)
+    return contact_sheet(path, ps, columns=columns, panel_width=width, title=title, lines=view_numbers(record),
+                         legend=legend_items(ps))

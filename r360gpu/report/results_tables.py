@@ -142,10 +142,16 @@ def has_fidelity(results: dict) -> bool:
     return any(pooled_fidelity(results, m)["n_views"] for m in method_names(results))
 
 
+def has_lpips(results: dict) -> bool:
+    """Whether an LPIPS value exists for some method (an LPIPS model ran): else no LPIPS column."""
+    return any(pooled_fidelity(results, m)["lpips"] is not None for m in method_names(results))
+
+
 def main_table(results: dict) -> Table:
     """tab:main_results: removal axes, RQS, AvgRank | pixel fidelity, one row per method.
 
-    The fidelity columns are left out when no scene has a reference.
+    The fidelity columns are left out when no scene has a reference, LPIPS
+    when no LPIPS model ran.
     """
     methods = method_names(results)
     str_md, str_tex, str_note = structural_header(results)
@@ -162,8 +168,9 @@ def main_table(results: dict) -> Table:
         cols += [
             ("psnr", Cell("PSNR", r"PSNR$\uparrow$"), 2, True),
             ("ssim", Cell("SSIM", r"SSIM$\uparrow$"), 3, True),
-            ("lpips", Cell("LPIPS (lower is better)", r"LPIPS$\downarrow$"), 3, False),
         ]
+        if has_lpips(results):
+            cols.append(("lpips", Cell("LPIPS (lower is better)", r"LPIPS$\downarrow$"), 3, False))
     rows = [[Cell(m)] + [Cell("")] * len(cols) for m in methods]
     for j, (key, _, decimals, higher) in enumerate(cols, start=1):
         values = [overall_value(results, m, key) for m in methods]
@@ -175,7 +182,8 @@ def main_table(results: dict) -> Table:
         "per-axis ranks. IoU_drop is a diagnostic and enters neither.",
     ]
     if fidelity:
-        notes.append("PSNR / SSIM / LPIPS compare I_post with the post-removal reference rendering I_ref, "
+        what = "PSNR / SSIM / LPIPS" if has_lpips(results) else "PSNR / SSIM"
+        notes.append(f"{what} compare I_post with the post-removal reference rendering I_ref, "
                      "pooled over every view with a reference; they are diagnostics outside RQS and AvgRank.")
     notes.append("Best and second best per column are emphasised.")
     return Table(
@@ -331,7 +339,7 @@ def build_results_tables(results: dict) -> tuple[list[Table], list[str]]:
     """Every table of a results document, in display order, and notes on tables left out.
 
     Order: main results, per-scene RQS, per-axis tables (IoU_drop, acc_seg,
-    acc_depth, s_str, then PSNR / SSIM / LPIPS when a reference exists),
+    acc_depth, s_str, then PSNR / SSIM (and LPIPS when a model ran) when a reference exists),
     IoU pre -> post, scene-macro means, rank aggregation, reliability, axis
     association, ξ sweep, boundary sweep.
     """
@@ -352,7 +360,11 @@ def build_results_tables(results: dict) -> tuple[list[Table], list[str]]:
     for key in ("iou_drop", "s_sem", "s_geo", "s_str"):
         tables.append(axis_table(results, key))
     if has_fidelity(results):
-        tables += [axis_table(results, k) for k in ("psnr", "ssim", "lpips")]
+        tables += [axis_table(results, k) for k in ("psnr", "ssim")]
+        if has_lpips(results):
+            tables.append(axis_table(results, "lpips"))
+        else:
+            notes.append("LPIPS omitted: no LPIPS model ran (score with --lpips MODEL.onnx)")
     tables.append(iou_table(results))
     for key in ("scene_macro", "rank_agg", "reliability", "axis_association"):
         if key in agg_tables:

@@ -76,13 +76,20 @@ def _fmt(x: float | None, decimals: int) -> str:
 
 
 def _emphasis(values: Sequence[float | None], decimals: int, higher_is_better: bool) -> list[str]:
-    """"best"/"second"/"" per value, comparing values rounded to ``decimals``."""
+    """"best"/"second"/"" per value, comparing values rounded to ``decimals``.
+
+    Every value printed like the best shares "best".  "second" goes to the next
+    distinct value only when it ranks second (competition ranking: a single
+    value holds first place) and is not also the worst: when ties fill first
+    place, or only two distinct values are shown, nothing is underlined (the
+    garden case of four methods at 1.000 and one at 0.000 underlines nothing).
+    """
     shown = [None if v is None else round(v, decimals) for v in values]
-    distinct = sorted({v for v in shown if v is not None}, reverse=higher_is_better)
     if sum(v is not None for v in shown) < 2:
         return [""] * len(values)
+    distinct = sorted({v for v in shown if v is not None}, reverse=higher_is_better)
     marks = {distinct[0]: "best"}
-    if len(distinct) > 1:
+    if len(distinct) > 2 and shown.count(distinct[0]) == 1:
         marks[distinct[1]] = "second"
     return [marks.get(v, "") if v is not None else "" for v in shown]
 

@@ -35,7 +35,7 @@ from ..io import Gaussians, save_colmap, save_ply, save_transforms_json
 from ..util.atomic import write_bytes, write_text
 from .garden import make_garden
 from .masks import target_masks
-from .methods import METHODS
+from .methods import EXPECTED, METHODS
 from .room import make_room
 from .scene import SyntheticScene
 
@@ -128,6 +128,12 @@ def scene_toml(scene: SyntheticScene, methods: Sequence[str], *, seed: int, came
     for m in methods:
         doc = (METHODS[m].__doc__ or "").strip().splitlines()[0]
         lines += ["", f"# {m}: {doc}", f"[methods.{m}]", f"scene = {_toml_str(f'methods/{m}.ply')}"]
+    lines += ["", "# The known failure of each simulated method and the axes that should catch it (the report",
+              "# checks whether they did)."]
+    for m in methods:
+        failure, axes = EXPECTED[m]
+        lines += ["", f"[expected.{m}]", f"failure = {_toml_str(failure)}",
+                  "caught_by = [" + ", ".join(_toml_str(a) for a in axes) + "]"]
     return "\n".join(lines) + "\n"
 
 

@@ -151,5 +151,21 @@ METHODS: dict[str, Callable[[SyntheticScene, np.random.Generator], Gaussians]] =
     "over_removal": over_removal,
 }
 
-__all__ = ["METHODS", "clean", "floaters", "recoloured", "hole", "over_removal", "retrained",
+#: Per method: its failure in one sentence and the axes that should catch it (fall low).  Written
+#: into the bundle's scene.toml as [expected.METHOD] (see r360gpu.bundle.expected), so the report
+#: can check each against the scores without knowing the methods.
+EXPECTED: dict[str, tuple[str, tuple[str, ...]]] = {
+    "clean": ("none: removed and completed like the reference", ()),
+    "floaters": ("residue of the target (shrunk, scattered, fainter Gaussians) where it was: it keeps the "
+                 "object's colours, stays near its depth and breaks the completed structure",
+                 ("s_sem", "s_geo", "s_str")),
+    "recoloured": ("the target's Gaussians kept in place, recoloured like the background: looks removed, "
+                   "the geometry is unchanged", ("s_geo",)),
+    "hole": ("removed without completion: the background the target hid is missing, so the region "
+             "disagrees with the reference", ("s_str",)),
+    "over_removal": ("the target's surroundings removed too: the completed region disagrees with the "
+                     "reference", ("s_str",)),
+}
+
+__all__ = ["METHODS", "EXPECTED", "clean", "floaters", "recoloured", "hole", "over_removal", "retrained",
            "background_colour_behind"]
