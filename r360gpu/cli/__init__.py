@@ -39,9 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
+    if not getattr(args, "func", None):  # bare `r360gpu`: the help is the answer
         parser.print_help()
-        return 2
+        return 0
     try:
         return int(args.func(args) or 0)
     except GpuUnavailableError as e:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 
 from ..bundle import DEFAULT_METHOD_NAME, PROMPT_FILE, Bundle, inspect_bundle
+from .lists import add_views_option
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -24,9 +25,7 @@ def register(subparsers) -> argparse.ArgumentParser:
         ),
     )
     p.add_argument("bundles", nargs="+", metavar="BUNDLE", help="bundle folder (or its scene.toml)")
-    p.add_argument("--views", action="append", metavar="PATTERN", default=None,
-                   help="glob pattern selecting evaluation views; repeat for several (replaces the bundle's "
-                        "'views')")
+    add_views_option(p, help_tail="; replaces the bundle's 'views'")
     p.add_argument("--prompt", default=None,
                    help=f"category prompt (replaces the bundle's; Remove360 folders: instead of {PROMPT_FILE})")
     p.add_argument("--method-name", default=None, metavar="NAME",

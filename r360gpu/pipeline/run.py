@@ -64,6 +64,28 @@ def select_views(names: list[str], patterns) -> list[str]:
     return out
 
 
+def open_pres(bundle, src) -> tuple[dict, dict]:
+    """The scene's pre sources by name and the pre each method uses: ``({name: source}, {method: name})``.
+
+    "pre" is the scene's default, shared by every method without its own; a
+    method's own pre (``bundle.method_pres``) is a separate source named
+    ``pre/<method>`` unless it is the same spec as the default (then shared,
+    so no view is rendered twice).
+    """
+    from ..bundle.model import SourceSpec, pre_name
+
+    pres = {"pre": src(bundle.pre)}
+    pre_of = {}
+    for m in bundle.methods:
+        spec = (getattr(bundle, "method_pres", None) or {}).get(m)
+        if spec is None or spec is bundle.pre or (isinstance(spec, SourceSpec) and spec == bundle.pre):
+            pre_of[m] = "pre"
+        else:
+            pre_of[m] = pre_name(m)
+            pres[pre_of[m]] = src(spec)
+    return pres, pre_of
+
+
 class SceneRun:
     """The opened sources, masks and probes of one scene (see the module docstring)."""
 
@@ -83,10 +105,9 @@ class SceneRun:
         def src(spec):
             return open_source(spec, ctx=ctx, background=bundle.options.background, depth=self.depth_mode)
 
-        self.pres = {"pre": src(bundle.pre)}
+        self.pres, self.pre_of = open_pres(bundle, src)
         self.reference = src(bundle.reference) if bundle.reference else None
         self.methods = {m: src(s) for m, s in bundle.methods.items()}
-        self.pre_of = {m: "pre" for m in bundle.methods}
         timer.add("load", t0)
         self._masks: dict = {}
         self._fit_renders: dict = {}
@@ -148,9 +169,13 @@ class SceneRun:
         self.timer.add("fit probes", t0)
 
     def describe_sources(self) -> dict:
-        return {"pre": self.pre.describe(),
-                "reference": self.reference.describe() if self.reference else None,
-                "methods": {m: s.describe() for m, s in self.methods.items()}}
+        out = {"pre": self.pre.describe(),
+               "reference": self.reference.describe() if self.reference else None,
+               "methods": {m: s.describe() for m, s in self.methods.items()}}
+        own = {m: self.pres[n].describe() for m, n in self.pre_of.items() if n != "pre"}
+        if own:
+            out["method_pres"] = own
+        return out
 
     def release(self) -> None:
         for s in [*self.pres.values(), self.reference, *self.methods.values()]:
