@@ -336,7 +336,7 @@ def build_results_tables(results: dict) -> tuple[list[Table], list[str]]:
     association, ξ sweep, boundary sweep.
     """
     tables: list[Table] = [main_table(results)]
-    notes: list[str] = []
+    notes: list[str] = list(results.get("notes") or [])  # e.g. which methods the cross-scene tables leave out
     agg = results.get("aggregate")
     agg_tables: dict[str, Table] = {}
     if agg:
