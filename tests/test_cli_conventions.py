@@ -138,3 +138,23 @@ def test_r360_keeps_the_callers_working_directory(tmp_path, ctx):
                        text=True, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "mine/room: OK" in r.stdout
+
+
+def test_view_takes_prompt_and_method_name(tmp_path, monkeypatch, ctx):
+    """`view` loads a public-layout folder with --prompt / --method-name and hands the viewer the Bundle."""
+    pytest.importorskip("viewer.launch")
+    import viewer.launch
+
+    from r360gpu.bundle import Bundle
+    from public_benchmark import make_public_benchmark
+
+    root = make_public_benchmark(tmp_path, scenes=("room",), n_views=2, width=48, height=32, detail=0.1,
+                                 skip=("GC/room", "AF/room"), ctx=ctx)
+    folder = root / "OC" / "room"
+    (folder / "prompt.txt").unlink()
+    seen = []
+    monkeypatch.setattr(viewer.launch, "run", lambda args: seen.append(args.bundle) or 0)
+    monkeypatch.setattr("r360gpu.cli.view.missing_modules", lambda: [])
+    assert main(["view", str(folder), "--prompt", "couch", "--method-name", "OC"]) == 0
+    assert isinstance(seen[0], Bundle) and seen[0].prompt == "couch" and list(seen[0].methods) == ["OC"]
+    assert main(["view", str(folder)]) == 0 and seen[1] == str(folder)  # no override: the viewer loads it

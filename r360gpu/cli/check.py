@@ -60,7 +60,8 @@ def summary(bundle: Bundle) -> str:
     def kind(spec) -> str:
         return "splat" if spec.kind == "scene" else "renders"
 
-    methods = ", ".join(f"{name} ({kind(s)})" for name, s in bundle.methods.items())
+    methods = ", ".join(f"{name} ({kind(s)}{', own pre' if name in bundle.method_pres else ''})"
+                        for name, s in bundle.methods.items())
     n_cams = "" if bundle.cameras is None else f", cameras from {bundle.cameras_path}"
     ref = f"reference ({kind(bundle.reference)})" if bundle.reference is not None else "no reference"
     return (f"scene {bundle.name!r} [{bundle.layout}], prompt {bundle.prompt!r}, {len(bundle.views)} view"

@@ -12,7 +12,7 @@ from ..errors import R360Error
 
 #: Modules of the ``viewer`` extra.
 VIEWER_MODULES = ("glfw", "imgui_bundle", "rendercanvas")
-INSTALL_HINT = "pip install 'r360gpu[viewer]'"
+INSTALL_HINT = "pip install -e '.[viewer]' (from a checkout)"
 
 
 class ViewerUnavailableError(R360Error):
