@@ -62,6 +62,12 @@ def test_each_method_is_scored_against_its_own_pre(root, ctx, monkeypatch):
     shared = evaluate(replace(b, method_pres={}), options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
     assert _axes(shared, "room")["AF"]["iou_pre"] != grouped["AF"]["iou_pre"]
     assert _axes(shared, "room")["GC"] == grouped["GC"]
+    # two methods with the same own pre: one source, rendered once per view
+    calls.clear()
+    same = replace(b, method_pres={"AF": b.method_pres["AF"], "OC": b.method_pres["AF"]})
+    res = evaluate(same, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    assert set(calls.values()) == {1} and len(calls) == 5 * len(b.views)
+    assert _axes(res, "room")["AF"] == grouped["AF"]
 
 
 def test_scene_toml_method_pre_table(root, tmp_path):
@@ -158,6 +164,7 @@ def test_benchmark_root_reports_a_missing_method_and_uses_the_common_set(root, t
     iou_rows = tables[tables.index("mIoU_pre -> mIoU_post"):].splitlines()
     garden = next(r for r in iou_rows if r.startswith("| garden"))
     assert garden.count("→") == 2 and "--" in garden  # AF did not run on garden: shown as missing
+    assert "mIoU_pre of a method with its own pre-removal renders is measured on them" in tables
     # scenes x methods in one run: each method's own IoU_pre per scene
     iou_pre = {m: doc["scenes"]["room"]["methods"][m]["axes"]["iou_pre"] for m in ("GC", "AF", "OC")}
     assert len(set(iou_pre.values())) == 3

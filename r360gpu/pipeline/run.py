@@ -69,20 +69,26 @@ def open_pres(bundle, src) -> tuple[dict, dict]:
 
     "pre" is the scene's default, shared by every method without its own; a
     method's own pre (``bundle.method_pres``) is a separate source named
-    ``pre/<method>`` unless it is the same spec as the default (then shared,
-    so no view is rendered twice).
+    ``pre/<method>``.  Equal specs (or the same object) are opened once and
+    shared, so no view is rendered twice.
     """
     from ..bundle.model import SourceSpec, pre_name
 
+    def key(spec):
+        return spec if isinstance(spec, SourceSpec) else id(spec)
+
     pres = {"pre": src(bundle.pre)}
+    names = {key(bundle.pre): "pre"}
     pre_of = {}
     for m in bundle.methods:
         spec = (getattr(bundle, "method_pres", None) or {}).get(m)
-        if spec is None or spec is bundle.pre or (isinstance(spec, SourceSpec) and spec == bundle.pre):
+        if spec is None:
             pre_of[m] = "pre"
-        else:
-            pre_of[m] = pre_name(m)
-            pres[pre_of[m]] = src(spec)
+            continue
+        if key(spec) not in names:
+            names[key(spec)] = pre_name(m)
+            pres[pre_name(m)] = src(spec)
+        pre_of[m] = names[key(spec)]
     return pres, pre_of
 
 

@@ -246,7 +246,10 @@ def iou_table(results: dict) -> Table:
         header=[Cell("Scene")] + [Cell(m) for m in methods],
         rows=rows,
         notes=("Means over the scored views of each scene. The largest and second-largest drop per scene "
-               "are emphasised.",),
+               "are emphasised."
+               + (" mIoU_pre of a method with its own pre-removal renders is measured on them."
+                  if any((sc.get("sources") or {}).get("method_pres") for sc in (results.get("scenes") or {}).values())
+                  else ""),),
     )
 
 
