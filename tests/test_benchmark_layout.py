@@ -168,3 +168,18 @@ def test_benchmark_root_reports_a_missing_method_and_uses_the_common_set(root, t
     # scenes x methods in one run: each method's own IoU_pre per scene
     iou_pre = {m: doc["scenes"]["room"]["methods"][m]["axes"]["iou_pre"] for m in ("GC", "AF", "OC")}
     assert len(set(iou_pre.values())) == 3
+
+
+def test_members_cameras_must_agree():
+    import numpy as np
+
+    from r360gpu.bundle.group import _same_cameras
+    from r360gpu.io.camera import Camera
+
+    def cam(tx):
+        return Camera(R=np.eye(3), t=np.array([tx, 0.0, 0.0]), fx=50.0, fy=50.0, cx=24.0, cy=16.0, width=48,
+                      height=32, name="v0")
+
+    _same_cameras({"v0": cam(1.0)}, {"v0": cam(1.0 + 1e-9)}, "b", "room")
+    with pytest.raises(InputError, match="camera of view 'v0' in b differs"):
+        _same_cameras({"v0": cam(1.0)}, {"v0": cam(1.1)}, "b", "room")
