@@ -9,7 +9,7 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-__all__ = ["evaluate", "scene_from_objects", "EvaluateOptions", "__version__"]
+__all__ = ["evaluate", "scene_from_objects", "EvaluateOptions", "DeviceViewsSource", "__version__"]
 
 
 def __getattr__(name):
@@ -22,4 +22,8 @@ def __getattr__(name):
         from .bundle import scene_from_objects
 
         return scene_from_objects
+    if name == "DeviceViewsSource":
+        from .render.sources import DeviceViewsSource
+
+        return DeviceViewsSource
     raise AttributeError(f"module 'r360gpu' has no attribute {name!r}")

@@ -163,7 +163,7 @@ def _(root):
 
 def _views_no_mask(root):
     b = renders_bundle(root / "b")
-    return b, ["--views", "view_00", "view_09"]
+    return b, ["--views", "view_00", "--views", "view_09"]
 
 
 @case("score-views-without-mask", "error", "view_09")
@@ -183,7 +183,7 @@ def _(root):
     b = renders_bundle(root / "b")
     (b / "masks" / "view_02.png").unlink()
     (b / "masks" / "view_02.png").mkdir()
-    return score(b, "--views", "view_00", "view_02"), "scene.toml"
+    return score(b, "--views", "view_00,view_02"), "scene.toml"
 
 
 @case("check-views-mask-is-a-folder", "error", "view_02")

@@ -153,7 +153,7 @@ def test_disk_full_while_writing_the_report_leaves_the_previous_set(tmp_path, ca
     capsys.readouterr()
     before = {n: (out / n).read_bytes() for n in ("results.json", "results.csv", "tables.md", "report.html")}
     _enospc_on(monkeypatch, "report.html")
-    rc = cli.main(["score", str(b), "--out", str(out), *SCORE_FLAGS, "--xi", "0.3", "0.6"])
+    rc = cli.main(["score", str(b), "--out", str(out), *SCORE_FLAGS, "--xi", "0.3,0.6"])
     err = capsys.readouterr().err
     assert rc == 2 and "no space left on device" in err and "report.html" in err and "Traceback" not in err
     assert {n: (out / n).read_bytes() for n in before} == before  # the whole previous set, untouched

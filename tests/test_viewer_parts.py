@@ -107,7 +107,7 @@ def test_view_command(monkeypatch):
     assert (args.bundle, args.results, args.size, args.func) == ("some/bundle", "r.json", "800x600", view.run)
     monkeypatch.setattr(view.importlib.util, "find_spec", lambda name: None)
     assert view.missing_modules() == list(view.VIEWER_MODULES)
-    with pytest.raises(view.ViewerUnavailableError, match=r"pip install 'r360gpu\[viewer\]'"):
+    with pytest.raises(view.ViewerUnavailableError, match=r"pip install -e '\.\[viewer\]'"):
         view.run(args)
 
 

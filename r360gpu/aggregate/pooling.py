@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .results import axis_cells
+from .results import axis_cells, common_methods
 from .summary import aggregate_tables
 
 
@@ -44,10 +44,15 @@ def aggregate_results(results: dict, *, n_boot: int, n_perm: int, seed: int) -> 
 
     results["validity"] = not_ok_cells(results["scenes"])
     cells = axis_cells(results["scenes"])
+    common, missing = common_methods(results["scenes"])
+    if missing:
+        left = "; ".join(f"{m} (missing from {', '.join(s)})" for m, s in missing.items())
+        results.setdefault("notes", []).append(
+            f"cross-scene tables use the methods every scene has ({', '.join(common) or 'none'}); left out: {left}")
     if cells is None:
         results["aggregate"] = None
         results.setdefault("notes", []).append(
-            "aggregate tables need every scene to have the same methods and all three axes")
+            "aggregate tables need at least one method in every scene and all three axes")
         return
     results["aggregate"] = aggregate_tables(cells, n_boot=n_boot, n_perm=n_perm, seed=seed)
     results["sensitivity"] = pooled_sensitivity(results["scenes"], cells.methods, cells.scenes)

@@ -104,15 +104,26 @@ def mean_boundary(per_view: list[dict]) -> dict:
     return {row: {lab: (float(np.mean(acc[lab])) if acc.get(lab) else None) for lab in labels} for row, acc in rows.items()}
 
 
+def common_methods(scenes: dict) -> tuple[list[str], dict[str, list[str]]]:
+    """The methods every scene has (in order of first appearance) and, for each other method, the
+    scenes it is missing from."""
+    order: list[str] = []
+    for s in scenes.values():
+        order += [m for m in s["methods"] if m not in order]
+    missing = {m: [name for name, s in scenes.items() if m not in s["methods"]] for m in order}
+    return [m for m in order if not missing[m]], {m: v for m, v in missing.items() if v}
+
+
 def axis_cells(scenes: dict) -> AxisCells | None:
-    """AxisCells for aggregate_tables from ``results["scenes"]`` (None if any axis is missing)."""
+    """AxisCells for aggregate_tables from ``results["scenes"]``, over the methods every scene has
+    (:func:`common_methods`); None if no method is common or any axis is missing."""
     names = list(scenes)
-    methods = list(next(iter(scenes.values()))["methods"]) if names else []
+    methods = common_methods(scenes)[0] if names else []
+    if not methods:
+        return None
     grids = {k: np.full((len(names), len(methods)), np.nan) for k in ("s_sem", "s_geo", "s_str", "n_views", "iou_drop")}
     for i, s in enumerate(names):
         ms = scenes[s]["methods"]
-        if list(ms) != methods:
-            return None
         for j, m in enumerate(methods):
             ax = ms[m]["axes"]
             for k in grids:

@@ -23,6 +23,8 @@ A bundle is a folder with a ``scene.toml`` (paths relative to the folder)::
 
     [methods.objectclear]
     renders = "methods/objectclear"
+    [methods.objectclear.pre]  # optional: the method's own pre-removal source (same keys as [pre]),
+    renders = "methods/oc_pre" #   for its IoU_pre / IoU_drop, D_pre and reference-free s_str
 
     [options]                # all optional
     background = [0.0, 0.0, 0.0]   # render background, RGB in [0, 1]
@@ -38,7 +40,9 @@ source.  With ``views``, every selected name must have a mask (and camera).
 
 A folder in the public Remove360 evaluation layout (``rgb/{before,after}``,
 ``depth/{before,after}``, ``masks/``) without scene.toml is also a bundle:
-see :mod:`.remove360_layout`.
+see :mod:`.remove360_layout`; several such folders of one scene (one per
+method) are joined by :mod:`.group`, which also reads a benchmark root
+``ROOT/<method>/<scene>/``.
 
 Entry points: :func:`load_bundle` (raises :class:`BundleError` listing every
 problem), :func:`check_bundle` (the problems as a list), :func:`inspect_bundle`.
@@ -48,6 +52,7 @@ from __future__ import annotations
 from .load import CONFIG_NAME, check_bundle, inspect_bundle, load_bundle, view_name
 from .model import (DEPTH_MODES, RESERVED_METHOD_NAMES, Bundle, BundleError, BundleOptions, Problem,
                     SourceSpec)
+from .group import group_pairs, group_scene, load_benchmark, parse_method_folders
 from .objects import is_from_objects, scene_from_objects
 from .remove360_layout import DEFAULT_METHOD_NAME, PROMPT_FILE, is_remove360_folder
 
@@ -55,5 +60,6 @@ __all__ = [
     "Bundle", "BundleOptions", "SourceSpec", "Problem", "BundleError",
     "load_bundle", "check_bundle", "inspect_bundle", "view_name", "is_remove360_folder",
     "scene_from_objects", "is_from_objects",
+    "group_scene", "group_pairs", "load_benchmark", "parse_method_folders",
     "CONFIG_NAME", "RESERVED_METHOD_NAMES", "DEPTH_MODES", "DEFAULT_METHOD_NAME", "PROMPT_FILE",
 ]

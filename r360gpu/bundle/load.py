@@ -67,7 +67,7 @@ _MAX_LISTED = 10
 _DUPLICATE_TABLE = re.compile(r"Cannot declare \('methods', '((?:[^'\\]|\\.)*)'\) twice(.*)")
 
 
-def load_bundle(path: str | os.PathLike, *, views: list[str] | None = None, prompt: str | None = None,
+def load_bundle(path: str | os.PathLike | Bundle, *, views: list[str] | None = None, prompt: str | None = None,
                 method_name: str | None = None) -> Bundle:
     """Load a bundle folder (or its scene.toml); raise :class:`BundleError` listing every problem.
 
@@ -76,7 +76,10 @@ def load_bundle(path: str | os.PathLike, *, views: list[str] | None = None, prom
     of prompt.txt).  method_name: name of the Remove360 layout's method
     (default "after"); not used for scene.toml bundles.
     Masks are checked from their PNG headers (see the module docstring).
+    A :class:`Bundle` already loaded is returned as it is.
     """
+    if isinstance(path, Bundle):
+        return path
     bundle, problems = inspect_bundle(path, views=views, prompt=prompt, method_name=method_name, deep=False)
     if problems:
         raise BundleError(path, problems)
@@ -219,7 +222,12 @@ def _draft_from_config(root: Path, config: Path, problems: list[Problem], *, vie
         bad("'methods' must hold one table per method, e.g. [methods.mine] scene = \"mine.ply\"")
     else:
         for name, table in methods.items():
-            d.methods[name] = _parse_source(table, f"[methods.{name}]", root, bad, depth_required=True)
+            if isinstance(table, dict) and "pre" in table:  # the method's own pre-removal source
+                table = dict(table)
+                d.method_pres[name] = _parse_source(table.pop("pre"), f"[methods.{name}.pre]", root, bad,
+                                                    depth_required=True)
+            d.methods[name] = _parse_source(table, f"[methods.{name}]", root, bad, depth_required=True,
+                                            extra_keys=("pre",))
 
     if "options" in data:
         d.options = _parse_options(data["options"], bad)
@@ -243,11 +251,12 @@ def _unknown_keys(table: dict, allowed: tuple[str, ...], where: str | None, bad)
         bad(f"unknown key '{key}'{f' in {where}' if where else ''} ({hint})")
 
 
-def _parse_source(table, label: str, root: Path, bad, *, depth_required: bool) -> SourceSpec | None:
+def _parse_source(table, label: str, root: Path, bad, *, depth_required: bool,
+                  extra_keys: tuple[str, ...] = ()) -> SourceSpec | None:
     if not isinstance(table, dict):
         bad(f"{label} must be a table, e.g. {label} scene = \"FILE.ply\" or renders = \"FOLDER\"")
         return None
-    _unknown_keys(table, SOURCE_KEYS, label, bad)
+    _unknown_keys(table, SOURCE_KEYS + extra_keys, label, bad)
     given = [k for k in ("scene", "renders", "rgb") if k in table]
     if len(given) != 1:
         found = f" (found {', '.join(given)})" if given else ""
@@ -372,8 +381,8 @@ def _bad_file_name(name: str) -> str | None:
 
 def _label(draft: Draft, role: str, name: str | None = None) -> str:
     if draft.layout == "scene.toml":
-        return f"[methods.{name}]" if role == "method" else f"[{role}]"
-    return f"method {name!r}" if role == "method" else role
+        return {"method": f"[methods.{name}]", "method_pre": f"[methods.{name}.pre]"}.get(role, f"[{role}]")
+    return {"method": f"method {name!r}", "method_pre": f"pre of method {name!r}"}.get(role, role)
 
 
 def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | None:
@@ -383,6 +392,7 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
     # (role, method name, source): methods may not shadow pre/reference even when misnamed.
     entries = [("pre", None, draft.pre), ("reference", None, draft.reference)]
     entries += [("method", name, spec) for name, spec in draft.methods.items()]
+    entries += [("method_pre", name, spec) for name, spec in draft.method_pres.items()]
     entries = [(role, name, spec) for role, name, spec in entries if spec is not None]
 
     scene_labels = [_label(draft, role, name) for role, name, spec in entries if spec.kind == "scene"]
@@ -412,7 +422,8 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
         masks={v: masks[v] for v in views}, pre=resolved["pre", None],
         reference=resolved.get(("reference", None)),
         methods={name: resolved["method", name] for name in draft.methods}, options=draft.options,
-        layout=draft.layout, config=draft.config, cameras_path=draft.cameras_path, expected=draft.expected)
+        layout=draft.layout, config=draft.config, cameras_path=draft.cameras_path, expected=draft.expected,
+        method_pres={name: resolved["method_pre", name] for name in draft.method_pres})
 
 
 def _check_method_names(draft: Draft, where: str, problems: list[Problem]) -> None:

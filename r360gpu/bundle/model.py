@@ -24,7 +24,7 @@ from ..util.filehash import content_digest
 RESERVED_METHOD_NAMES = ("pre", "reference")
 SOURCE_KINDS = ("scene", "renders")
 DEPTH_MODES = ("expected", "median")
-LAYOUTS = ("scene.toml", "remove360")
+LAYOUTS = ("scene.toml", "remove360", "group", "objects")
 
 
 #: Per-source keys naming how r360gpu renders a splat scene (the conventions of
@@ -128,9 +128,12 @@ class Bundle:
     views: evaluation view names, sorted.  cameras: the Camera of each
     evaluation view (None for renders-only bundles without cameras).  masks: the target-mask
     PNG of each view.  methods: in the order of the bundle file.
-    layout: "scene.toml" or "remove360" (a public Remove360 evaluation
-    folder); config: the scene.toml (None for the Remove360 layout);
+    layout: "scene.toml", "remove360" (a public Remove360 evaluation
+    folder), "group" (several methods' folders, :mod:`.group`) or "objects"; config: the scene.toml (None for the Remove360 layout);
     cameras_path: what ``cameras`` named (None without cameras).
+    method_pres: the methods that bring their own pre-removal source (the
+    others use ``pre``); used for that method's IoU_pre / IoU_drop, D_pre and
+    the reference-free structural comparison.
     """
 
     root: Path
@@ -148,13 +151,16 @@ class Bundle:
     cameras_path: Path | None = None
     #: [expected.METHOD] of scene.toml: {method: {"failure", "caught_by"}} (r360gpu.bundle.expected)
     expected: dict = field(default_factory=dict)
+    method_pres: dict[str, SourceSpec] = field(default_factory=dict)
 
     def sources(self) -> dict[str, SourceSpec]:
-        """Every source by name: "pre", "reference" (when present), then the methods."""
+        """Every source by name: "pre", "reference" (when present), the methods, then each
+        method's own pre as ``"pre/<method>"`` (see :func:`pre_name`)."""
         out = {"pre": self.pre}
         if self.reference is not None:
             out["reference"] = self.reference
         out.update(self.methods)
+        out.update({pre_name(m): s for m, s in self.method_pres.items()})
         return out
 
     def with_render_settings(self, **settings) -> "Bundle":
@@ -180,7 +186,12 @@ class Bundle:
             return replace(s, render=replace(s.render, **settings))
 
         return replace(self, pre=apply(self.pre), reference=apply(self.reference),
-                       methods={m: apply(s) for m, s in self.methods.items()})
+                       methods={m: apply(s) for m, s in self.methods.items()},
+                       method_pres={m: apply(s) for m, s in self.method_pres.items()})
+
+    def pre_of(self, method: str) -> SourceSpec:
+        """The pre-removal source ``method`` is scored against."""
+        return self.method_pres.get(method, self.pre)
 
     def fingerprint(self) -> str:
         """A hex SHA-256 that changes when anything the scores depend on may have changed.
@@ -255,6 +266,12 @@ class Bundle:
         return files
 
 
+def pre_name(method: str) -> str:
+    """The source name of ``method``'s own pre: ``"pre/<method>"``, which no method can take
+    (method names name output folders, so they hold no path separator)."""
+    return f"pre/{method}"
+
+
 def _camera_files(path: Path) -> list[Path]:
     """The files a camera loader may read for ``path``: itself, or the plain files of the
     folder and of its sparse/ and sparse/0 sub-folders."""
@@ -290,5 +307,6 @@ class Draft:
     pre: SourceSpec | None = None
     reference: SourceSpec | None = None
     methods: dict[str, SourceSpec | None] = field(default_factory=dict)
+    method_pres: dict[str, SourceSpec | None] = field(default_factory=dict)
     options: BundleOptions = field(default_factory=BundleOptions)
     expected: dict = field(default_factory=dict)

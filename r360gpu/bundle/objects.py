@@ -11,7 +11,7 @@ from .model import Bundle, BundleOptions
 
 def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, *, reference=None,
                        cameras: dict | None = None, background=(0.0, 0.0, 0.0), depth: str = "expected",
-                       reference_free: bool = False) -> Bundle:
+                       reference_free: bool = False, method_pres: dict | None = None) -> Bundle:
     """A scene to pass to :func:`r360gpu.evaluate` without files.
 
     masks: {view: bool (H, W) target mask}; the keys are the evaluation views.
@@ -20,12 +20,17 @@ def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, 
         :class:`~r360gpu.render.sources.DeviceViewsSource` (renders another
         GPU pipeline already holds on the device), or a bundle ``SourceSpec``.
     cameras: {view: Camera}, needed when any source is rendered here.
+    method_pres: {method: source} for methods scored against their own
+        pre-removal source instead of ``pre`` (same kinds as ``pre``).
     """
     views = sorted(masks)
     if not views:
         raise InputError(f"scene {name!r}: no views (masks is empty)")
     if not methods:
         raise InputError(f"scene {name!r}: no methods")
+    unknown = sorted(set(method_pres or {}) - set(methods))
+    if unknown:
+        raise InputError(f"scene {name!r}: method_pres names methods that are not given: {unknown}")
     missing = [v for v in views if cameras is not None and v not in cameras]
     if missing:
         raise InputError(f"scene {name!r}: views without a camera: {missing[:5]}")
@@ -34,13 +39,13 @@ def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, 
                   masks={v: np.asarray(masks[v]) for v in views}, pre=pre, reference=reference,
                   methods=dict(methods),
                   options=BundleOptions(background=tuple(background), depth=depth, reference_free=reference_free),
-                  layout="objects")
+                  layout="objects", method_pres=dict(method_pres or {}))
 
 
 def is_from_objects(bundle: Bundle) -> bool:
     """True when some source or mask is an object rather than a file spec."""
     from .model import SourceSpec
 
-    specs = [bundle.pre, bundle.reference, *bundle.methods.values()]
+    specs = [bundle.pre, bundle.reference, *bundle.methods.values(), *bundle.method_pres.values()]
     return not (all(s is None or isinstance(s, SourceSpec) for s in specs)
                 and not any(isinstance(m, np.ndarray) for m in bundle.masks.values()))

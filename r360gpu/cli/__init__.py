@@ -44,9 +44,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
-        if not getattr(args, "func", None):
+        if not getattr(args, "func", None):  # bare `r360gpu`: the help is the answer
             parser.print_help()
-            return 2
+            return 0
         return _run(args)
     except KeyboardInterrupt:
         print("r360gpu: interrupted" + _resume_hint(args), file=sys.stderr)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 
 from ..bundle import DEFAULT_METHOD_NAME, PROMPT_FILE, Bundle, inspect_bundle
+from .lists import add_views_option
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -24,9 +25,7 @@ def register(subparsers) -> argparse.ArgumentParser:
         ),
     )
     p.add_argument("bundles", nargs="+", metavar="BUNDLE", help="bundle folder (or its scene.toml)")
-    p.add_argument("--views", action="append", metavar="PATTERN", default=None,
-                   help="glob pattern selecting evaluation views; repeat for several (replaces the bundle's "
-                        "'views')")
+    add_views_option(p, help_tail="; replaces the bundle's 'views'")
     p.add_argument("--prompt", default=None,
                    help=f"category prompt (replaces the bundle's; Remove360 folders: instead of {PROMPT_FILE})")
     p.add_argument("--method-name", default=None, metavar="NAME",
@@ -68,7 +67,8 @@ def summary(bundle: Bundle) -> str:
     def kind(spec) -> str:
         return "splat" if spec.kind == "scene" else "renders"
 
-    methods = ", ".join(f"{name} ({kind(s)})" for name, s in bundle.methods.items())
+    methods = ", ".join(f"{name} ({kind(s)}{', own pre' if name in bundle.method_pres else ''})"
+                        for name, s in bundle.methods.items())
     n_cams = "" if bundle.cameras is None else f", cameras from {bundle.cameras_path}"
     ref = f"reference ({kind(bundle.reference)})" if bundle.reference is not None else "no reference"
     return (f"scene {bundle.name!r} [{bundle.layout}], prompt {bundle.prompt!r}, {len(bundle.views)} view"

@@ -34,6 +34,7 @@ def run(args) -> int:
     t = time.perf_counter()
     print(f"generating the synthetic benchmark in {out / 'benchmark'} ...")
     bundles = generate_benchmark(out / "benchmark", seed=args.scene_seed, n_views=args.n_views,
-                                 width=args.width, height=args.height, progress=not args.quiet)
+                                 width=args.width, height=args.height, progress=not args.quiet, reuse=True,
+                                 log=print)
     print(f"  {len(bundles)} scenes in {time.perf_counter() - t:.1f} s")
     return score_and_report(bundles, out / "report", args)

@@ -3,7 +3,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import InputError
+from .lists import ListAction, add_views_option
+
+DEFAULT_XIS = (0.3, 0.5, 0.7, 0.9)
 
 
 def add_scoring_options(p) -> None:
@@ -23,16 +25,16 @@ def add_scoring_options(p) -> None:
                    help="score as the public Remove360 scripts do: 'public' (the default of --compat: their "
                         "save_intermediate=True depth path) or 'public-default' (their default path, which "
                         "marks SMALL depth changes); on a public folder every axis is the scripts' number")
-    g.add_argument("--xi", type=float, nargs="+", default=[0.3, 0.5, 0.7, 0.9], metavar="XI",
-                   help="acc_seg thresholds to report (0.3 is s_sem; default 0.3 0.5 0.7 0.9)")
+    g.add_argument("--xi", action=ListAction, item_type=float, default=None, metavar="XI",
+                   help="acc_seg threshold to report; repeat the flag or give a comma list (0.3 is s_sem and "
+                        "always reported; default 0.3,0.5,0.7,0.9)")
     g.add_argument("--depth", choices=["expected", "median"], default=None,
                    help="rendered depth used for the geometric axis (default: the bundle's, else expected)")
     g.add_argument("--antialiased", action="store_true",
                    help="render every splat scene in the antialiased mode (scenes trained with gsplat "
                         "rasterize_mode='antialiased', INRIA antialiasing=True or Mip-Splatting); per source: "
                         "antialiased = true in scene.toml")
-    g.add_argument("--views", nargs="+", metavar="PATTERN", default=None,
-                   help="score only views whose name matches one of these glob patterns")
+    add_views_option(g)
     g.add_argument("--lpips", metavar="ONNX", default=None, help="LPIPS ONNX model (else LPIPS is not computed)")
     g.add_argument("--no-boundary", action="store_true", help="skip the mask erosion/dilation sweep")
     g.add_argument("--no-pictures", action="store_true", help="skip per-view contact sheets")
@@ -70,8 +72,22 @@ def register(sub) -> None:
                     "and write results.json, results.csv, tables.md/.tex, pictures and report.html to --out. "
                     "A killed run resumes where it stopped.",
     )
-    p.add_argument("bundles", nargs="+", metavar="BUNDLE", help="scene bundle folders (with scene.toml)")
+    p.add_argument("bundles", nargs="*", metavar="BUNDLE",
+                   help="scene bundle folders (scene.toml or the public Remove360 layout), or METHOD=FOLDER: "
+                        "public-layout folders of one scene, one per method, grouped into one scene by folder "
+                        "name (e.g. GC=runs/gc/bedroom_table AF=runs/af/bedroom_table)")
+    p.add_argument("--benchmark", metavar="ROOT", default=None,
+                   help="a benchmark root ROOT/<method>/<scene>/ (public-layout folders or bundles): every "
+                        "scene with the methods that have it")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    g = p.add_argument_group("inputs")
+    g.add_argument("--prompt", default=None,
+                   help="category prompt (replaces the bundles'; Remove360 folders: instead of prompt.txt)")
+    g.add_argument("--method-name", default=None, metavar="NAME",
+                   help="name of a plain Remove360 folder's method (default: 'after')")
+    g.add_argument("--scene-name", default=None, metavar="NAME",
+                   help="scene name of the METHOD=FOLDER folders (default: the folder name), or of the one "
+                        "bundle given")
     add_scoring_options(p)
     p.set_defaults(func=run)
 
@@ -80,11 +96,12 @@ def options_from_args(args):
     from ..pipeline import EvaluateOptions
     from ..errors import InputError
 
-    for x in args.xi:
+    xis = args.xi or DEFAULT_XIS
+    for x in xis:
         if not 0.0 < x <= 1.0:
             raise InputError(f"--xi values must lie in (0, 1], got {x}")
     return EvaluateOptions(
-        xis=tuple(sorted(set(args.xi) | {0.3})),
+        xis=tuple(sorted(set(xis) | {0.3})),
         compat=args.compat,
         reference_free=True if args.reference_free else None,
         depth=args.depth,
@@ -133,15 +150,12 @@ def probes_from_args(args):
     return sem, stru
 
 
-# The documents of one run: written all together or not at all (see util.atomic.all_or_nothing).
-OUTPUT_DOCUMENTS = ("results.json", "results.csv", "tables.md", "tables.tex", "report.html")
-
-
 def score_and_report(bundles, out, args) -> int:
+    """evaluate() (which writes every output under ``out``, all together or not at all), then the
+    summary and where the files are; ``out`` is locked for the run."""
+    from ..util.filehash import memo_file
     from ..util.outdir import open_output_folder
     from ..util.warning_log import collecting
-
-    from ..util.filehash import memo_file
 
     with open_output_folder(out), collecting(), memo_file(Path(out) / ".r360hashes.json"):
         return _score_and_report(bundles, Path(out), args)
@@ -149,33 +163,55 @@ def score_and_report(bundles, out, args) -> int:
 
 def _score_and_report(bundles, out, args) -> int:
     from ..pipeline import evaluate
-    from ..report.outputs import summary_lines, write_outputs
-    from ..util.atomic import all_or_nothing
-    from ..util.warning_log import counts, records
+    from ..report.html import REPORT_HTML
+    from ..report.outputs import summary_lines
+    from ..report.results_io import RESULTS_CSV, RESULTS_JSON
+    from ..report.results_tables import TABLES_MD, TABLES_TEX
 
     sem, stru = probes_from_args(args)
     results = evaluate(bundles, out=out, semantic_probes=sem, structural_probes=stru,
                        options=options_from_args(args), adapter=args.adapter, force=args.force,
                        progress=not args.quiet)
-    results["warnings"] = records()
-    results["warning_counts"] = counts()
-    try:
-        with all_or_nothing([out / name for name in OUTPUT_DOCUMENTS]):
-            paths = write_outputs(results, out)
-    except OSError as e:
-        from ..util.outdir import _reason
-
-        raise InputError(f"cannot write the results ({_reason(e)}): none of {', '.join(OUTPUT_DOCUMENTS)} "
-                         f"was changed; per-view results are cached, rerun to finish", e.filename or out) from None
     for line in summary_lines(results):
         print(line)
-    print(f"\nreport: {paths['html']}")
-    print(f"results: {paths['json']}  ({paths['csv'].name}, {paths['md'].name}, {paths['tex'].name})")
+    print(f"\nreport: {Path(out) / REPORT_HTML}")
+    print(f"results: {Path(out) / RESULTS_JSON}  ({RESULTS_CSV}, {TABLES_MD}, {TABLES_TEX})")
     return 0
+
+
+def bundles_from_args(args) -> list:
+    """The scenes the command line names: plain bundles, METHOD=FOLDER groups, and a --benchmark root."""
+    from dataclasses import replace
+
+    from ..bundle import group_pairs, load_benchmark, load_bundle, parse_method_folders
+    from ..errors import InputError
+
+    plain, pairs = parse_method_folders(args.bundles)
+    if not plain and not pairs and not args.benchmark:
+        raise InputError("nothing to score: give BUNDLE folders, METHOD=FOLDER pairs or --benchmark ROOT")
+    if args.scene_name and not pairs and len(plain) != 1:
+        raise InputError("--scene-name names the scene of METHOD=FOLDER folders, or of one bundle")
+    if args.scene_name is not None:
+        from ..bundle.load import _bad_file_name
+
+        reason = _bad_file_name(args.scene_name)
+        if reason:
+            raise InputError(f"--scene-name {args.scene_name!r} {reason} (it names output folders)")
+    views = list(args.views) if args.views else None  # validated as `check --views` does
+    bundles = [load_bundle(p, views=views, prompt=args.prompt, method_name=args.method_name) for p in plain]
+    if args.scene_name and not pairs:
+        bundles = [replace(bundles[0], name=args.scene_name)]
+    bundles += group_pairs(pairs, scene_name=args.scene_name, prompt=args.prompt)
+    if args.benchmark:
+        found, notes = load_benchmark(args.benchmark, prompt=args.prompt)
+        for note in notes:
+            print(f"note: {note}")
+        bundles += found
+    return bundles
 
 
 def run(args) -> int:
     from ..util.outdir import check_output_folder
 
     out = check_output_folder(args.out)  # before any work
-    return score_and_report([Path(b) for b in args.bundles], out, args)
+    return score_and_report(bundles_from_args(args), out, args)

@@ -12,7 +12,7 @@ from ..errors import R360Error
 
 #: Modules of the ``viewer`` extra.
 VIEWER_MODULES = ("glfw", "imgui_bundle", "rendercanvas")
-INSTALL_HINT = "pip install 'r360gpu[viewer]'"
+INSTALL_HINT = "pip install -e '.[viewer]' (from a checkout)"
 
 
 class ViewerUnavailableError(R360Error):
@@ -33,9 +33,13 @@ def _add_arguments(p) -> None:
         add_arguments = None
     if add_arguments is not None:
         add_arguments(p)
-        return
-    p.add_argument("bundle", help="scene bundle folder")
-    p.add_argument("--results", metavar="PATH", default=None, help="results.json of 'r360gpu score'")
+    else:
+        p.add_argument("bundle", help="scene bundle folder")
+        p.add_argument("--results", metavar="PATH", default=None, help="results.json of 'r360gpu score'")
+    p.add_argument("--prompt", default=None,
+                   help="category prompt (replaces the bundle's; Remove360 folders: instead of prompt.txt)")
+    p.add_argument("--method-name", default=None, metavar="NAME",
+                   help="name of a Remove360 folder's method (default: 'after')")
 
 
 def register(subparsers) -> None:
@@ -59,4 +63,9 @@ def run(args) -> int:
     except ImportError as e:
         raise ViewerUnavailableError(f"cannot import the viewer package ({e}); install r360gpu with the viewer "
                                      f"extra: {INSTALL_HINT}") from None
+    if args.prompt is not None or args.method_name is not None:
+        # Loaded here with the overrides; the viewer takes a loaded Bundle as it is (load_bundle passes it on).
+        from ..bundle import load_bundle
+
+        args.bundle = load_bundle(args.bundle, prompt=args.prompt, method_name=args.method_name)
     return launch(args)

@@ -34,8 +34,10 @@ def evaluate(
         scenes built from in-memory objects with
         :func:`~r360gpu.bundle.scene_from_objects` (Gaussians, or renders and
         depths already on the device).
-    out: output folder for results.json, tables, pictures and report.html
-        (None: nothing is written and nothing is cached).
+    out: output folder: results.json, results.csv, tables.md/.tex, pictures,
+        plots and report.html are written there, as ``r360gpu score`` does,
+        and the per-view cache is kept there (None: nothing is written and
+        nothing is cached).
     semantic_probes, structural_probes: lists of probes (default: the
         weight-free built-ins).  With several probes per axis the axes use the
         "most alarming" reading per view; each probe's own axes are kept.
@@ -64,17 +66,18 @@ def evaluate(
     names = [b.name for b in loaded]
     if len(set(names)) != len(names):
         raise InputError(f"two bundles share a scene name: {names}")
+    for line in missing_methods(loaded):
+        log(f"note: {line}")
     out = Path(out) if out is not None else None
     cache = RunCache(out, force=force)
-    sink = PictureSink(out, opts.pictures)
+    sink = PictureSink(out, opts.pictures, ctx=ctx)
     with warning_log.collecting():
-        return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, progress, log)
+        return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log)
 
 
-def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, progress, log) -> dict:
+def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log) -> dict:
     from ..aggregate.pooling import aggregate_results
 
-    methods = list(loaded[0].methods)
     timer = Timer()
     warnings = WarningLog()
     results = {
@@ -89,9 +92,6 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
     t_start = time.perf_counter()
     n_views_done = 0
     for bundle in loaded:
-        if list(bundle.methods) != methods:
-            log(f"note: scene {bundle.name} has methods {list(bundle.methods)}; "
-                f"cross-scene tables need the same methods everywhere ({methods})")
         with warning_log.where(scene=bundle.name):
             run = SceneRun(bundle, opts, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
                            warnings=warnings)
@@ -111,7 +111,23 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
                          "views": n_views_done}
     aggregate_results(results, n_boot=opts.n_boot, n_perm=opts.n_perm, seed=opts.seed)
     results["warnings"], results["warning_counts"] = warning_log.records(), warning_log.counts()
+    if out is not None:
+        from ..report.outputs import write_run_outputs
+
+        write_run_outputs(results, out)
     return results
+
+
+def missing_methods(bundles) -> list[str]:
+    """One line per scene that lacks some of the methods the other scenes have."""
+    every = list(dict.fromkeys(m for b in bundles for m in b.methods))
+    lines = []
+    for b in bundles:
+        gone = [m for m in every if m not in b.methods]
+        if gone:
+            lines.append(f"scene {b.name} has no method {', '.join(gone)}; the cross-scene tables use the "
+                         f"methods every scene has")
+    return lines
 
 
 def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool) -> dict:
@@ -122,7 +138,7 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
 
     bundle, opts = run.bundle, run.opts
     view_cache = cache.views(bundle.name, {
-        "bundle": fingerprint(bundle, [run.pre, run.reference, *run.methods.values()]),
+        "bundle": fingerprint(bundle, [*run.pres.values(), run.reference, *run.methods.values()]),
         "options": opts.scoring_key(), "probes": run.probes_desc, "mode": run.mode, "depth": run.depth_mode,
         "lpips": run.lpips.describe() if run.lpips else None})
     scored = [*bundle.methods, *run.controls.values()]
@@ -177,8 +193,6 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
 
 
 def _progress(views, name, enabled):
-    if not enabled:
-        return views
-    from tqdm import tqdm
+    from ..util.progress import progress
 
-    return tqdm(views, desc=f"scoring {name}", unit="view", dynamic_ncols=True, leave=True)
+    return progress(views, desc=f"scoring {name}", unit="view", enabled=enabled)

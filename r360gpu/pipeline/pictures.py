@@ -11,9 +11,10 @@ from pathlib import Path
 class PictureSink:
     """Writes per-(method, view) contact sheets under ``out/pictures`` (does nothing when disabled)."""
 
-    def __init__(self, out: Path | None, enabled: bool):
+    def __init__(self, out: Path | None, enabled: bool, *, ctx=None):
         self.out = out
         self.enabled = out is not None and enabled
+        self.ctx = ctx  # the run's GPU context: depth on a caller's device is read back through it
 
     def method_view(self, scene: str, method: str, view: str, *, pre, post, ref, mask, geo, compat: bool,
                     semantic, structural, record: dict | None = None) -> str | None:
@@ -32,7 +33,7 @@ class PictureSink:
 
         delta = threshold = changed = None
         if geo is not None:
-            delta = depth_delta(host_depth(pre.depth), host_depth(post.depth))
+            delta = depth_delta(host_depth(pre.depth, self.ctx), host_depth(post.depth, self.ctx))
             changed, threshold = geo.changed, geo.threshold
             if compat:  # the heat map then shows the 8-bit gray levels the threshold applies to
                 delta = compat_quantise(delta)

@@ -51,14 +51,48 @@ class WarningLog:
         warning_log.warn(message, file=file, scene=scene, method=method, view=view)
 
 
-def select_views(names: list[str], patterns) -> list[str]:
-    """The views whose name matches one of the glob patterns (all without patterns)."""
+def select_views(names: list[str], patterns, where=None) -> list[str]:
+    """The views whose name matches one of the glob patterns (all without patterns).
+
+    As ``check --views`` does (bundle.load), every pattern must select
+    something: a plain name that is not an evaluation view (no mask, no
+    camera) or a glob that matches none is an InputError naming ``where``.
+    """
     if not patterns:
         return list(names)
-    out = [n for n in names if any(fnmatch.fnmatchcase(n, p) for p in patterns)]
-    if not out:
-        raise InputError(f"no view matches {list(patterns)} (views are named like {names[:3]})")
-    return out
+    for p in patterns:
+        if not any(fnmatch.fnmatchcase(n, p) for n in names):
+            what = "matches no evaluation view" if any(c in p for c in "*?[") else "is not an evaluation view (no mask?)"
+            raise InputError(f"--views {p!r} {what}; views are named like {names[:3]}", where)
+    return [n for n in names if any(fnmatch.fnmatchcase(n, p) for p in patterns)]
+
+
+def open_pres(bundle, src) -> tuple[dict, dict]:
+    """The scene's pre sources by name and the pre each method uses: ``({name: source}, {method: name})``.
+
+    "pre" is the scene's default, shared by every method without its own; a
+    method's own pre (``bundle.method_pres``) is a separate source named
+    ``pre/<method>``.  Equal specs (or the same object) are opened once and
+    shared, so no view is rendered twice.
+    """
+    from ..bundle.model import SourceSpec, pre_name
+
+    def key(spec):
+        return spec if isinstance(spec, SourceSpec) else id(spec)
+
+    pres = {"pre": src(bundle.pre)}
+    names = {key(bundle.pre): "pre"}
+    pre_of = {}
+    for m in bundle.methods:
+        spec = (getattr(bundle, "method_pres", None) or {}).get(m)
+        if spec is None:
+            pre_of[m] = "pre"
+            continue
+        if key(spec) not in names:
+            names[key(spec)] = pre_name(m)
+            pres[pre_name(m)] = src(spec)
+        pre_of[m] = names[key(spec)]
+    return pres, pre_of
 
 
 class SceneRun:
@@ -70,7 +104,7 @@ class SceneRun:
 
         self.bundle, self.opts, self.ctx = bundle, opts, ctx
         self.timer, self.warnings = timer, warnings
-        self.views = select_views(bundle.views, opts.views)
+        self.views = select_views(bundle.views, opts.views, getattr(bundle, "config", None) or bundle.root)
         self.depth_mode = opts.depth or bundle.options.depth
         ref_free = bundle.reference is None or (opts.reference_free if opts.reference_free is not None
                                                 else bundle.options.reference_free)
@@ -80,10 +114,9 @@ class SceneRun:
         def src(spec):
             return open_source(spec, ctx=ctx, background=bundle.options.background, depth=self.depth_mode)
 
-        self.pres = {"pre": src(bundle.pre)}
+        self.pres, self.pre_of = open_pres(bundle, src)
         self.reference = src(bundle.reference) if bundle.reference else None
         self.methods = {m: src(s) for m, s in bundle.methods.items()}
-        self.pre_of = {m: "pre" for m in bundle.methods}
         # The controls, scored like methods but never ranked: {control: source
         # name}.  Their cells are cached under the source's name, which no
         # method may take (bundle.model.RESERVED_METHOD_NAMES).
@@ -158,9 +191,13 @@ class SceneRun:
         self.timer.add("fit probes", t0)
 
     def describe_sources(self) -> dict:
-        return {"pre": self.pre.describe(),
-                "reference": self.reference.describe() if self.reference else None,
-                "methods": {m: s.describe() for m, s in self.methods.items()}}
+        out = {"pre": self.pre.describe(),
+               "reference": self.reference.describe() if self.reference else None,
+               "methods": {m: s.describe() for m, s in self.methods.items()}}
+        own = {m: self.pres[n].describe() for m, n in self.pre_of.items() if n != "pre"}
+        if own:
+            out["method_pres"] = own
+        return out
 
     def release(self) -> None:
         for s in [*self.pres.values(), self.reference, *self.methods.values()]:

@@ -121,8 +121,11 @@ def measure_method(run, method: str, view: str, mask, controls: Controls, post, 
 
         is_method = method in run.bundle.methods  # else a control: the "pre" or "reference" source
         source = run.bundle.methods[method] if is_method else getattr(run.bundle, method, None)
+        from ..render.sources import host_depth
+
+        d_pre, d_post = host_depth(pre.depth, ctx), host_depth(post.depth, ctx)  # read on the run's own device
         depth_checks.annotate(record, depth_checks.check_view(
-            run.bundle.name, method, view, pre.depth, post.depth, mask, source=getattr(source, "path", None),
+            run.bundle.name, method, view, d_pre, d_post, mask, source=getattr(source, "path", None),
             label=None if is_method else f"[{method}]"))
     boundary = None
     if boundary_sweep and opts.boundary and run.sem and run.stru:

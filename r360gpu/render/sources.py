@@ -106,16 +106,37 @@ class DeviceViewsSource:
     ``depth`` a :class:`~r360gpu.kernels.depth_change.DeviceDepth` or a
     float32 array.  Depth stays on the device: the geometric axis reads it
     there.  RGB comes to the host, because the probes run on the CPU.
+
+    ``ctx``: the context of the device holding the buffers.  Without it, the
+    source takes the context of the run it is scored in
+    (:func:`r360gpu.evaluate` binds its own, e.g. the one around
+    ``device=``), so it need not be given twice.
     """
 
     kind = "device"
 
     def __init__(self, views, *, ctx=None, name: str = "device views"):
-        from ..gpu import get_context
-
         self.views = dict(views)
-        self.ctx = ctx or get_context()
+        self._ctx = ctx
         self.name = name
+
+    @property
+    def ctx(self):
+        if self._ctx is None:
+            from ..gpu import get_context
+
+            self._ctx = get_context()
+        return self._ctx
+
+    def bind(self, ctx) -> None:
+        """Use ``ctx`` (the run's context) unless one was given; refuse a context on another device."""
+        if ctx is None:
+            return
+        if self._ctx is None:
+            self._ctx = ctx
+        elif self._ctx.device is not ctx.device:
+            raise InputError(f"{self.name}: its buffers' context is on another device than the run's; "
+                             f"pass the same device (or ctx) to DeviceViewsSource and evaluate()")
 
     def images(self, view: str, camera=None) -> ViewImages:
         from ..kernels.depth_change import DeviceDepth
@@ -165,6 +186,8 @@ def open_source(spec, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "exp
     if isinstance(spec, Gaussians):
         return SceneSource(spec, ctx=ctx, background=background, depth=depth)
     if hasattr(spec, "images") and hasattr(spec, "describe"):
+        if hasattr(spec, "bind"):
+            spec.bind(ctx)
         return spec
     if spec.kind == "scene":
         settings = getattr(spec, "render", None)

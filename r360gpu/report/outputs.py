@@ -30,6 +30,26 @@ def write_outputs(results: dict, out) -> dict[str, Path]:
     return {"json": js, "csv": csv, "md": md, "tex": tex, "html": html}
 
 
+# The documents of one run: written all together or not at all (see util.atomic.all_or_nothing).
+OUTPUT_DOCUMENTS = ("results.json", "results.csv", "tables.md", "tables.tex", "report.html")
+
+
+def write_run_outputs(results: dict, out) -> dict[str, Path]:
+    """:func:`write_outputs`, the documents replaced all together or not at all; a write
+    error (disk full, read-only) is an InputError naming the file, with nothing changed."""
+    from ..errors import InputError
+    from ..util.atomic import all_or_nothing
+    from ..util.outdir import _reason
+
+    out = Path(out)
+    try:
+        with all_or_nothing([out / name for name in OUTPUT_DOCUMENTS]):
+            return write_outputs(results, out)
+    except OSError as e:
+        raise InputError(f"cannot write the results ({_reason(e)}): none of {', '.join(OUTPUT_DOCUMENTS)} "
+                         f"was changed; per-view results are cached, rerun to finish", e.filename or out) from None
+
+
 def summary_lines(results: dict) -> list[str]:
     """A short plain-text summary for the terminal: overall axes, RQS and AvgRank per method."""
     agg = results.get("aggregate") or {}

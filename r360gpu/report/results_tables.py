@@ -254,7 +254,10 @@ def iou_table(results: dict) -> Table:
         header=[Cell("Scene")] + [Cell(m) for m in methods],
         rows=rows,
         notes=("Means over the scored views of each scene. The largest and second-largest drop per scene "
-               "are emphasised.",),
+               "are emphasised."
+               + (" mIoU_pre of a method with its own pre-removal renders is measured on them."
+                  if any((sc.get("sources") or {}).get("method_pres") for sc in (results.get("scenes") or {}).values())
+                  else ""),),
     )
 
 
@@ -344,7 +347,7 @@ def build_results_tables(results: dict) -> tuple[list[Table], list[str]]:
     association, ξ sweep, boundary sweep.
     """
     tables: list[Table] = [main_table(results)]
-    notes: list[str] = []
+    notes: list[str] = list(results.get("notes") or [])  # e.g. which methods the cross-scene tables leave out
     agg = results.get("aggregate")
     agg_tables: dict[str, Table] = {}
     if agg:

@@ -11,6 +11,7 @@ One bundle folder per scene::
         pre.ply                 original reconstruction (INRIA 3DGS .ply)
         reference.ply           the scene without the target (hidden background present)
         methods/<method>.ply    one per simulated method (see r360gpu.synthetic.methods)
+        generated.json          (generate_benchmark) the generator's parameters and every file's SHA-256
 
 Every file is written atomically; ``scene.toml`` is written last (and
 removed first when a bundle is regenerated), so a folder holding one is
@@ -20,8 +21,10 @@ boundary pixels.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import sys
 import zlib
 from pathlib import Path
 from typing import Callable, Sequence
@@ -44,6 +47,9 @@ SCENES: dict[str, Callable[..., SyntheticScene]] = {"room": make_room, "garden":
 CAMERA_FORMATS = ("colmap", "transforms")
 #: Marker file of a synthetic bundle (a folder holding it may be overwritten).
 MARKER = "synthetic.json"
+#: Written after everything else: the generator's parameters and each file's size and SHA-256, so an
+#: unchanged bundle is reused instead of regenerated (:func:`generate_benchmark`).
+STAMP = "generated.json"
 
 
 def _rng(*keys) -> np.random.Generator:
@@ -146,6 +152,7 @@ def _prepare(folder: Path) -> None:
                          "refusing to overwrite it", folder)
     folder.mkdir(parents=True, exist_ok=True)
     # Gone first, written last: a half-regenerated folder is never taken for a bundle.
+    (folder / STAMP).unlink(missing_ok=True)
     (folder / "scene.toml").unlink(missing_ok=True)
 
 
@@ -188,7 +195,7 @@ def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int 
 
     steps = ["masks", "cameras", "pre", "reference", *methods]
     bar = None
-    if progress:
+    if progress and sys.stderr.isatty():  # (a redrawn bar is noise in a log; the masks report their own lines)
         from tqdm import tqdm
 
         bar = tqdm(total=len(steps), desc=scene.name, unit="file", leave=False)
@@ -250,12 +257,17 @@ def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int 
 def generate_benchmark(out_dir: str | os.PathLike, *, seed: int = 0, n_views: int = 20, width: int = 480,
                        height: int = 360, scenes: Sequence[str] = ("room", "garden"), detail: float = 1.0,
                        methods: Sequence[str] | None = None, camera_format: str = "colmap", ctx=None,
-                       progress: bool = False) -> list[Path]:
+                       progress: bool = False, reuse: bool = False, log=None) -> list[Path]:
     """Generate the built-in synthetic benchmark: one bundle per scene under ``out_dir``.
 
     Returns the bundle folders (``out_dir / scene``) in the order of
     ``scenes``.  See :func:`make_scene` for seed, n_views, width, height and
     detail, :func:`write_bundle` for methods, camera_format and ctx.
+    reuse: keep a bundle generated earlier with the same parameters and
+    r360gpu version whose files are intact (:func:`stamp_matches`) instead of
+    writing it again; its files (and modification times) stay untouched, so
+    a scoring cache keyed on them stays valid.  log: print-like, told which
+    bundles were reused.
     """
     scenes = list(scenes)
     unknown = [s for s in scenes if s not in SCENES]
@@ -270,7 +282,56 @@ def generate_benchmark(out_dir: str | os.PathLike, *, seed: int = 0, n_views: in
         raise InputError("exists and is not a folder", out)
     folders = []
     for name in scenes:
+        params = {"generator": "r360gpu.synthetic", "r360gpu_version": __version__, "scene": name,
+                  "seed": int(seed), "n_views": int(n_views), "width": int(width), "height": int(height),
+                  "detail": float(detail), "methods": list(METHODS) if methods is None else list(methods),
+                  "camera_format": camera_format}
+        folder = out / name
+        if reuse and stamp_matches(folder, params):
+            if log is not None:
+                log(f"  {name}: unchanged since it was generated, reused")
+            folders.append(folder)
+            continue
         scene = make_scene(name, seed=seed, n_views=n_views, width=width, height=height, detail=detail)
-        folders.append(write_bundle(scene, out / name, seed=seed, methods=methods, camera_format=camera_format,
+        folders.append(write_bundle(scene, folder, seed=seed, methods=methods, camera_format=camera_format,
                                     ctx=ctx, progress=progress))
+        _write_stamp(folder, params)
     return folders
+
+
+def _file_digests(folder: Path) -> dict:
+    out = {}
+    for p in sorted(folder.rglob("*")):
+        if p.is_file() and p.name != STAMP:
+            h = hashlib.sha256()
+            with open(p, "rb") as f:
+                for block in iter(lambda: f.read(1 << 20), b""):
+                    h.update(block)
+            out[p.relative_to(folder).as_posix()] = [p.stat().st_size, h.hexdigest()]
+    return out
+
+
+def _write_stamp(folder: Path, params: dict) -> None:
+    write_text(folder / STAMP, json.dumps({"params": params, "files": _file_digests(folder)}, indent=1) + "\n")
+
+
+def stamp_matches(folder: str | os.PathLike, params: dict) -> bool:
+    """True when ``folder`` was generated with ``params`` (version included) and every file is as written:
+    the same set of files, each with its recorded size and SHA-256."""
+    folder = Path(folder)
+    try:
+        stamp = json.loads((folder / STAMP).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    if not isinstance(stamp, dict) or stamp.get("params") != params:
+        return False
+    files = stamp.get("files")
+    if not isinstance(files, dict):
+        return False
+    present = sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file() and p.name != STAMP)
+    if present != sorted(files):  # quick check before hashing
+        return False
+    for rel, (size, _) in files.items():
+        if (folder / rel).stat().st_size != size:
+            return False
+    return _file_digests(folder) == files

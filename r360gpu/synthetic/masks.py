@@ -35,9 +35,9 @@ def target_masks(scene: SyntheticScene, *, ctx=None, progress: bool = False) -> 
     background = Renderer(scene.background, ctx=target.ctx)
     cams = scene.cameras
     if progress:
-        from tqdm import tqdm
+        from ..util.progress import progress as report
 
-        cams = tqdm(cams, desc=f"{scene.name}: masks", unit="view", leave=False)
+        cams = report(cams, desc=f"{scene.name}: masks", unit="view")
     masks = {}
     try:
         for cam in cams:

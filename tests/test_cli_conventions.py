@@ -1,0 +1,160 @@
+"""Command-line conventions: list flags, bare r360gpu, progress off a terminal, demo reuse, ./r360 from elsewhere."""
+from __future__ import annotations
+
+import glob
+import hashlib
+import io
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from r360gpu.cli import build_parser, main
+from r360gpu.util.progress import progress
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def test_bare_command_prints_help_and_succeeds(capsys):
+    assert main([]) == 0
+    assert "usage: r360gpu" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("command", ["score", "check"])
+def test_views_is_one_repeatable_flag_with_comma_lists(command):
+    extra = ["--out", "o"] if command == "score" else []
+    args = build_parser().parse_args([command, "--views", "a*", "B", *extra])
+    assert args.views == ["a*"] and args.bundles == ["B"]  # the bundle is not swallowed
+    args = build_parser().parse_args([command, "--views", "a*,b", "--views", "c", "B", *extra])
+    assert args.views == ["a*", "b", "c"]
+
+
+def test_xi_is_a_repeatable_flag_with_comma_lists(capsys):
+    from r360gpu.cli.score import options_from_args
+
+    p = build_parser()
+    args = p.parse_args(["score", "--xi", "0.5,0.7", "--xi", "0.9", "B", "--out", "o"])
+    assert args.xi == [0.5, 0.7, 0.9] and args.bundles == ["B"]
+    assert options_from_args(args).xis == (0.3, 0.5, 0.7, 0.9)
+    assert options_from_args(p.parse_args(["score", "B", "--out", "o"])).xis == (0.3, 0.5, 0.7, 0.9)
+    with pytest.raises(SystemExit):
+        p.parse_args(["score", "--xi", "high", "B", "--out", "o"])
+    assert "invalid value 'high'" in capsys.readouterr().err
+    # demo shares the scoring options
+    assert p.parse_args(["demo", "--xi", "0.5", "--views", "view_00*"]).views == ["view_00*"]
+
+
+class _Clock:
+    def __init__(self, step):
+        self.t, self.step = 0.0, step
+
+    def __call__(self):
+        self.t += self.step
+        return self.t
+
+
+def test_progress_prints_plain_lines_when_not_a_terminal():
+    out = io.StringIO()  # not a terminal
+    items = list(progress(range(100), desc="scoring room", stream=out, clock=_Clock(0.01)))
+    assert items == list(range(100))
+    lines = out.getvalue().splitlines()
+    assert len(lines) == 10 and "\r" not in out.getvalue()  # every 10%
+    assert lines[-1].startswith("scoring room: 100/100 views (100%)")
+    out = io.StringIO()
+    list(progress(range(5), desc="slow", stream=out, clock=_Clock(6.0)))  # every ~10 s
+    assert [line.split(":")[1].split()[0] for line in out.getvalue().splitlines()] == ["1/5", "2/5", "3/5",
+                                                                                        "4/5", "5/5"]
+    out = io.StringIO()
+    list(progress(range(1000), desc="slow", stream=out, clock=_Clock(0.001), every_s=10.0))
+    assert len(out.getvalue().splitlines()) == 10
+    assert list(progress([1, 2], desc="x", enabled=False, stream=out)) == [1, 2]
+
+
+def test_progress_bar_on_a_terminal():
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    out = Tty()
+    list(progress(range(3), desc="bar", stream=out))
+    assert "\r" in out.getvalue() and "3/3" in out.getvalue()
+
+
+def test_generated_benchmark_is_reused_when_unchanged(tmp_path, ctx):
+    from r360gpu.synthetic import generate_benchmark
+    from r360gpu.synthetic.bundle import STAMP
+
+    kw = dict(seed=0, n_views=2, width=48, height=32, detail=0.1, scenes=("room",), methods=["clean"], ctx=ctx)
+    folder = generate_benchmark(tmp_path, reuse=True, **kw)[0]
+    files = sorted(p for p in folder.rglob("*") if p.is_file())
+    mtimes = {p: p.stat().st_mtime_ns for p in files}
+    said = []
+    assert generate_benchmark(tmp_path, reuse=True, log=said.append, **kw) == [folder]
+    assert said and "reused" in said[0]
+    assert {p: p.stat().st_mtime_ns for p in files} == mtimes  # nothing rewritten
+    # a damaged file (same size) is noticed and the bundle regenerated
+    ply = folder / "pre.ply"
+    data = bytearray(ply.read_bytes())
+    data[-1] ^= 0xFF
+    ply.write_bytes(bytes(data))
+    said.clear()
+    generate_benchmark(tmp_path, reuse=True, log=said.append, **kw)
+    assert not said and ply.stat().st_mtime_ns != mtimes[ply] and (folder / STAMP).is_file()
+    # other parameters: regenerated; without reuse: regenerated
+    said.clear()
+    generate_benchmark(tmp_path, reuse=True, log=said.append, **{**kw, "n_views": 3})
+    assert not said and len(list((folder / "masks").glob("*.png"))) == 3
+    before = (folder / "scene.toml").stat().st_mtime_ns
+    generate_benchmark(tmp_path, reuse=False, **{**kw, "n_views": 3})
+    assert (folder / "scene.toml").stat().st_mtime_ns != before
+
+
+def _has_vulkan_driver() -> bool:
+    return bool(glob.glob("/usr/share/vulkan/icd.d/*.json") or glob.glob("/etc/vulkan/icd.d/*.json"))
+
+
+@pytest.mark.skipif(not _has_vulkan_driver() or shutil.which("bash") is None,
+                    reason="./r360 would try to install the Vulkan driver")
+def test_r360_keeps_the_callers_working_directory(tmp_path, ctx):
+    """./r360 run from another folder: relative paths are the caller's.  The set-up is skipped by a venv
+    that is already current (R360_VENV pointing at this interpreter, with the stamp ./r360 writes)."""
+    from r360gpu.synthetic import generate_benchmark
+
+    venv = tmp_path / "venv"
+    (venv / "bin").mkdir(parents=True)
+    (venv / "bin" / "python").symlink_to(sys.executable)
+    (venv / "bin" / "r360gpu").write_text(f'#!/bin/sh\nexec "{sys.executable}" -m r360gpu "$@"\n')
+    (venv / "bin" / "r360gpu").chmod(0o755)
+    stamp = hashlib.sha256((REPO / "pyproject.toml").read_bytes()).hexdigest()[:16]
+    (venv / ".r360-installed").write_text(stamp + "\n")
+    work = tmp_path / "elsewhere"
+    generate_benchmark(work / "mine", n_views=2, width=48, height=32, detail=0.1, scenes=("room",),
+                       methods=["clean"], ctx=ctx)
+    env = {**os.environ, "R360_VENV": str(venv), "PYTHONPATH": str(REPO)}
+    r = subprocess.run([str(REPO / "r360"), "check", "mine/room"], cwd=work, env=env, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "mine/room: OK" in r.stdout
+
+
+def test_view_takes_prompt_and_method_name(tmp_path, monkeypatch, ctx):
+    """`view` loads a public-layout folder with --prompt / --method-name and hands the viewer the Bundle."""
+    pytest.importorskip("viewer.launch")
+    import viewer.launch
+
+    from r360gpu.bundle import Bundle
+    from public_benchmark import make_public_benchmark
+
+    root = make_public_benchmark(tmp_path, scenes=("room",), n_views=2, width=48, height=32, detail=0.1,
+                                 skip=("GC/room", "AF/room"), ctx=ctx)
+    folder = root / "OC" / "room"
+    (folder / "prompt.txt").unlink()
+    seen = []
+    monkeypatch.setattr(viewer.launch, "run", lambda args: seen.append(args.bundle) or 0)
+    monkeypatch.setattr("r360gpu.cli.view.missing_modules", lambda: [])
+    assert main(["view", str(folder), "--prompt", "couch", "--method-name", "OC"]) == 0
+    assert isinstance(seen[0], Bundle) and seen[0].prompt == "couch" and list(seen[0].methods) == ["OC"]
+    assert main(["view", str(folder)]) == 0 and seen[1] == str(folder)  # no override: the viewer loads it

@@ -1,0 +1,112 @@
+"""The README's "Library use" samples, run as written (the code blocks are read from README.md)."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+OPTS = dict(n_boot=200, n_perm=100)
+
+
+def _samples() -> list[str]:
+    text = README.read_text(encoding="utf-8")
+    section = text[text.index("## Library use"):]
+    section = section[:section.index("\n## ", 5)]
+    blocks = re.findall(r"```python\n(.*?)```", section, re.S)
+    return [b for b in blocks if "r360gpu.evaluate(" in b]
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory, ctx):
+    from r360gpu.synthetic import generate_benchmark
+
+    root = tmp_path_factory.mktemp("readme")
+    generate_benchmark(root / "scenes", seed=0, n_views=2, width=96, height=72, detail=0.25,
+                       methods=["clean", "recoloured"], ctx=ctx)
+    return root
+
+
+def test_the_readme_has_both_samples():
+    samples = _samples()
+    assert len(samples) == 2
+    assert "DeviceViewsSource" in samples[1] and "device=my_wgpu_device" in samples[1]
+
+
+def test_bundles_on_disk_sample(scenes, monkeypatch):
+    import r360gpu
+
+    monkeypatch.chdir(scenes)
+    # The sample's own options with the statistics shortened (the sample names xis only).
+    real = r360gpu.EvaluateOptions
+    monkeypatch.setattr(r360gpu, "EvaluateOptions", lambda **kw: real(**{**OPTS, **kw}), raising=False)
+    exec(compile(_samples()[0], "README.md", "exec"), {})
+    for f in ("results.json", "results.csv", "tables.md", "tables.tex", "report.html"):
+        assert (scenes / "out" / f).is_file(), f  # evaluate(out=...) writes what the CLI writes
+    assert any((scenes / "out" / "pictures" / "room").rglob("*.png"))
+
+
+def test_device_sharing_sample(scenes, monkeypatch, ctx):
+    """On a device of its own (not r360gpu's shared one), with DeviceViewsSource made without ctx, pictures
+    written: the two failures of the README's earlier sample."""
+    from r360gpu.bundle import load_bundle
+    from r360gpu.gpu import get_context
+    from r360gpu.io import load_gaussians, load_mask
+    from r360gpu.render import Renderer
+
+    b = load_bundle(scenes / "scenes" / "room")
+    v = b.views[0]
+    adapter = ctx.device.adapter if hasattr(ctx.device, "adapter") else None
+    if adapter is None:
+        import wgpu
+
+        adapter = wgpu.gpu.request_adapter_sync(power_preference="high-performance")
+    my_wgpu_device = adapter.request_device_sync(label="another pipeline")
+    assert my_wgpu_device is not ctx.device
+    theirs = get_context(device=my_wgpu_device)
+    gaussians_pre, gaussians_post = load_gaussians(b.pre.path), load_gaussians(b.methods["recoloured"].path)
+    ns = {
+        "my_wgpu_device": my_wgpu_device,
+        "mask_v0": load_mask(b.masks[v]),
+        "camera_v0": b.cameras[v],
+        "gaussians_pre": gaussians_pre,
+        "gaussians_post": gaussians_post,
+        "pre_render_v0": Renderer(gaussians_pre, ctx=theirs).render_device(b.cameras[v]),
+        "post_render_v0": Renderer(gaussians_post, ctx=theirs).render_device(b.cameras[v]),
+    }
+    import r360gpu
+
+    monkeypatch.chdir(scenes)
+    real_evaluate = r360gpu.evaluate
+    runs = []
+
+    def evaluate(*a, **kw):
+        kw.setdefault("options", r360gpu.EvaluateOptions(**OPTS))
+        runs.append(real_evaluate(*a, progress=False, **kw))
+        return runs[-1]
+
+    monkeypatch.setattr(r360gpu, "evaluate", evaluate, raising=False)
+    exec(compile(_samples()[1], "README.md", "exec"), ns)
+    in_memory, on_device = runs
+    a = in_memory["scenes"]["room"]["methods"]["mine"]["axes"]
+    d = on_device["scenes"]["room"]["methods"]["mine"]["axes"]
+    assert (a["s_sem"], a["s_geo"], a["s_str"]) == (d["s_sem"], d["s_geo"], d["s_str"])
+    assert on_device["scenes"]["room"]["sources"]["pre"]["kind"] == "device"
+    pictures = on_device["scenes"]["room"]["methods"]["mine"]["pictures"]
+    assert pictures and all((scenes / "out-mine" / p).is_file() for p in pictures.values())
+    assert (scenes / "out-mine" / "report.html").is_file()
+
+
+def test_device_views_source_on_another_device_is_refused(ctx):
+    import wgpu
+
+    from r360gpu.errors import InputError
+    from r360gpu.gpu import get_context
+    from r360gpu.render.sources import DeviceViewsSource, open_source
+
+    other = wgpu.gpu.request_adapter_sync(power_preference="high-performance").request_device_sync()
+    src = DeviceViewsSource({}, ctx=get_context(device=other))
+    with pytest.raises(InputError, match="another device"):
+        open_source(src, ctx=ctx)
+    assert open_source(DeviceViewsSource({}), ctx=ctx).ctx is ctx
