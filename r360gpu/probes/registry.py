@@ -8,9 +8,12 @@ Spec syntax: ``KIND:BODY``.
   ``points_per_side=16``, ``pred_iou_thresh=0.9``, ``crop_n_layers=1``,
   ``min_mask_region_area=100``.
 * ``grounded:dino=PATH,tokenizer=PATH,sam-encoder=PATH,sam-decoder=PATH
-  [,device=D][,name=N][,box_threshold=F][,text_threshold=F][,size=I]
-  [,max_size=I][,phrase_match=true|false]`` --
-  :class:`~r360gpu.probes.grounded.GroundedSamProbe` (semantic).
+  [,device=D][,name=N][,box_threshold=F][,text_threshold=F][,resize=S/M|WxH]
+  [,size=I][,max_size=I][,phrase_match=true|false]`` --
+  :class:`~r360gpu.probes.grounded.GroundedSamProbe` (semantic).  tokenizer
+  is a ``tokenizer.json`` or a BERT ``vocab.txt``; ``resize=800/1333``
+  (default: shorter side 800, longer at most 1333, as GroundingDINO) or
+  ``resize=1200x800`` (exactly 1200 wide, 800 high, as common ONNX runtimes).
 * ``gsam2-json:DIRS``, ``png:DIRS`` -- precomputed semantic masks
   (:class:`~r360gpu.probes.precomputed.PrecomputedSemanticProbe`);
   ``sam-json:DIRS`` -- precomputed SAM masks
@@ -43,7 +46,8 @@ PROBE_KINDS = ("sam", "grounded", "gsam2-json", "png", "sam-json")
 
 PROBE_SPEC_HELP = (
     "probe spec KIND:BODY -- sam:encoder=PATH,decoder=PATH[,device=cpu|cuda|directml|coreml|auto][,AMG params]; "
-    "grounded:dino=PATH,tokenizer=PATH,sam-encoder=PATH,sam-decoder=PATH[,box_threshold=0.35,text_threshold=0.25]; "
+    "grounded:dino=PATH,tokenizer=tokenizer.json|vocab.txt,sam-encoder=PATH,sam-decoder=PATH"
+    "[,box_threshold=0.35,text_threshold=0.25,resize=800/1333|1200x800]; "
     "gsam2-json:DIR, png:DIR, sam-json:DIR (DIR with pre/post/ref or before/after sub-folders) "
     "or KIND:pre=DIR,post=DIR[,ref=DIR]"
 )
