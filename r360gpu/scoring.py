@@ -72,10 +72,9 @@ class EvaluateOptions:
 
 def default_probes():
     """The weight-free built-in probes: (semantic list, structural list)."""
-    from .probes.builtin_semantic import BuiltinAppearanceProbe
-    from .probes.builtin_structural import BuiltinStructuralProbe
+    from .probes.registry import default_probes as registry_defaults
 
-    return [BuiltinAppearanceProbe()], [BuiltinStructuralProbe()]
+    return registry_defaults()
 
 
 def _digest(obj) -> str:
@@ -253,7 +252,7 @@ def _evaluate_scene(bundle, opts, ctx, sem_probes, str_probes, probe_cache, cach
 
     # Probes that learn from the scene (the built-in appearance probe) fit on
     # pre renderings of views with a visible target.
-    fitted = [p for p in sem_probes + str_probes if hasattr(p, "fit")]
+    fitted = [p for p in sem_probes + str_probes if getattr(p, "learns_from_scene", False)]
     if fitted:
         t0 = time.perf_counter()
         with_target = [v for v in views if mask_of(v).any()]
