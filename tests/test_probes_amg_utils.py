@@ -391,3 +391,17 @@ def test_sam_logits_linear_ramp_hand_computed():
     centres = (np.arange(64) + 0.5) * 16 - 0.5  # image pixel centres in the 1024 frame
     np.testing.assert_allclose(out[0, 10, 2:-2], centres[2:-2], rtol=1e-5)
     assert math.isclose(float(out[0, 0, 0]), float(out[0, 63, 0]))
+
+
+def test_nms_iou_in_float32_like_torchvision():
+    # IoU exactly 3/10: torchvision computes 0.3f = 0.30000001 > 0.3 and suppresses;
+    # a float64 IoU (0.3, not > 0.3) would keep both boxes.
+    boxes = np.array([[16, 32, 49, 56], [26, 32, 41, 46], [24, 36, 54, 42]], np.float64)
+    iou = au.box_iou(boxes[1:2], boxes[2:3])[0, 0]
+    assert iou == pytest.approx(0.3, abs=1e-12)
+    keep = au.nms(boxes[1:], np.array([0.9, 0.8]), 0.3)
+    assert keep.tolist() == [0]
+    assert au.nms(boxes[1:], np.array([0.9, 0.8]), 0.31).tolist() == [0, 1]
+    # zero-area boxes: 0/0 IoU never suppresses
+    flat = np.array([[5, 5, 5, 9], [5, 5, 5, 9]], np.float64)
+    assert au.nms(flat, np.array([1.0, 1.0]), 0.0).tolist() == [0, 1]

@@ -711,3 +711,67 @@ def test_no_warnings_on_clean_run(sam_pair):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         generate_masks(models, np.zeros((16, 16, 3), np.uint8), AmgParams(points_per_side=1))
+
+
+def test_tokenizer_from_vocab_txt_matches_tokenizer_json(tmp_path, tokenizer_json):
+    from r360gpu.probes.grounded import DinoTokenizer, GroundedSamProbe
+
+    vocab = tmp_path / "vocab.txt"
+    vocab.write_text("\n".join(VOCAB) + "\n", encoding="utf-8")
+    from_json, from_txt = DinoTokenizer(tokenizer_json), DinoTokenizer(vocab)
+    assert (from_json.format, from_txt.format) == ("tokenizer.json", "vocab.txt")
+    for caption in ("red sofa .", "Red Sofas .", "the chair ? red sofa .", "unknown word ."):
+        assert from_txt.encode(caption).tolist() == from_json.encode(caption).tolist()
+    assert from_txt.encode("red sofas .").tolist() == [2, 6, 7, 10, 4, 3]
+    assert from_txt.special_ids == from_json.special_ids == [2, 3, 4, 5]
+    assert from_txt.id_to_token(7) == "sofa" and from_txt.id_to_token(999) == "[UNK]"
+    bad = tmp_path / "broken.json"
+    bad.write_text("{ not json", encoding="utf-8")
+    with pytest.raises(InputError, match="tokenizer.json or a BERT vocab.txt"):
+        DinoTokenizer(bad)
+
+
+def test_grounded_resize_policies(tmp_path, grounded_files):
+    from r360gpu.probes.grounded import GroundedSamProbe, GroundingParams
+
+    image = np.zeros((64, 96, 3), np.uint8)
+    shapes = {}
+    for resize in (None, "800/1333", "600/700", "1200x800", "1200X800"):
+        probe = GroundedSamProbe(*grounded_files, params=GroundingParams(resize=resize))
+        calls = record(probe.dino.model)
+        [pred] = probe.predict([ProbeView("v0", image, "post")], "red sofa")
+        shapes[resize] = calls[0]["img"].shape[2:]
+        expect = np.zeros((64, 96), bool)
+        expect[16:48, 24:72] = True  # boxes are normalised to the image whatever the resize
+        assert pred.count == 1 and _iou(pred.masks[0], expect) > 0.9
+    assert shapes[None] == shapes["800/1333"] == (800, 1200)
+    # 96 / 64 * 600 > 700: shorter side round(700 * 64 / 96) = 467, longer int(467 * 96 / 64) = 700
+    assert shapes["600/700"] == (467, 700)
+    assert shapes["1200x800"] == shapes["1200X800"] == (800, 1200)
+    desc = GroundedSamProbe(*grounded_files, params=GroundingParams(resize="1200x800")).describe()["params"]
+    assert desc["dino_input"] == "exactly 1200x800 (W x H)" and desc["grounding"]["resize"] == "1200x800"
+    for bad in ("800", "0x800", "1333/800", "big", "800x"):
+        with pytest.raises(InputError, match="resize"):
+            GroundingParams(resize=bad)
+
+
+def test_grounded_fixed_resize_must_match_a_fixed_graph(tmp_path, tokenizer_json, sam_pair):
+    from r360gpu.probes.grounded import GroundingDino, GroundingParams
+
+    logits, boxes = _dino_outputs()
+    dino = dino_model(tmp_path / "dino_static.onnx", logits, boxes, image_shape=(1, 3, 48, 64))
+    assert GroundingDino(dino, tokenizer_json, params=GroundingParams(resize="64x48")).input_shape(10, 10) == (48, 64)
+    with pytest.raises(InputError, match="takes exactly 64x48"):
+        GroundingDino(dino, tokenizer_json, params=GroundingParams(resize="1200x800"))
+
+
+def test_grounded_spec_resize_and_vocab(tmp_path, grounded_files):
+    from r360gpu.probes.registry import parse_probe_spec
+
+    dino, _, enc, dec = grounded_files
+    vocab = tmp_path / "vocab.txt"
+    vocab.write_text("\n".join(VOCAB) + "\n", encoding="utf-8")
+    probe = parse_probe_spec(f"grounded:dino={dino},tokenizer={vocab},sam-encoder={enc},sam-decoder={dec},resize=1200x800")
+    assert probe.dino.tokenizer.format == "vocab.txt" and probe.grounding.resize_policy() == ("fixed", 800, 1200)
+    with pytest.raises(InputError, match="resize"):
+        parse_probe_spec(f"grounded:dino={dino},tokenizer={vocab},sam-encoder={enc},sam-decoder={dec},resize=huge")

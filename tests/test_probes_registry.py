@@ -13,6 +13,52 @@ from r360gpu.errors import InputError
 from r360gpu.probes.precomputed import PrecomputedSemanticProbe, PrecomputedStructuralProbe
 from r360gpu.probes.registry import PROBE_KINDS, parse_probe_spec
 
+
+
+def test_builtin_names_defaults_and_axes():
+    from r360gpu.probes.builtin_semantic import BuiltinAppearanceProbe
+    from r360gpu.probes.builtin_structural import BuiltinStructuralProbe
+    from r360gpu.probes.registry import BUILTIN_PROBES, DEFAULT_PROBES, default_probes, probe_for_axis
+    from r360gpu.scoring import default_probes as scoring_defaults
+
+    assert set(BUILTIN_PROBES) == {"builtin-appearance", "builtin-graphseg", "builtin-slic"}
+    for axis, name in DEFAULT_PROBES.items():
+        assert BUILTIN_PROBES[name][0] == axis
+    sem, stru = default_probes()
+    assert [p.name for p in sem] == ["builtin-appearance"] and isinstance(stru[0], BuiltinStructuralProbe)
+    s2, t2 = scoring_defaults()
+    assert s2[0] is not sem[0] and (s2[0].describe(), t2[0].describe()) == (sem[0].describe(), stru[0].describe())
+    assert isinstance(probe_for_axis(" Builtin ", "semantic"), BuiltinAppearanceProbe)
+    assert probe_for_axis("builtin", "structural").describe() == stru[0].describe()
+    slic = probe_for_axis("builtin-slic", "structural")
+    assert slic.describe() != stru[0].describe()
+    with pytest.raises(InputError, match="is a structural probe, not a semantic one"):
+        probe_for_axis("builtin-slic", "semantic")
+    with pytest.raises(InputError, match="is a semantic probe, not a structural one"):
+        probe_for_axis("builtin-appearance", "structural")
+    with pytest.raises(InputError, match="expected KIND"):
+        probe_for_axis("builtin-nothing", "semantic")
+
+
+def test_fit_is_optional_and_flagged():
+    from r360gpu.probes.base import MaskSet, StructuralProbe
+    from r360gpu.probes.registry import builtin_probe
+
+    class Plain(StructuralProbe):
+        name = "plain"
+
+        def params(self):
+            return {}
+
+        def predict(self, views):
+            return [MaskSet.empty(*v.size) for v in views]
+
+    plain = Plain()
+    assert plain.learns_from_scene is False and plain.fit([np.zeros((2, 2, 3))], [np.ones((2, 2), bool)]) is plain
+    assert builtin_probe("builtin-appearance").learns_from_scene is True
+    assert builtin_probe("builtin-graphseg").learns_from_scene is False
+
+
 pytest.importorskip("onnx")
 from onnx_graphs import dino_model, sam_decoder, sam_encoder_nchw, write_tokenizer_json  # noqa: E402
 

@@ -117,31 +117,11 @@ def options_from_args(args):
     )
 
 
-BUILTIN_SPECS = ("builtin", "builtin-appearance", "builtin-graphseg", "builtin-slic")
-
-
 def probe_from_spec(spec: str, axis: str):
     """A probe from a command-line spec; ``builtin`` is the weight-free default of the axis."""
-    from ..errors import InputError
-    from ..probes.registry import parse_probe_spec
+    from ..probes.registry import probe_for_axis
 
-    s = spec.strip().lower()
-    if s in BUILTIN_SPECS:
-        if axis == "semantic":
-            if s not in ("builtin", "builtin-appearance"):
-                raise InputError(f"probe spec {spec!r} is a structural probe, not a semantic one")
-            from ..probes.builtin_semantic import BuiltinAppearanceProbe
-
-            return BuiltinAppearanceProbe()
-        from ..probes.builtin_structural import BuiltinStructuralProbe, StructuralParams
-
-        if s == "builtin-appearance":
-            raise InputError(f"probe spec {spec!r} is a semantic probe, not a structural one")
-        return BuiltinStructuralProbe(StructuralParams.slic() if s == "builtin-slic" else None)
-    probe = parse_probe_spec(spec)
-    if probe.kind != axis:
-        raise InputError(f"probe spec {spec!r} gives a {probe.kind} probe, but --{axis}-probe needs a {axis} one")
-    return probe
+    return probe_for_axis(spec, axis)
 
 
 def probes_from_args(args):

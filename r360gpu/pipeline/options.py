@@ -70,8 +70,7 @@ class EvaluateOptions:
 
 
 def default_probes():
-    """The weight-free built-in probes: (semantic list, structural list)."""
-    from ..probes.builtin_semantic import BuiltinAppearanceProbe
-    from ..probes.builtin_structural import BuiltinStructuralProbe
+    """The weight-free built-in probes: (semantic list, structural list) (see probes.registry)."""
+    from ..probes.registry import default_probes as registry_defaults
 
-    return [BuiltinAppearanceProbe()], [BuiltinStructuralProbe()]
+    return registry_defaults()

@@ -175,7 +175,7 @@ class SceneRun:
     def _fit(self, probes) -> None:
         """Probes that learn from the scene (the built-in appearance probe) fit on
         pre renderings of up to ``fit_views`` views with a visible target."""
-        fitted = [p for p in probes if hasattr(p, "fit")]
+        fitted = [p for p in probes if getattr(p, "learns_from_scene", False)]
         if not fitted:
             return
         t0 = time.perf_counter()

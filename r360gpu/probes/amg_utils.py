@@ -157,23 +157,36 @@ def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> np.ndarr
     Boxes are visited by decreasing score (ties: lower index first, the
     stable sort torchvision's CPU kernel uses); a box is dropped when its IoU
     with an already kept box is strictly greater than ``iou_threshold``.
+    As in torchvision's kernel (SAM passes ``boxes.float()``), the IoU is
+    computed in float32 and compared with the threshold as a double: an IoU
+    of exactly 3/10 becomes 0.3f = 0.30000001 > 0.3 and suppresses.
     """
-    boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
-    scores = np.asarray(scores, np.float64).reshape(-1)
+    boxes = np.asarray(boxes, np.float32).reshape(-1, 4)
+    scores = np.asarray(scores).reshape(-1)
     if len(boxes) != len(scores):
         raise ValueError(f"{len(boxes)} boxes but {len(scores)} scores")
-    order = np.argsort(-scores, kind="stable")
+    order = np.argsort(-scores.astype(np.float64), kind="stable")
+    x0, y0, x1, y1 = (np.ascontiguousarray(boxes[:, i]) for i in range(4))
+    areas = (x1 - x0) * (y1 - y0)
+    zero = np.float32(0)
+    threshold = float(iou_threshold)
+    suppressed = np.zeros(len(order), bool)
     keep: list[int] = []
-    alive = np.ones(len(order), bool)
-    sorted_boxes = boxes[order]
     for pos in range(len(order)):
-        if not alive[pos]:
+        i = int(order[pos])
+        if suppressed[i]:
             continue
-        keep.append(int(order[pos]))
-        rest = np.flatnonzero(alive[pos + 1 :]) + pos + 1
-        if len(rest):
-            iou = box_iou(sorted_boxes[pos : pos + 1], sorted_boxes[rest])[0]
-            alive[rest[iou > iou_threshold]] = False
+        keep.append(i)
+        rest = order[pos + 1 :]
+        rest = rest[~suppressed[rest]]
+        if not len(rest):
+            continue
+        w = np.maximum(zero, np.minimum(x1[i], x1[rest]) - np.maximum(x0[i], x0[rest]))
+        h = np.maximum(zero, np.minimum(y1[i], y1[rest]) - np.maximum(y0[i], y0[rest]))
+        inter = w * h
+        with np.errstate(invalid="ignore", divide="ignore"):
+            iou = inter / (areas[i] + areas[rest] - inter)  # 0/0 = NaN never suppresses
+        suppressed[rest[iou.astype(np.float64) > threshold]] = True
     return np.asarray(keep, np.int64)
 
 

@@ -220,13 +220,23 @@ class Probe(ABC):
     """Common part of every probe.
 
     Subclasses set ``kind`` and implement :meth:`name`, :meth:`params`,
-    :meth:`model_hashes` (default: none) and their ``predict``.  ``cacheable``
+    :meth:`model_hashes` (default: none) and their ``predict``; probes that
+    learn from the scene set ``learns_from_scene`` and override :meth:`fit`.  ``cacheable``
     is False for probes whose output does not follow from the image pixels
     alone (precomputed masks read from files); the cache passes them through.
     """
 
     kind: str = ""
     cacheable: bool = True
+    #: True for probes that learn from the scene (:meth:`fit` must run on the
+    #: pre renderings before :meth:`predict`); scoring fits exactly these.
+    learns_from_scene: bool = False
+
+    def fit(self, images: Sequence, masks: Sequence) -> "Probe":
+        """Learn from the scene: pre renderings (H, W, 3) and their target
+        masks (H, W).  A no-op for probes that do not learn (the default);
+        returns self."""
+        return self
 
     @property
     @abstractmethod

@@ -311,6 +311,8 @@ class BuiltinAppearanceProbe(SemanticProbe):
     once per scene before :meth:`predict`.
     """
 
+    learns_from_scene = True
+
     def __init__(self, params: AppearanceParams | None = None):
         self.config = AppearanceParams() if params is None else params
         self.model: AppearanceModel | None = None

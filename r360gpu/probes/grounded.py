@@ -8,12 +8,15 @@ for the released models) and ``boxes`` (1, Q, 4) normalised (cx, cy, w, h).
 Integer / boolean inputs are cast to the element types the model declares.
 The image is resized (antialiased bilinear) so its shorter side is
 ``size`` = 800 with the longer side at most ``max_size`` = 1333
-(GroundingDINO's ``RandomResize([800], max_size=1333)``) -- or, when the
-graph has a fixed input height and width, to exactly that -- and normalised
-with the ImageNet mean / std.
+(GroundingDINO's ``RandomResize([800], max_size=1333)``), or to a fixed
+W x H with ``resize=1200x800`` (the size common GroundingDINO ONNX runtimes
+use; see :class:`GroundingParams`) -- or, when the graph has a fixed input
+height and width, to exactly that -- and normalised with the ImageNet
+mean / std.
 
 Text: the BERT tokenizer is read from a Hugging Face ``tokenizer.json``
-(bert-base-uncased's) with the optional ``tokenizers`` package.  Caption
+(bert-base-uncased's) or a WordPiece ``vocab.txt`` with the optional
+``tokenizers`` package.  Caption
 rule: the prompt lower-cased and stripped, with " ." appended unless it
 already ends with "." (GroundingDINO appends "."; BERT splits the period off
 either way, so the tokens are the same).  ``position_ids`` and
@@ -22,8 +25,9 @@ either way, so the tokens are the same).  ``position_ids`` and
 :func:`sub_sentence_masks`); sequences longer than ``max_text_len`` = 256
 tokens are truncated.
 
-Detection (GroundingDINO's ``predict``): scores = sigmoid(logits); a query
-is kept when its highest token score is > ``box_threshold`` (0.35); its
+Detection (GroundingDINO's ``predict``): scores = sigmoid(logits) in float32; a query
+is kept when its highest token score is > ``box_threshold`` (0.35, compared in
+float32 as torch does); its
 phrase is the WordPiece decoding of the caption tokens whose score is >
 ``text_threshold`` (0.25) -- [CLS] and positions >= 255 excluded -- with
 periods removed.  No box NMS (as Grounded-SAM-2).
@@ -86,6 +90,13 @@ class GroundingParams:
     size / max_size: image resize target in pixels (ignored for models with a
     fixed input size).  max_text_len: token limit of the text encoder.
     phrase_match: keep only detections whose phrase equals a prompt phrase.
+    resize: the resize policy as text, overriding size / max_size:
+    ``"S/M"`` keeps the aspect ratio, shorter side S, longer side at most M
+    (GroundingDINO's ``RandomResize([800], max_size=1333)`` is ``"800/1333"``,
+    the default); ``"WxH"`` resizes to exactly W x H pixels, aspect not kept,
+    as common GroundingDINO ONNX runtimes do (``"1200x800"``; boxes are
+    normalised to the image either way).  A graph with a fixed input size
+    uses that size, and a fixed ``resize`` must agree with it.
     """
 
     box_threshold: float = 0.35
@@ -94,6 +105,7 @@ class GroundingParams:
     max_size: int = 1333
     max_text_len: int = 256
     phrase_match: bool = True
+    resize: str | None = None
 
     def __post_init__(self) -> None:
         for name in ("box_threshold", "text_threshold"):
@@ -108,6 +120,27 @@ class GroundingParams:
             raise InputError(f"grounded probe: max_size {self.max_size} is below size {self.size}")
         if not isinstance(self.phrase_match, bool):
             raise InputError(f"grounded probe: phrase_match must be true or false, got {self.phrase_match!r}")
+        if self.resize is not None:
+            self.resize_policy()
+
+    def resize_policy(self) -> tuple[str, int, int]:
+        """("aspect", shorter side, longest allowed) or ("fixed", height, width)."""
+        if self.resize is None:
+            return "aspect", self.size, self.max_size
+        text = str(self.resize).strip().lower()
+        for sep, kind in (("/", "aspect"), ("x", "fixed")):
+            a, found, b = text.partition(sep)
+            if found and a.strip().isdigit() and b.strip().isdigit() and int(a) >= 1 and int(b) >= 1:
+                a, b = int(a), int(b)
+                if kind == "aspect":
+                    if b < a:
+                        raise InputError(f"grounded probe: resize={self.resize!r}: the longest side {b} is below {a}")
+                    return kind, a, b
+                return kind, b, a  # written W x H
+        raise InputError(
+            f"grounded probe: resize={self.resize!r} is neither SHORT/MAX (e.g. 800/1333: shorter side 800, "
+            "longer at most 1333) nor WxH (e.g. 1200x800: exactly 1200 wide, 800 high)"
+        )
 
 
 def caption_for(prompt: str) -> str:
@@ -193,17 +226,23 @@ def phrase_from_posmap(
 
 
 def cxcywh_to_xyxy(boxes: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """float64 (N, 4) pixel XYXY boxes from normalised (cx, cy, w, h) (N, 4) on an (H, W) image."""
+    """float64 (N, 4) pixel XYXY boxes from normalised (cx, cy, w, h) (N, 4) on an (H, W) image.
+
+    Computed in float32 as Grounded-SAM-2 does (``boxes * Tensor([w, h, w, h])``,
+    then ``box_convert`` cxcywh -> xyxy: centre -/+ 0.5 * size), so the prompt
+    corners are the same numbers; returned as float64.
+    """
     h, w = image_size
-    b = np.asarray(boxes, np.float64).reshape(-1, 4) * np.array([w, h, w, h], np.float64)
-    half = b[:, 2:] / 2
-    return np.concatenate([b[:, :2] - half, b[:, :2] + half], axis=1)
+    b = np.asarray(boxes, np.float32).reshape(-1, 4) * np.array([w, h, w, h], np.float32)
+    half = b[:, 2:] * np.float32(0.5)
+    return np.concatenate([b[:, :2] - half, b[:, :2] + half], axis=1).astype(np.float64)
 
 
 def _sigmoid(x: np.ndarray) -> np.ndarray:
+    """float32 sigmoid, correctly rounded from float64 (torch's float32 sigmoid is within 1 ulp)."""
     x = np.asarray(x, np.float64)
     with np.errstate(over="ignore"):
-        return 1.0 / (1.0 + np.exp(-x))
+        return (1.0 / (1.0 + np.exp(-x))).astype(np.float32)
 
 
 @dataclass(frozen=True, eq=False)
@@ -212,7 +251,8 @@ class Detections:
 
     boxes: float64 (N, 4) XYXY in image pixels (not clipped).
     scores: float32 (N,) highest token score of each box.
-    phrases: N strings (periods removed, stripped).
+    phrases: N strings (periods removed, not stripped: as Grounded-SAM-2 labels
+        them; the prompt rule strips when matching).
     """
 
     boxes: np.ndarray
@@ -245,12 +285,12 @@ def select_detections(
     image.  See the module docstring for the rule.
     """
     probs = _sigmoid(logits)
-    best = probs.max(axis=1) if probs.shape[1] else np.zeros(len(probs))
-    keep = np.flatnonzero(best > box_threshold)
-    phrases = [
-        phrase_from_posmap(probs[q] > text_threshold, input_ids, id_to_token).replace(".", "").strip() for q in keep
-    ]
-    return Detections(cxcywh_to_xyxy(np.asarray(boxes)[keep], image_size), best[keep].astype(np.float32), phrases)
+    best = probs.max(axis=1) if probs.shape[1] else np.zeros(len(probs), np.float32)
+    # torch compares a float32 tensor with a Python float in float32: 0.35 is 0.35f there.
+    keep = np.flatnonzero(best > np.float32(box_threshold))
+    text_t = np.float32(text_threshold)
+    phrases = [phrase_from_posmap(probs[q] > text_t, input_ids, id_to_token).replace(".", "") for q in keep]
+    return Detections(cxcywh_to_xyxy(np.asarray(boxes)[keep], image_size), best[keep], phrases)
 
 
 def require_tokenizers():
@@ -266,7 +306,15 @@ def require_tokenizers():
 
 
 class DinoTokenizer:
-    """The BERT tokenizer of a ``tokenizer.json`` file, as GroundingDINO uses it."""
+    """The BERT tokenizer GroundingDINO uses, from either file it is shipped as.
+
+    path: a Hugging Face ``tokenizer.json`` (bert-base-uncased's), or a BERT
+    WordPiece ``vocab.txt`` (one token per line, the id is the line number),
+    which common GroundingDINO ONNX runtimes ship; it is read through
+    ``tokenizers.BertWordPieceTokenizer`` with bert-base-uncased's settings
+    (lower-casing and accent stripping, [CLS] ... [SEP]).  The two are told
+    apart by content: a tokenizer.json is a JSON object.
+    """
 
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
@@ -274,10 +322,22 @@ class DinoTokenizer:
         if not self.path.is_file():
             raise InputError("tokenizer file does not exist", self.path)
         try:
-            self._tok = tokenizers.Tokenizer.from_file(str(self.path))
+            with open(self.path, "rb") as f:
+                head = f.read(64).lstrip()
+            if head.startswith(b"{"):
+                self.format = "tokenizer.json"
+                self._tok = tokenizers.Tokenizer.from_file(str(self.path))
+            else:
+                self.format = "vocab.txt"
+                # read_file gives token -> line number; handing the path itself to
+                # BertWordPieceTokenizer does not read it in every tokenizers release.
+                vocab = tokenizers.models.WordPiece.read_file(str(self.path))
+                self._tok = tokenizers.BertWordPieceTokenizer(vocab, lowercase=True)
         except Exception as exc:  # noqa: BLE001 - the Rust side raises a bare Exception
             raise InputError(
-                f"cannot read the tokenizer ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})", self.path
+                f"cannot read the tokenizer ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); "
+                "give a tokenizer.json or a BERT vocab.txt",
+                self.path,
             ) from None
         self.cls_id = self._tok.token_to_id("[CLS]")
         self.sep_id = self._tok.token_to_id("[SEP]")
@@ -351,12 +411,22 @@ class GroundingDino:
             raise InputError(f"GroundingDINO image input must be (1, 3, H, W); found {img}", self.model.path)
         fixed = (img.fixed(2), img.fixed(3))
         self.fixed_input = fixed if None not in fixed else None
+        kind, h, w = self.params.resize_policy()
+        if kind == "fixed" and self.fixed_input is not None and self.fixed_input != (h, w):
+            raise InputError(
+                f"resize={self.params.resize} asks for {w}x{h} but the GroundingDINO graph takes exactly "
+                f"{self.fixed_input[1]}x{self.fixed_input[0]} (W x H)",
+                self.model.path,
+            )
 
     def input_shape(self, height: int, width: int) -> tuple[int, int]:
         """(H', W') the image is resized to before the model."""
         if self.fixed_input is not None:
             return self.fixed_input
-        return dino_input_shape(height, width, self.params.size, self.params.max_size)
+        kind, a, b = self.params.resize_policy()
+        if kind == "fixed":
+            return a, b
+        return dino_input_shape(height, width, a, b)
 
     def detect(self, image, prompt: str) -> Detections:
         """Detections of ``prompt`` in one RGB (H, W, 3) image, uint8 0..255 or float 0..1."""
@@ -430,9 +500,10 @@ class GroundedSamProbe(SemanticProbe):
         return {
             "model": "grounded-sam",
             "grounding": dataclasses.asdict(self.grounding),
-            "dino_input": "shorter side to size, longer at most max_size"
-            if self.dino.fixed_input is None
-            else list(self.dino.fixed_input),
+            "dino_input": list(self.dino.fixed_input) if self.dino.fixed_input is not None else
+            "shorter side {1}, longer at most {2}".format(*self.grounding.resize_policy())
+            if self.grounding.resize_policy()[0] == "aspect" else
+            "exactly {2}x{1} (W x H)".format(*self.grounding.resize_policy()),
             "caption_rule": "lower-case, strip, append ' .' unless ending with '.'",
             "prompt_rule": PROMPT_RULE if self.grounding.phrase_match else "every detection",
             "sam": self.sam.describe_models(),

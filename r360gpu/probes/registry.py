@@ -1,6 +1,11 @@
 """Build probes from command-line specs: :func:`parse_probe_spec`.
 
-Spec syntax: ``KIND:BODY``.
+One place for every probe name: the weight-free built-ins (``builtin``,
+``builtin-appearance``, ``builtin-graphseg``, ``builtin-slic``: plain names,
+see :data:`BUILTIN_PROBES`), the default probe of each axis
+(:data:`DEFAULT_PROBES`, :func:`default_probes`), and the model / file probes
+with spec syntax ``KIND:BODY``; :func:`probe_for_axis` builds the probe a
+command-line spec names for one axis.
 
 * ``sam:encoder=PATH,decoder=PATH[,device=D][,name=N][,AMG_PARAM=VALUE...]``
   -- :class:`~r360gpu.probes.sam_amg.SamAmgProbe` (structural).  AMG_PARAM is
@@ -8,9 +13,12 @@ Spec syntax: ``KIND:BODY``.
   ``points_per_side=16``, ``pred_iou_thresh=0.9``, ``crop_n_layers=1``,
   ``min_mask_region_area=100``.
 * ``grounded:dino=PATH,tokenizer=PATH,sam-encoder=PATH,sam-decoder=PATH
-  [,device=D][,name=N][,box_threshold=F][,text_threshold=F][,size=I]
-  [,max_size=I][,phrase_match=true|false]`` --
-  :class:`~r360gpu.probes.grounded.GroundedSamProbe` (semantic).
+  [,device=D][,name=N][,box_threshold=F][,text_threshold=F][,resize=S/M|WxH]
+  [,size=I][,max_size=I][,phrase_match=true|false]`` --
+  :class:`~r360gpu.probes.grounded.GroundedSamProbe` (semantic).  tokenizer
+  is a ``tokenizer.json`` or a BERT ``vocab.txt``; ``resize=800/1333``
+  (default: shorter side 800, longer at most 1333, as GroundingDINO) or
+  ``resize=1200x800`` (exactly 1200 wide, 800 high, as common ONNX runtimes).
 * ``gsam2-json:DIRS``, ``png:DIRS`` -- precomputed semantic masks
   (:class:`~r360gpu.probes.precomputed.PrecomputedSemanticProbe`);
   ``sam-json:DIRS`` -- precomputed SAM masks
@@ -37,13 +45,34 @@ from pathlib import Path
 from r360gpu.errors import InputError
 from r360gpu.probes.base import Probe
 
-__all__ = ["PROBE_KINDS", "PROBE_SPEC_HELP", "parse_probe_spec"]
+__all__ = [
+    "PROBE_KINDS",
+    "BUILTIN_PROBES",
+    "DEFAULT_PROBES",
+    "PROBE_SPEC_HELP",
+    "parse_probe_spec",
+    "builtin_probe",
+    "default_probes",
+    "probe_for_axis",
+]
 
 PROBE_KINDS = ("sam", "grounded", "gsam2-json", "png", "sam-json")
 
+#: Built-in probe name -> (axis, what it is).  ``builtin`` is the axis default.
+BUILTIN_PROBES = {
+    "builtin-appearance": ("semantic", "weight-free appearance probe fitted on the scene's pre renderings"),
+    "builtin-graphseg": ("structural", "weight-free graph segmentation"),
+    "builtin-slic": ("structural", "weight-free SLIC superpixels"),
+}
+#: The probe each axis uses when none is given.
+DEFAULT_PROBES = {"semantic": "builtin-appearance", "structural": "builtin-graphseg"}
+
 PROBE_SPEC_HELP = (
-    "probe spec KIND:BODY -- sam:encoder=PATH,decoder=PATH[,device=cpu|cuda|directml|coreml|auto][,AMG params]; "
-    "grounded:dino=PATH,tokenizer=PATH,sam-encoder=PATH,sam-decoder=PATH[,box_threshold=0.35,text_threshold=0.25]; "
+    "probe name builtin (the axis default), "
+    + ", ".join(BUILTIN_PROBES)
+    + "; or probe spec KIND:BODY -- sam:encoder=PATH,decoder=PATH[,device=cpu|cuda|directml|coreml|auto][,AMG params]; "
+    "grounded:dino=PATH,tokenizer=tokenizer.json|vocab.txt,sam-encoder=PATH,sam-decoder=PATH"
+    "[,box_threshold=0.35,text_threshold=0.25,resize=800/1333|1200x800]; "
     "gsam2-json:DIR, png:DIR, sam-json:DIR (DIR with pre/post/ref or before/after sub-folders) "
     "or KIND:pre=DIR,post=DIR[,ref=DIR]"
 )
@@ -51,6 +80,47 @@ PROBE_SPEC_HELP = (
 _RENDERING_DIRS = {"pre": ("pre", "before"), "post": ("post", "after"), "ref": ("ref", "reference")}
 _TRUE = {"true", "yes", "1", "on"}
 _FALSE = {"false", "no", "0", "off"}
+
+
+def builtin_probe(name: str) -> Probe:
+    """A new built-in probe by its name in :data:`BUILTIN_PROBES`."""
+    if name == "builtin-appearance":
+        from r360gpu.probes.builtin_semantic import BuiltinAppearanceProbe
+
+        return BuiltinAppearanceProbe()
+    from r360gpu.probes.builtin_structural import BuiltinStructuralProbe, StructuralParams
+
+    if name == "builtin-graphseg":
+        return BuiltinStructuralProbe()
+    if name == "builtin-slic":
+        return BuiltinStructuralProbe(StructuralParams.slic())
+    raise InputError(f"unknown built-in probe {name!r} (built-ins: {', '.join(BUILTIN_PROBES)})")
+
+
+def default_probes() -> tuple[list[Probe], list[Probe]]:
+    """New default probes: ([semantic], [structural]) (:data:`DEFAULT_PROBES`)."""
+    return [builtin_probe(DEFAULT_PROBES["semantic"])], [builtin_probe(DEFAULT_PROBES["structural"])]
+
+
+def probe_for_axis(spec: str, axis: str) -> Probe:
+    """The probe a command-line spec names for one axis ("semantic" or "structural").
+
+    ``builtin`` is the axis default; a built-in name or a ``KIND:BODY`` spec
+    must give a probe of that axis (else InputError naming the spec).
+    """
+    if axis not in DEFAULT_PROBES:
+        raise ValueError(f"axis must be one of {sorted(DEFAULT_PROBES)}, got {axis!r}")
+    name = str(spec).strip().lower()
+    if name == "builtin":
+        name = DEFAULT_PROBES[axis]
+    if name in BUILTIN_PROBES:
+        if BUILTIN_PROBES[name][0] != axis:
+            raise InputError(f"probe spec {spec!r} is a {BUILTIN_PROBES[name][0]} probe, not a {axis} one")
+        return builtin_probe(name)
+    probe = parse_probe_spec(spec)
+    if probe.kind != axis:
+        raise InputError(f"probe spec {spec!r} gives a {probe.kind} probe, but --{axis}-probe needs a {axis} one")
+    return probe
 
 
 def parse_probe_spec(spec: str) -> Probe:

@@ -199,8 +199,9 @@ def generate_masks(models: SamModels, image, params: AmgParams | None = None) ->
     for crop_box, layer in zip(crop_boxes, layers):
         found.extend(_process_crop(models, image01, crop_box, grids[layer], params))
     if len(crop_boxes) > 1 and len(found):
-        # Prefer masks from smaller crops.
-        scores = 1.0 / au.box_area(np.asarray(found.crops))
+        # Prefer masks from smaller crops; 1 / area in float32 as SAM's
+        # ``1 / box_area(int64 crop boxes)`` (equal areas tie, stable order).
+        scores = np.float32(1.0) / au.box_area(np.asarray(found.crops)).astype(np.float32)
         found = found.take(au.nms(found.box_array(), scores, params.crop_nms_thresh))
     masks = _paste(found, h, w)
     iou = np.asarray(found.iou, np.float32)
