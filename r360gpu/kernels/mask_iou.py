@@ -43,6 +43,16 @@ class DeviceMasks:
 
 
 @dataclass
+class BitMasks:
+    """A stack already bit-packed on the host: ``words`` (N, H, row_words(width))
+    uint32 in the layout of :func:`pack_bits` (bits past ``width`` zero), e.g.
+    the boundary sweep's perturbed targets (:mod:`r360gpu.kernels.morph`)."""
+
+    words: np.ndarray
+    width: int
+
+
+@dataclass
 class PackedChunk:
     """Masks ``k0:k1`` restricted to rows ``r0:r1``, on the device."""
 
@@ -173,16 +183,22 @@ def pack(masks, *, ctx: GpuContext | None = None) -> PackedMasks:
     """Upload a stack to the device as :class:`PackedMasks`.
 
     ``masks``: (N, H, W) or (H, W) bool/integer numpy array, a
-    :class:`DeviceMasks`, or an existing :class:`PackedMasks` (returned as is).
+    :class:`BitMasks` or :class:`DeviceMasks`, or an existing
+    :class:`PackedMasks` (returned as is).
     """
     if isinstance(masks, PackedMasks):
         return masks
     ctx = ctx or get_context()
     if isinstance(masks, DeviceMasks):
         return _pack_device(masks, ctx)
-    packed = pack_bits(masks)
+    if isinstance(masks, BitMasks):
+        packed, w = np.ascontiguousarray(masks.words, np.uint32), int(masks.width)
+        if packed.ndim != 3 or packed.shape[2] != row_words(w):
+            raise InputError(f"BitMasks: words of shape {packed.shape} do not hold rows of {w} pixels")
+    else:
+        packed = pack_bits(masks)
+        w = np.shape(masks)[-1]
     n, h, rw = packed.shape
-    w = np.shape(masks)[-1]
     boxes = _boxes(packed)
     out = PackedMasks(n, int(h), int(w))
     kchunk, rchunk = _layout(ctx, n, h, rw)
