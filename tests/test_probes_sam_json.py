@@ -118,7 +118,10 @@ def test_empty_record_list_and_merged_file(tmp_path):
 def test_parse_grid_rejects_non_grids():
     for t in (b"[[1,0]]x", b"[[1,0],[0]]", b"[[10]]", b"[[1,0],[0,1],]", b"[[1,0]", b"[[1,0]][[1]]", b"[[2]]",
               b"[[tru, true]]", b"[[truee]]", b"[[tr ue]]", b"[[true ,false]]", b"[[ falsee]]", b"[[fasle]]",
-              b"[[true,]]", b"[[t,f]]", b"[[rtue]]", b"[ [1]]"):
+              b"[[true,]]", b"[[t,f]]", b"[[rtue]]", b"[ [1]]", b"[[1, 0],[0, 1]]", b"[[1,0], [0,1]]",
+              b"[[1],[0,1]]", b"[[true], [false], [true]] ", b"[[1, 1, 0], [1, 0]]", b"[[1, 0], [1, 0, 1]]"):
         assert sam_json.parse_grid(t) is None, t
     np.testing.assert_array_equal(sam_json.parse_grid(b"[[1,0],[0,1]]"), [[True, False], [False, True]])
-    np.testing.assert_array_equal(sam_json.parse_grid(b"[[true, false], [0, true]]"), [[True, False], [False, True]])
+    np.testing.assert_array_equal(sam_json.parse_grid(b"[[true, false], [false, true]]"), [[True, False], [False, True]])
+    np.testing.assert_array_equal(sam_json.parse_grid(b"[[true]]"), [[True]])
+    np.testing.assert_array_equal(sam_json.parse_grid(b"[[0],[1],[1]]"), [[False], [True], [True]])

@@ -9,13 +9,13 @@ numpy operations, and parses only the remaining (small) JSON with the
 standard library; the masks come back as bool (H, W) arrays in place of the
 lists.
 
-A nested list is decoded here only when its text, with whitespace removed
-and ``true``/``false`` written as ``1``/``0``, is exactly
-``[[v,v,...,v],...,[v,...,v]]`` with every ``v`` in {0, 1} and every row of
-one length; for such text ``np.array(list) != 0`` gives the same mask.  Any
-other file (ragged rows, empty lists, floats such as ``1.0``, malformed
-JSON, ...) is read the standard way, so results and error messages are
-exactly those of :func:`r360gpu.probes.precomputed.read_sam_records`
+A nested list is decoded here only when its text is exactly what
+``json.dump`` writes for a rectangular list of ``true``/``false`` or 0/1
+values (", " or "," separators; see :func:`parse_grid`); for such text
+``np.array(list) != 0`` gives the same mask.  Any other file (ragged rows,
+empty lists, floats such as ``1.0``, indented files, malformed JSON, ...) is
+read the standard way, so results and error messages are exactly those of
+:func:`r360gpu.probes.precomputed.read_sam_records`
 (tests/test_probes_sam_json.py).
 """
 from __future__ import annotations
@@ -31,82 +31,80 @@ from ..errors import InputError
 _KEY = re.compile(rb'"(?:segmentation|mask)"\s*:\s*\[')
 _END = re.compile(rb"\]\s*\]")
 _PLACEHOLDER = "\x00r360gpu-mask:"
-_LETTERS = b"rueals"
-_SPACE = ord(" ")
-_OPEN, _CLOSE, _COMMA = ord("["), ord("]"), ord(",")
-_VALUE = np.full(256, 2, np.uint8)  # value byte -> 0/1, anything else -> 2
-_VALUE[[ord("0"), ord("f")]] = 0
-_VALUE[[ord("1"), ord("t")]] = 1
+
+
+def _u64(b: bytes) -> int:
+    return int.from_bytes(b[:8].ljust(8, b"\0"), "little")
+
+
+def _mask(n: int) -> int:
+    return (1 << 8 * min(n, 8)) - 1
 
 
 def parse_grid(text: bytes) -> np.ndarray | None:
-    """bool (H, W) from the text of a nested 0/1 (or true/false) list, or None
-    when the text is not exactly a rectangular list of such values.  Only the
-    spellings of ``json.dump`` (", " or "," separators) are decoded here;
-    other whitespace (e.g. indented files) gives None."""
-    if b"\n" in text or b"\t" in text or b"\r" in text:
+    """bool (H, W) from the text of a nested 0/1 (or true/false) list written
+    as ``json.dump`` writes it (", " or "," separators, no other whitespace),
+    or None for any other text.
+
+    Every value token starts with "t", "f", "0" or "1", and no other byte of
+    such text does.  Each token is checked, with what follows it up to the
+    next token, as one unaligned 8-byte word ("true, ", "false], [", ...), and
+    the pieces must tile the text exactly, so the text is proven to be the
+    rendering of the decoded mask.
+    """
+    a = np.frombuffer(text, np.uint8)
+    if a.size < 5 or text[:2] != b"[[" or text[-2:] != b"]]":
         return None
-    dense = text.translate(None, b" ")
-    if len(dense) != len(text):
-        a = np.frombuffer(text, np.uint8)
-        sp = a == _SPACE
-        # Every space follows a comma, so no token is split by one.
-        if sp[0] or (sp[1:] & (a[:-1] != _COMMA)).any():
-            return None
-    compact = dense.translate(None, _LETTERS)  # "true" -> "t", "false" -> "f"
-    c = np.frombuffer(compact, np.uint8)
-    first = compact.find(b"]")
-    if len(compact) < 5 or first < 3 or (first - 1) % 2 or c[0] != _OPEN or c[-1] != _CLOSE:
+    starts = np.flatnonzero((a == _T) | (a == _F) | (a == _ONE) | (a == _ZERO))
+    n = starts.size
+    first_close = text.find(b"]")
+    if n == 0 or starts[0] != 2:
         return None
-    w = (first - 1) // 2
-    row = 2 * w + 2  # "[v,v,...,v]" plus the "," that separates rows
-    body = np.empty(len(c) - 1, np.uint8)
-    body[:-1] = c[1:-1]
-    body[-1] = _COMMA
-    if body.size % row:
+    w = int(np.searchsorted(starts, first_close))
+    if w == 0 or n % w:
         return None
-    grid = body.reshape(-1, row)
-    vals = _VALUE[grid[:, 1 : 2 * w : 2]]
-    if not (
-        (grid[:, 0] == _OPEN).all()
-        and (grid[:, 2 * w] == _CLOSE).all()
-        and (grid[:, 2 * w + 1] == _COMMA).all()
-        and (grid[:, 2 : 2 * w : 2] == _COMMA).all()
-        and (vals <= 1).all()
-    ):
+    comma = text.find(b",")
+    sep = b", " if comma < 0 or text[comma + 1 : comma + 2] == b" " else b","
+    cls = _CLASS[a[starts]]  # 0: "0", 1: "1", 2: "f", 3: "t"
+    kind = np.zeros(n, np.intp)  # 0: inside a row, 1: last of a row, 2: last of all
+    kind[w - 1 :: w] = 1
+    kind[-1] = 2
+    pats = _patterns(sep)
+    want, wmask, length = pats
+    k = cls * 3 + kind
+    # Unaligned 8-byte reads at every token (the text is padded by 8 bytes).
+    buf = np.concatenate([a, np.zeros(16, np.uint8)])
+    words = np.ndarray((a.size + 8,), "<u8", buf, strides=(1,))[starts]
+    if not ((words & wmask[k]) == want[k]).all():
         return None
-    if not _spelled(c, np.frombuffer(dense, np.uint8)):
+    # Pieces longer than 8 bytes ("false], [") have their 9th byte checked too.
+    long = length[k] > 8
+    if long.any() and not (buf[starts[long] + 8] == ord("[")).all():
         return None
-    return vals.view(bool)
+    ends = starts + length[k]
+    if ends[-1] != a.size or not (ends[:-1] == starts[1:]).all():
+        return None
+    return (cls & 1).astype(bool).reshape(n // w, w)
 
 
-_TRUE = int.from_bytes(b"true", "little")
-_FALSE = int.from_bytes(b"false", "little")
+_T, _F, _ONE, _ZERO = ord("t"), ord("f"), ord("1"), ord("0")
+_CLASS = np.zeros(256, np.intp)
+_CLASS[[_ZERO, _ONE, _F, _T]] = [0, 1, 2, 3]
+_PATTERNS: dict[bytes, tuple] = {}
 
 
-def _spelled(c: np.ndarray, d: np.ndarray) -> bool:
-    """Whether ``d`` (no spaces) is ``c`` with each "t" written "true" and each
-    "f" written "false": every "t"/"f" of ``d`` starts that word (read as one
-    unaligned integer at each byte) and no other letter of the words occurs."""
-    n_t = int(np.count_nonzero(c == ord("t")))
-    n_f = int(np.count_nonzero(c == ord("f")))
-    if d.size - c.size != 3 * n_t + 4 * n_f:
-        return False
-    if d.size < 8:
-        d = np.concatenate([d, np.zeros(8 - d.size, np.uint8)])
-    # Every byte position read as an unaligned little-endian u64 (the last 7
-    # positions cannot start a whole word; they are read from a padded copy).
-    wide = np.ndarray((d.size - 7,), "<u8", d, strides=(1,))
-    tail = np.ndarray((7,), "<u8", np.concatenate([d[-7:], np.zeros(7, np.uint8)]), strides=(1,))
-    for letter, word, width, n in ((ord("t"), _TRUE, 4, n_t), (ord("f"), _FALSE, 5, n_f)):
-        if not n:
-            continue
-        at = np.flatnonzero(d == letter)
-        split = np.searchsorted(at, d.size - 7)
-        words = np.concatenate([wide[at[:split]], tail[at[split:] - (d.size - 7)]])
-        if not (words & np.uint64((1 << 8 * width) - 1) == np.uint64(word)).all():
-            return False
-    return True
+def _patterns(sep: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(word, mask, length) per class * 3 + kind of what follows a token."""
+    if sep not in _PATTERNS:
+        words, masks, lengths = [], [], []
+        for tok in (b"0", b"1", b"false", b"true"):
+            for tail in (sep, b"]" + sep + b"[", b"]]"):
+                piece = tok + tail
+                words.append(_u64(piece))
+                masks.append(_mask(len(piece)))
+                lengths.append(len(piece))
+        _PATTERNS[sep] = (np.array(words, np.uint64), np.array(masks, np.uint64), np.array(lengths, np.intp))
+    return _PATTERNS[sep]
 
 
 def _read(path: Path) -> bytes:
