@@ -203,61 +203,85 @@ def ssim_mse_many(posts: Sequence, ref, *, ctx: GpuContext | None = None,
     return [(float(s / n_valid), float(q / (scale * scale) / n_all)) for s, q in zip(sums, sq)]
 
 
-def _filter(img: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """float32 separable Gaussian of (H, W, C), valid region (H - 10, W - 10, C)."""
+STRIP = 64  # output rows per strip of the cpu backend (arrays stay cache-sized)
+
+
+def _filter(img: np.ndarray, g: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """float32 separable Gaussian of (rows, W, C) into ``out``, valid rows and columns only."""
     r = WIN // 2
-    out = cv2.sepFilter2D(img, cv2.CV_32F, g, g, borderType=cv2.BORDER_REFLECT)
-    if out.ndim == 2:
-        out = out[:, :, None]
-    return out[r:-r, r:-r]
+    full = cv2.sepFilter2D(img, cv2.CV_32F, g, g, borderType=cv2.BORDER_REFLECT)
+    if full.ndim == 2:
+        full = full[:, :, None]
+    out[...] = full[r:-r, r:-r]
+    return out
 
 
 def _ssim_mse_cpu(xs: list[np.ndarray], y: np.ndarray) -> list[tuple[float, float]]:
+    """SSIM by strips of rows (each strip's I_ref statistics shared by every
+    method), MSE over the whole images."""
     u8 = y.dtype == np.uint8
     scale = np.float32(255.0 if u8 else 1.0)
     g = gaussian_taps().astype(np.float32)
     c1, c2 = np.float32((K1 * scale) ** 2), np.float32((K2 * scale) ** 2)
-    yf = y.astype(np.float32)
-    shift = yf.reshape(-1, y.shape[2]).mean(axis=0, dtype=np.float64).astype(np.float32)
-    yc = yf - shift
-    # I_ref's share of every method's SSIM, computed once.
-    my = _filter(yc, g)
-    vy_c2 = _filter(yc * yc, g)
-    vy_c2 -= my * my
-    vy_c2 += c2
-    my += shift
-    my2 = my * np.float32(2.0)
-    my_sq_c1 = my * my
-    my_sq_c1 += c1
-    my -= shift  # back to the shifted frame for the covariance
+    h, w, c = y.shape
+    vh, vw = h - (WIN - 1), w - (WIN - 1)
+    shift = y.reshape(-1, c).mean(axis=0, dtype=np.float64).astype(np.float32)
+    sums = np.zeros(len(xs), np.float64)
+    rows = min(STRIP, vh)
+    f32 = lambda shape: np.empty(shape, np.float32)  # noqa: E731
+    ys, xc, t = f32((rows + WIN - 1, w, c)), f32((rows + WIN - 1, w, c)), f32((rows + WIN - 1, w, c))
+    my, vy_c2, my2, my_sq_c1, mx, sxx, sxy, tmp = (f32((rows, vw, c)) for _ in range(8))
+    for o0 in range(0, vh, rows):
+        o1 = min(vh, o0 + rows)
+        n_in, n_out = o1 - o0 + WIN - 1, o1 - o0
+        yc, xcs, ts = ys[:n_in], xc[:n_in], t[:n_in]
+        m_y, v_y, m_y2, m_yc = my[:n_out], vy_c2[:n_out], my2[:n_out], my_sq_c1[:n_out]
+        m_x, s_xx, s_xy, q = mx[:n_out], sxx[:n_out], sxy[:n_out], tmp[:n_out]
+        # I_ref's share, once per strip for all methods (values shifted by its channel means).
+        np.subtract(y[o0 : o0 + n_in], shift, out=yc, dtype=np.float32)
+        _filter(yc, g, m_y)
+        np.multiply(yc, yc, out=ts)
+        _filter(ts, g, v_y)
+        np.multiply(m_y, m_y, out=q)
+        v_y -= q
+        v_y += c2  # syy + C2
+        np.add(m_y, shift, out=m_y2)
+        np.multiply(m_y2, m_y2, out=m_yc)
+        m_yc += c1  # my^2 + C1
+        m_y2 *= np.float32(2.0)  # 2 my
+        for k, x in enumerate(xs):
+            np.subtract(x[o0 : o0 + n_in], shift, out=xcs, dtype=np.float32)
+            _filter(xcs, g, m_x)
+            np.multiply(xcs, xcs, out=ts)
+            _filter(ts, g, s_xx)
+            np.multiply(xcs, yc, out=ts)
+            _filter(ts, g, s_xy)
+            np.multiply(m_x, m_x, out=q)
+            s_xx -= q
+            s_xx += v_y  # sxx + syy + C2
+            np.multiply(m_x, m_y, out=q)
+            s_xy -= q
+            s_xy *= np.float32(2.0)
+            s_xy += c2  # 2 sxy + C2
+            m_x += shift
+            np.multiply(m_x, m_x, out=q)
+            q += m_yc
+            q *= s_xx  # (mx^2 + my^2 + C1)(sxx + syy + C2)
+            m_x *= m_y2
+            m_x += c1
+            m_x *= s_xy  # (2 mx my + C1)(2 sxy + C2)
+            m_x /= q
+            sums[k] += m_x.sum(dtype=np.float64)
     out = []
-    for x in xs:
-        xc = x.astype(np.float32)
-        xc -= shift
-        mx = _filter(xc, g)
-        sxx = _filter(xc * xc, g)
-        sxy = _filter(xc * yc, g)
-        sxx -= mx * mx  # sxx
-        sxy -= mx * my  # sxy
-        mx += shift
-        num = mx * my2
-        num += c1
-        sxy *= np.float32(2.0)
-        sxy += c2
-        num *= sxy
-        mx *= mx
-        mx += my_sq_c1
-        sxx += vy_c2
-        mx *= sxx
-        num /= mx
-        ssim = float(num.sum(dtype=np.float64) / num.size)
+    yf = None if u8 else y.reshape(-1)
+    for k, x in enumerate(xs):
         if u8:
             d = (x.astype(np.int16) - y.astype(np.int16)).reshape(-1).astype(np.int64)
             mse = float(np.dot(d, d)) / float(scale * scale) / d.size  # exact integer sum
         else:
-            d = (x.astype(np.float32) - yf).reshape(-1).astype(np.float64)
+            d = (x.reshape(-1) - yf).astype(np.float64)
             mse = float(np.dot(d, d)) / d.size
-        out.append((ssim, mse))
+        out.append((float(sums[k] / (vh * vw * c)), mse))
     return out
 
 
