@@ -136,14 +136,15 @@ def boundary_targets(target, offsets: Sequence[int] = BOUNDARY_OFFSETS, *, view:
     key = (id(ctx), offs, m.shape, hashlib.blake2b(bits.tobytes(), digest_size=16).digest())
     with _TARGETS_LOCK:
         hit = _TARGETS.get(key)
-        if hit is not None:
+        # The entry holds its context, so id(ctx) cannot be reused while cached.
+        if hit is not None and hit[0] is ctx:
             _TARGETS.move_to_end(key)
-            return hit
+            return hit[1]
     words = morph.perturb_packed(m, offs)
     areas = np.unpackbits(words.view(np.uint8).reshape(len(offs), -1), axis=1).sum(axis=1, dtype=np.int64)
     bt = BoundaryTargets(offs, K.pack(K.BitMasks(words, m.shape[1]), ctx=ctx), areas, m.shape)
     with _TARGETS_LOCK:
-        _TARGETS[key] = bt
+        _TARGETS[key] = (ctx, bt)
         while len(_TARGETS) > _TARGETS_KEEP:
             _TARGETS.popitem(last=False)
     return bt
