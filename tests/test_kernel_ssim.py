@@ -6,7 +6,7 @@ import pytest
 
 from r360gpu.errors import InputError
 from r360gpu.kernels.reference import ssim_reference
-from r360gpu.kernels.ssim import MSE_RTOL, SSIM_TOL, ssim_mse, ssim_mse_many
+from r360gpu.kernels.ssim import MSE_RTOL, SSIM_TOL, ssim_backend, ssim_mse, ssim_mse_many
 from r360gpu.metrics import fidelity as F
 
 BACKENDS = ("gpu", "cpu")
@@ -74,9 +74,19 @@ def test_backends_agree_with_fidelity_on_a_larger_frame(ctx):
     post = np.clip(base.astype(int) + rng.integers(-3, 4, base.shape), 0, 255).astype(np.uint8)
     s64 = F.ssim(post, base)
     for backend in BACKENDS:
-        s, m = ssim_mse(post, base, ctx=ctx) if backend == "auto" else ssim_mse_many([post], base, ctx=ctx, backend=backend)[0]
+        s, m = ssim_mse_many([post], base, ctx=ctx, backend=backend)[0]
         assert abs(s - s64) <= SSIM_TOL[backend]
         assert m == pytest.approx(F.mse(post, base), rel=1e-12)
+    assert ssim_mse(post, base, ctx=ctx) == ssim_mse_many([post], base, ctx=ctx, backend=ssim_backend(ctx))[0]
+
+
+def test_backend_choice(ctx, monkeypatch):
+    monkeypatch.delenv("R360GPU_SSIM", raising=False)
+    assert ssim_backend(ctx) == ("cpu" if ctx.adapter_info["adapter_type"] == "CPU" else "gpu")
+    monkeypatch.setenv("R360GPU_SSIM", "gpu")
+    assert ssim_backend(ctx) == "gpu"
+    with pytest.raises(ValueError, match="unknown SSIM backend"):
+        ssim_mse_many([np.zeros((12, 12), np.uint8)], np.zeros((12, 12), np.uint8), ctx=ctx, backend="tpu")
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
