@@ -66,29 +66,30 @@ def parse_grid(text: bytes) -> np.ndarray | None:
     comma = text.find(b",")
     sep = b", " if comma < 0 or text[comma + 1 : comma + 2] == b" " else b","
     cls = _CLASS[a[starts]]  # 0: "0", 1: "1", 2: "f", 3: "t"
-    kind = np.zeros(n, np.intp)  # 0: inside a row, 1: last of a row, 2: last of all
-    kind[w - 1 :: w] = 1
-    kind[-1] = 2
-    pats = _patterns(sep)
-    want, wmask, length = pats
-    k = cls * 3 + kind
+    k = cls * np.uint8(3)  # + kind: 0 inside a row, 1 last of a row, 2 last of all
+    k[w - 1 :: w] += np.uint8(1)
+    k[-1] += np.uint8(1)
+    want, wmask, length = _patterns(sep)
     # Unaligned 8-byte reads at every token (the text is padded by 8 bytes).
     buf = np.concatenate([a, np.zeros(16, np.uint8)])
     words = np.ndarray((a.size + 8,), "<u8", buf, strides=(1,))[starts]
-    if not ((words & wmask[k]) == want[k]).all():
+    words ^= want[k]
+    words &= wmask[k]
+    if words.any():
         return None
+    lens = length[k]
     # Pieces longer than 8 bytes ("false], [") have their 9th byte checked too.
-    long = length[k] > 8
-    if long.any() and not (buf[starts[long] + 8] == ord("[")).all():
+    long = np.flatnonzero(lens > 8)
+    if long.size and not (buf[starts[long] + 8] == ord("[")).all():
         return None
-    ends = starts + length[k]
-    if ends[-1] != a.size or not (ends[:-1] == starts[1:]).all():
+    # The pieces tile the text: each ends where the next token starts.
+    if starts[-1] + lens[-1] != a.size or not (np.diff(starts) == lens[:-1]).all():
         return None
     return (cls & 1).astype(bool).reshape(n // w, w)
 
 
 _T, _F, _ONE, _ZERO = ord("t"), ord("f"), ord("1"), ord("0")
-_CLASS = np.zeros(256, np.intp)
+_CLASS = np.zeros(256, np.uint8)
 _CLASS[[_ZERO, _ONE, _F, _T]] = [0, 1, 2, 3]
 _PATTERNS: dict[bytes, tuple] = {}
 
@@ -103,7 +104,7 @@ def _patterns(sep: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                 words.append(_u64(piece))
                 masks.append(_mask(len(piece)))
                 lengths.append(len(piece))
-        _PATTERNS[sep] = (np.array(words, np.uint64), np.array(masks, np.uint64), np.array(lengths, np.intp))
+        _PATTERNS[sep] = (np.array(words, np.uint64), np.array(masks, np.uint64), np.array(lengths, np.int64))
     return _PATTERNS[sep]
 
 
