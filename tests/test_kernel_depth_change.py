@@ -171,3 +171,11 @@ def test_acc_depth_views_equal_single_views(ctx):
             assert v.summary() == one.summary()
             np.testing.assert_array_equal(v.changed, one.changed)
             np.testing.assert_array_equal(v.hist, one.hist)
+
+
+@pytest.mark.parametrize("t", [254.99999999999997, 254.5, 0.9999999999999999, -0.5, -np.inf, np.inf, np.nan, 1e9])
+def test_split_just_below_a_whole_bin(ctx, t):
+    """A float64 split that rounds up in float32 must not move the changed set."""
+    pre = np.arange(1, 301, dtype=np.float32).reshape(10, 30)
+    post = np.zeros_like(pre) + 0.5
+    _run(ctx, pre, post, np.ones_like(pre, bool), t)

@@ -231,6 +231,16 @@ def changed_in_mask(stage: DeltaHistogram, mask, t: float, *, ctx: GpuContext | 
     return changed_in_masks([stage], mask, [t], ctx=ctx)[0]
 
 
+def _split_f32(t: float) -> np.float32:
+    """The split as the kernel compares it.  Bins are whole numbers, so
+    ``bin > t`` is ``bin > floor(t)``; passing floor(t) (clamped to [-1, 255])
+    keeps a t such as 254.99999999999997 from rounding up to 255 in float32."""
+    t = float(t)
+    if math.isnan(t):
+        return np.float32(N_BINS - 1)  # bin > NaN is never true
+    return np.float32(min(max(math.floor(t) if math.isfinite(t) else t, -1.0), float(N_BINS - 1)))
+
+
 def changed_in_masks(stages, mask, ts, *, ctx: GpuContext | None = None) -> list[ChangedResult]:
     """:func:`changed_in_mask` of several first-pass results (one view's methods)
     against one target mask, in one submission; the mask is uploaded once."""
@@ -265,7 +275,7 @@ def changed_in_masks(stages, mask, ts, *, ctx: GpuContext | None = None) -> list
                 m_words[: packed.size] = packed
                 m_bufs[c.r0] = ctx.buffer(m_words.view(np.uint32), label="mask_words")
             words = ctx.buffer(n_words * 4, label="changed_words")
-            params = ctx.uniform(n_px, 0, 0, 0, np.float32(stage.lo), stage.scale, np.float32(t), 0)
+            params = ctx.uniform(n_px, 0, 0, 0, np.float32(stage.lo), stage.scale, _split_f32(t), 0)
             ctx.dispatch(
                 enc, pipe,
                 [params, None, None, c.delta, BufferRange(stats, k * stride, 16), None, m_bufs[c.r0], words],
