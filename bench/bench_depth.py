@@ -4,8 +4,8 @@ The reference way (public Remove360 code): |dD| -> matplotlib imsave(cmap=gray_r
 PNG -> read back with PIL -> numpy histogram of the gray levels -> GHT ->
 ``gray < t`` -> |changed & M| / |M|.  r360gpu: dD, min/max, histogram and the
 changed count on the GPU, GHT on the host; one view alone, and one view's
-methods batched (acc_depth_views: D_pre and M uploaded once, one submission
-per pass for all methods).  Every row is the best of --repeat runs (the
+methods through acc_depth_views (one submission per pass for all methods);
+the kernels alone (fixed split, no GHT) one method at a time and batched.  Every row is the best of --repeat runs (the
 machine may be shared: the load average is printed).
 
     python bench/bench_depth.py [--width 1920] [--height 1080] [--repeat 5] [--methods 3]
@@ -88,6 +88,17 @@ def main() -> int:
     t_gpu, v = best_of(lambda: acc_depth_view(pre, post, mask, ctx=ctx), args.repeat)
     posts = [post * (1 + 0.01 * k) for k in range(args.methods)]
     t_many, vs = best_of(lambda: acc_depth_views(pre, posts, mask, ctx=ctx), args.repeat)
+    from r360gpu.kernels import depth_change as K
+
+    def kernel_batch():
+        st = K.delta_histograms(pre, posts, ctx=ctx)
+        return K.changed_in_masks(st, mask, [100.0] * len(st), ctx=ctx)
+
+    def kernel_one_by_one():
+        return [K.changed_in_mask(K.delta_histogram(pre, d, ctx=ctx), mask, 100.0, ctx=ctx) for d in posts]
+
+    t_kb, _ = best_of(kernel_batch, args.repeat)
+    t_k1, _ = best_of(kernel_one_by_one, args.repeat)
     t_compat, vc = best_of(lambda: acc_depth_view(pre, post, mask, compat=True), args.repeat)
     t_ref, acc_ref = best_of(lambda: reference_way(pre, post, mask), args.repeat)
     assert abs(vc.acc_depth - acc_ref) < 1e-12, (vc.acc_depth, acc_ref)
@@ -98,7 +109,9 @@ def main() -> int:
     print(f"{'method':<52}{'time (ms)':>12}{'reference / this':>18}")
     rows = (
         ("r360gpu float mode, one view (GPU + host GHT)", t_gpu),
-        (f"r360gpu float mode, {args.methods} methods batched, per method", t_per),
+        (f"acc_depth_views, {args.methods} methods, per method", t_per),
+        (f"kernels one method at a time (no GHT), per method", t_k1 / args.methods),
+        (f"kernels batched over {args.methods} methods (no GHT), per method", t_kb / args.methods),
         ("r360gpu compat mode (numpy, no PNG)", t_compat),
         ("reference way (matplotlib PNG round trip)", t_ref),
     )
