@@ -9,6 +9,8 @@ doing one cv2.erode / cv2.dilate and one upload per offset and one IoU call
 per offset and axis.  Probe outputs are synthetic blobs (one semantic probe,
 one structural probe with 6 masks per rendering), so only the measuring is
 timed.  Images are float32, as the renderer and the renders reader give them.
+Last, both SSIM backends (the WGSL kernel and the OpenCV path) are timed on
+this adapter.
 
     python bench/bench_measure.py [--methods 3] [--width 1920] [--height 1080] [--repeat 5]
 """
@@ -130,6 +132,14 @@ def main() -> int:
           f"{'speed-up':>10}")
     for label, n, tp, tn in rows:
         print(f"{label:<14}{tp / n * 1e3:>22.1f}{tn / n * 1e3:>22.1f}{tp / tn:>9.1f}x")
+    # Why CPU adapters take the OpenCV path: both SSIM backends on this adapter.
+    from r360gpu.kernels.ssim import ssim_mse_many
+
+    posts = [mo.rgb for mo in methods.values()]
+    t_b = {b: best_of(lambda: ssim_mse_many(posts, ref, ctx=ctx, backend=b), 2) for b in ("gpu", "cpu")}
+    print(f"{'SSIM + MSE, ' + str(len(posts)) + ' methods':<26}{'gpu kernel':>12}{'cpu (OpenCV)':>14}{'gpu / cpu':>11}")
+    print(f"{'ms per method':<26}{t_b['gpu'] / len(posts) * 1e3:>12.1f}{t_b['cpu'] / len(posts) * 1e3:>14.1f}"
+          f"{t_b['gpu'] / t_b['cpu']:>10.1f}x")
     per = rows[-1][3] / rows[-1][1] * 1e3
     print(f"goal: <= 60 ms per method-view on lavapipe: {'met' if per <= 60 else 'NOT met'} ({per:.0f} ms)"
           f"; load average after: {', '.join(f'{x:.1f}' for x in os.getloadavg())}")

@@ -17,10 +17,11 @@ Backends (:func:`ssim_backend`):
 ``cpu``
     on CPU adapters (lavapipe) a compute shader is a slower way to run the
     same CPU: its per-invocation storage loads make this 11 x 11 stencil
-    about 10x slower than OpenCV's vectorised separable filter (measured on
-    1080p frames, bench/bench_measure.py).  This path filters float32
-    images with cv2.sepFilter2D after subtracting each channel's mean of
-    I_ref (so E[x^2] - E[x]^2 cancels on values near 0, not near 1), and
+    several times slower than OpenCV's vectorised separable filter (5.8x at
+    1080p, 3 methods, in bench/bench_measure.py's last rows).  This path
+    filters float32 images with cv2.sepFilter2D after subtracting each
+    channel's mean of I_ref (so E[x^2] - E[x]^2 cancels on values near 0,
+    not near 1), by strips of rows, and
     filters I_ref once for all methods.
 
 Both stay within ``SSIM_TOL[backend]`` of the float64 window definition
