@@ -131,3 +131,51 @@ def test_4000x3000_view(ctx):
     rng = np.random.default_rng(10)
     pre, post, mask = _scene(rng, 3000, 4000)
     _run(ctx, pre, post, mask, 100.0)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (45, 67), (70, 50)])
+def test_batched_methods_equal_the_oracle(ctx, small_ctx, shape):
+    """One D_pre against several D_post (a view's methods) in one batch, incl.
+    identical, all-missing and NaN/Inf posts, and row chunks beyond one binding."""
+    rng = np.random.default_rng(sum(shape) + 11)
+    pre, post, mask = _scene(rng, *shape)
+    bad = post.copy()
+    bad.flat[:: 3] = np.nan
+    bad.flat[1:: 5] = np.inf
+    posts = [post, pre.copy(), np.zeros_like(pre), bad, post * 2]
+    ts = [0.0, 17.5, 127.0, 254.0, 3.5]
+    for c in (ctx, small_ctx):
+        stages = K.delta_histograms(pre, posts, ctx=c)
+        res = K.changed_in_masks(stages, mask, ts, ctx=c)
+        for st, r, d, t in zip(stages, res, posts, ts):
+            _, lo, hi, hist, changed, n_in, n_m = depth_change_oracle(pre, d, mask, t)
+            assert (st.lo, st.hi) == (lo, hi)
+            np.testing.assert_array_equal(st.hist, hist)
+            np.testing.assert_array_equal(r.changed, changed)
+            assert (r.n_changed_in_mask, r.n_mask) == (n_in, n_m)
+    assert K.delta_histograms(pre, [], ctx=ctx) == [] and K.changed_in_masks([], mask, [], ctx=ctx) == []
+    with pytest.raises(InputError, match="D_post is"):
+        K.delta_histograms(pre, [post, post[:, :-1] if shape[1] > 1 else post[:0]], ctx=ctx)
+
+
+def test_acc_depth_views_equal_single_views(ctx):
+    from r360gpu.metrics.geometric import acc_depth_view, acc_depth_views
+
+    rng = np.random.default_rng(4)
+    pre, post, mask = _scene(rng, 33, 47)
+    posts = [post, pre, post + 1]
+    for compat in (False, True):
+        many = acc_depth_views(pre, posts, mask, compat=compat, ctx=ctx)
+        for v, d in zip(many, posts):
+            one = acc_depth_view(pre, d, mask, compat=compat, ctx=ctx)
+            assert v.summary() == one.summary()
+            np.testing.assert_array_equal(v.changed, one.changed)
+            np.testing.assert_array_equal(v.hist, one.hist)
+
+
+@pytest.mark.parametrize("t", [254.99999999999997, 254.5, 0.9999999999999999, -0.5, -np.inf, np.inf, np.nan, 1e9])
+def test_split_just_below_a_whole_bin(ctx, t):
+    """A float64 split that rounds up in float32 must not move the changed set."""
+    pre = np.arange(1, 301, dtype=np.float32).reshape(10, 30)
+    post = np.zeros_like(pre) + 0.5
+    _run(ctx, pre, post, np.ones_like(pre, bool), t)

@@ -186,3 +186,18 @@ def test_stack_over_one_real_binding(ctx):
     inter = np.array([[np.count_nonzero(x & y) for y in b] for x in a])
     np.testing.assert_array_equal(r.intersection, inter)
     np.testing.assert_array_equal(r.area_a, a.reshape(n, -1).sum(1))
+
+
+def test_area_kernel_and_host_popcount_agree(ctx, small_ctx):
+    """Areas come from the packing step's popcount (numpy >= 2) or from the GPU
+    area kernel (device masks, older numpy): both equal the oracle."""
+    rng = np.random.default_rng(12)
+    a = rng.random((5, 37, 70)) < 0.4
+    a[0] = False
+    for c in (ctx, small_ctx):
+        p = K.pack(a, ctx=c)
+        want = mask_iou_oracle(a, a[:1])[1]
+        if p.areas_host is not None:
+            np.testing.assert_array_equal(p.areas_host, want)
+        p.areas_host = None  # force the GPU kernel
+        np.testing.assert_array_equal(K.areas(p, ctx=c), want)

@@ -71,12 +71,23 @@ def _checks(ctx, rng):
         ok = (st.lo, st.hi) == (lo, hi) and (st.hist == hist).all() and (res.changed == changed).all()
         return ok and (res.n_changed_in_mask, res.n_mask) == (n_in, n_m), "45x67 depths with missing values"
 
+    def ssim_kernel():
+        from ..kernels.reference import ssim_reference
+        from ..kernels.ssim import SSIM_TOL, ssim_mse_many
+
+        y = rng.integers(0, 256, (23, 37, 3), dtype=np.uint8)
+        x = np.clip(y.astype(int) + rng.integers(-40, 41, y.shape), 0, 255).astype(np.uint8)
+        (s, m), = ssim_mse_many([x], y, ctx=ctx, backend="gpu")
+        rs, rm = ssim_reference(x / 255.0, y / 255.0)
+        return abs(s - rs) <= SSIM_TOL["gpu"] and abs(m - rm) <= 1e-12, "23x37 RGB against the window definition"
+
     checks = [
         ("mask_iou (random)", iou_random),
         ("mask_iou (blobs, 1080p)", iou_blobs_1080p),
         ("mask union", union),
         ("mask pack (device buffer)", device_pack),
         ("depth_change", depth),
+        ("ssim (GPU kernel)", ssim_kernel),
     ]
     try:
         from ..render import doctor_checks

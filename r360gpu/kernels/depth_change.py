@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..gpu.context import GpuContext, get_context
+from ..gpu.context import BufferRange, GpuContext, get_context
 
 SHADER = "depth_change"
 QV = 4  # vec4s per invocation in delta_minmax / histo (shader constant QV)
@@ -151,45 +151,69 @@ def delta_histogram(d_pre, d_post, *, ctx: GpuContext | None = None) -> DeltaHis
 
     ``d_pre``, ``d_post``: float32 (H, W) numpy arrays or :class:`DeviceDepth`.
     """
+    return delta_histograms(d_pre, [d_post], ctx=ctx)[0]
+
+
+_STATS_STRIDE = 256  # bytes between the per-image stats / histograms of a batch (binding offset alignment)
+
+
+def delta_histograms(d_pre, d_posts, *, ctx: GpuContext | None = None) -> list[DeltaHistogram]:
+    """:func:`delta_histogram` of one D_pre against several D_post (the methods
+    of a view): D_pre is uploaded once, and every pass of every image is
+    recorded in one submission (two waits in all, instead of two per image).
+    """
     ctx = ctx or get_context()
-    d_pre, d_post = _as_depth(d_pre, "D_pre"), _as_depth(d_post, "D_post")
+    d_pre = _as_depth(d_pre, "D_pre")
+    posts = [_as_depth(d, "D_post") for d in d_posts]
     h, w = _hw(d_pre)
-    if _hw(d_post) != (h, w):
-        raise InputError(f"D_pre is {h}x{w} but D_post is {_hw(d_post)[0]}x{_hw(d_post)[1]} (H x W)")
-    res = DeltaHistogram(h, w, 0.0, 0.0, np.float32(0), np.zeros(N_BINS, np.int64))
-    if h * w == 0:
+    for d in posts:
+        if _hw(d) != (h, w):
+            raise InputError(f"D_pre is {h}x{w} but D_post is {_hw(d)[0]}x{_hw(d)[1]} (H x W)")
+    res = [DeltaHistogram(h, w, 0.0, 0.0, np.float32(0), np.zeros(N_BINS, np.int64)) for _ in posts]
+    if h * w == 0 or not posts:
         return res
+    n = len(posts)
     rows = _rows_per_chunk(ctx, w, h)
-    stats = ctx.buffer(np.array([0xFFFFFFFF, 0, 0, 0], np.uint32), label="depth_stats")
+    stride = _STATS_STRIDE
+    init = np.zeros((n, stride // 4), np.uint32)
+    init[:, 0] = 0xFFFFFFFF
+    stats = ctx.buffer(init, label="depth_stats")
     pipe = ctx.pipeline(SHADER, "delta_minmax")
     enc = ctx.encoder()
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)
         n_px = (r1 - r0) * w
-        delta = ctx.buffer(_padded(n_px) * 4, label="delta")
         params = ctx.uniform(n_px, 0, 0, 0, 0.0, 0.0, 0.0, 0)
-        ctx.dispatch(
-            enc, pipe,
-            [params, _upload_rows(ctx, d_pre, r0, r1, "pre"), _upload_rows(ctx, d_post, r0, r1, "post"), delta, stats],
-            ctx.grid(math.ceil(n_px / _PX_PER_GROUP["delta_minmax"])),
-        )
-        res.chunks.append(_Chunk(r0, r1, delta))
+        b_pre = _upload_rows(ctx, d_pre, r0, r1, "pre")
+        for k, d in enumerate(posts):
+            delta = ctx.buffer(_padded(n_px) * 4, label="delta")
+            ctx.dispatch(
+                enc, pipe,
+                [params, b_pre, _upload_rows(ctx, d, r0, r1, ("post", k)), delta,
+                 BufferRange(stats, k * stride, 16)],
+                ctx.grid(math.ceil(n_px / _PX_PER_GROUP["delta_minmax"])),
+            )
+            res[k].chunks.append(_Chunk(r0, r1, delta))
     ctx.submit(enc)
-    lo_bits, hi_bits = ctx.read(stats, np.uint32, 2)
-    res.lo = float(np.uint32(lo_bits).view(np.float32))
-    res.hi = float(np.uint32(hi_bits).view(np.float32))
-    res.scale = bin_scale(res.lo, res.hi)
-    hist = ctx.buffer(N_BINS * 4, label="hist")
+    st = ctx.read(stats, np.uint32, n * stride // 4).reshape(n, -1)
+    hist = ctx.buffer(n * stride * 4, label="hist")  # 256 u32 per image, stride-aligned
     entry = histogram_entry(ctx)
     pipe = ctx.pipeline(SHADER, entry)
     enc = ctx.encoder()
-    for c in res.chunks:
-        n_px = (c.r1 - c.r0) * w
-        params = ctx.uniform(n_px, 0, 0, 0, np.float32(res.lo), res.scale, 0.0, 0)
-        groups = ctx.grid(math.ceil(n_px / _PX_PER_GROUP[entry]))
-        ctx.dispatch(enc, pipe, [params, None, None, c.delta, None, hist], groups)
+    for k, r in enumerate(res):
+        r.lo = float(np.uint32(st[k, 0]).view(np.float32))
+        r.hi = float(np.uint32(st[k, 1]).view(np.float32))
+        r.scale = bin_scale(r.lo, r.hi)
+        for c in r.chunks:
+            n_px = (c.r1 - c.r0) * w
+            params = ctx.uniform(n_px, 0, 0, 0, np.float32(r.lo), r.scale, 0.0, 0)
+            groups = ctx.grid(math.ceil(n_px / _PX_PER_GROUP[entry]))
+            ctx.dispatch(enc, pipe, [params, None, None, c.delta, None,
+                                     BufferRange(hist, k * N_BINS * 4, N_BINS * 4)], groups)
     ctx.submit(enc)
-    res.hist = ctx.read(hist, np.uint32, N_BINS).astype(np.int64)
+    hs = ctx.read(hist, np.uint32, n * N_BINS).reshape(n, N_BINS)
+    for k, r in enumerate(res):
+        r.hist = hs[k].astype(np.int64)
     return res
 
 
@@ -204,35 +228,65 @@ class ChangedResult:
 
 def changed_in_mask(stage: DeltaHistogram, mask, t: float, *, ctx: GpuContext | None = None) -> ChangedResult:
     """Changed pixels (``bin(dD) > t``) and how many fall inside ``mask`` (H, W)."""
+    return changed_in_masks([stage], mask, [t], ctx=ctx)[0]
+
+
+def _split_f32(t: float) -> np.float32:
+    """The split as the kernel compares it.  Bins are whole numbers, so
+    ``bin > t`` is ``bin > floor(t)``; passing floor(t) (clamped to [-1, 255])
+    keeps a t such as 254.99999999999997 from rounding up to 255 in float32."""
+    t = float(t)
+    if math.isnan(t):
+        return np.float32(N_BINS - 1)  # bin > NaN is never true
+    return np.float32(min(max(math.floor(t) if math.isfinite(t) else t, -1.0), float(N_BINS - 1)))
+
+
+def changed_in_masks(stages, mask, ts, *, ctx: GpuContext | None = None) -> list[ChangedResult]:
+    """:func:`changed_in_mask` of several first-pass results (one view's methods)
+    against one target mask, in one submission; the mask is uploaded once."""
     ctx = ctx or get_context()
-    h, w = stage.height, stage.width
+    stages, ts = list(stages), list(ts)
+    if not stages:
+        return []
+    h, w = stages[0].height, stages[0].width
     m = np.asarray(mask)
     if m.shape != (h, w):
         raise InputError(f"target mask is {m.shape[0]}x{m.shape[1]} but the depth images are {h}x{w} (H x W)")
-    changed = np.zeros((h, w), bool)
+    for s in stages:
+        if (s.height, s.width) != (h, w):
+            raise InputError(f"depth images of one batch differ in size: {h}x{w} vs {s.height}x{s.width} (H x W)")
+    out = [ChangedResult(np.zeros((h, w), bool), 0, 0) for _ in stages]
     if h * w == 0:
-        return ChangedResult(changed, 0, 0)
-    stats = ctx.buffer(np.zeros(4, np.uint32), label="changed_stats")
+        return out
+    n = len(stages)
+    stride = _STATS_STRIDE
+    stats = ctx.buffer(np.zeros(n * stride // 4, np.uint32), label="changed_stats")
     pipe = ctx.pipeline(SHADER, "changed")
-    outs = []
+    pending = []
     enc = ctx.encoder()
-    for c in stage.chunks:
-        n_px = (c.r1 - c.r0) * w
-        n_words = _padded(n_px) // 32
-        words = ctx.buffer(n_words * 4, label="changed_words")
-        m_words = np.zeros(n_words * 4, np.uint8)
-        packed = np.packbits(m[c.r0 : c.r1].reshape(-1), bitorder="little")
-        m_words[: packed.size] = packed
-        params = ctx.uniform(n_px, 0, 0, 0, np.float32(stage.lo), stage.scale, np.float32(t), 0)
-        ctx.dispatch(
-            enc, pipe,
-            [params, None, None, c.delta, stats, None, ctx.buffer(m_words.view(np.uint32)), words],
-            ctx.grid(math.ceil(n_words / 64)),
-        )
-        outs.append((c, words, n_words))
+    m_bufs = {}
+    for k, (stage, t) in enumerate(zip(stages, ts)):
+        for c in stage.chunks:
+            n_px = (c.r1 - c.r0) * w
+            n_words = _padded(n_px) // 32
+            if c.r0 not in m_bufs:
+                m_words = np.zeros(n_words * 4, np.uint8)
+                packed = np.packbits(m[c.r0 : c.r1].reshape(-1), bitorder="little")
+                m_words[: packed.size] = packed
+                m_bufs[c.r0] = ctx.buffer(m_words.view(np.uint32), label="mask_words")
+            words = ctx.buffer(n_words * 4, label="changed_words")
+            params = ctx.uniform(n_px, 0, 0, 0, np.float32(stage.lo), stage.scale, _split_f32(t), 0)
+            ctx.dispatch(
+                enc, pipe,
+                [params, None, None, c.delta, BufferRange(stats, k * stride, 16), None, m_bufs[c.r0], words],
+                ctx.grid(math.ceil(n_words / 64)),
+            )
+            pending.append((k, c, words, n_words))
     ctx.submit(enc)
-    for c, words, n_words in outs:
+    for k, c, words, n_words in pending:
         bits = np.unpackbits(ctx.read(words, np.uint8, n_words * 4), bitorder="little")
-        changed[c.r0 : c.r1] = bits[: (c.r1 - c.r0) * w].reshape(c.r1 - c.r0, w).astype(bool)
-    s = ctx.read(stats, np.uint32, 4)
-    return ChangedResult(changed, int(s[2]), int(s[3]))
+        out[k].changed[c.r0 : c.r1] = bits[: (c.r1 - c.r0) * w].view(bool).reshape(c.r1 - c.r0, w)
+    st = ctx.read(stats, np.uint32, n * stride // 4).reshape(n, -1)
+    for k in range(n):
+        out[k].n_changed_in_mask, out[k].n_mask = int(st[k, 2]), int(st[k, 3])
+    return out

@@ -43,6 +43,16 @@ class DeviceMasks:
 
 
 @dataclass
+class BitMasks:
+    """A stack already bit-packed on the host: ``words`` (N, H, row_words(width))
+    uint32 in the layout of :func:`pack_bits` (bits past ``width`` zero), e.g.
+    the boundary sweep's perturbed targets (:mod:`r360gpu.kernels.morph`)."""
+
+    words: np.ndarray
+    width: int
+
+
+@dataclass
 class PackedChunk:
     """Masks ``k0:k1`` restricted to rows ``r0:r1``, on the device."""
 
@@ -63,6 +73,7 @@ class PackedMasks:
     height: int
     width: int
     chunks: list[PackedChunk] = field(default_factory=list)
+    areas_host: np.ndarray | None = None  # (n,) int64 when counted at packing (saves a GPU round trip)
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -149,6 +160,17 @@ def _boxes(packed: np.ndarray) -> np.ndarray:
     return out
 
 
+def _popcount(packed: np.ndarray) -> np.ndarray | None:
+    """(N,) int64 set bits per mask with numpy >= 2's vectorised popcount; None
+    on older numpy (the GPU area kernel counts them then)."""
+    if not hasattr(np, "bitwise_count"):
+        return None
+    n = packed.shape[0]
+    if n == 0 or packed.size == 0:
+        return np.zeros(n, np.int64)
+    return np.bitwise_count(packed.reshape(n, -1)).sum(axis=1, dtype=np.int64)
+
+
 def _clip_boxes(boxes: np.ndarray, r0: int, r1: int) -> np.ndarray:
     """Boxes restricted to rows r0:r1 and made relative to r0 (empty -> zeros)."""
     b = boxes.astype(np.int64).copy()
@@ -173,18 +195,24 @@ def pack(masks, *, ctx: GpuContext | None = None) -> PackedMasks:
     """Upload a stack to the device as :class:`PackedMasks`.
 
     ``masks``: (N, H, W) or (H, W) bool/integer numpy array, a
-    :class:`DeviceMasks`, or an existing :class:`PackedMasks` (returned as is).
+    :class:`BitMasks` or :class:`DeviceMasks`, or an existing
+    :class:`PackedMasks` (returned as is).
     """
     if isinstance(masks, PackedMasks):
         return masks
     ctx = ctx or get_context()
     if isinstance(masks, DeviceMasks):
         return _pack_device(masks, ctx)
-    packed = pack_bits(masks)
+    if isinstance(masks, BitMasks):
+        packed, w = np.ascontiguousarray(masks.words, np.uint32), int(masks.width)
+        if packed.ndim != 3 or packed.shape[2] != row_words(w):
+            raise InputError(f"BitMasks: words of shape {packed.shape} do not hold rows of {w} pixels")
+    else:
+        packed = pack_bits(masks)
+        w = np.shape(masks)[-1]
     n, h, rw = packed.shape
-    w = np.shape(masks)[-1]
     boxes = _boxes(packed)
-    out = PackedMasks(n, int(h), int(w))
+    out = PackedMasks(n, int(h), int(w), areas_host=_popcount(packed))
     kchunk, rchunk = _layout(ctx, n, h, rw)
     for k0 in range(0, n, kchunk):
         k1 = min(n, k0 + kchunk)
@@ -253,6 +281,8 @@ def areas(masks, *, ctx: GpuContext | None = None) -> np.ndarray:
     """Pixel count of every mask: (N,) int64."""
     ctx = ctx or get_context()
     p = pack(masks, ctx=ctx)
+    if p.areas_host is not None:
+        return p.areas_host.copy()
     out = np.zeros(p.n, np.int64)
     pipe = ctx.pipeline(SHADER, "area")
     for c in p.chunks:

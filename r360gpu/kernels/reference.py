@@ -41,3 +41,34 @@ def depth_change_reference(d_pre, d_post, mask, t):
     changed = bins > t
     mask = np.asarray(mask) != 0
     return d, lo, hi, hist, changed, int((changed & mask).sum()), int(mask.sum())
+
+
+def ssim_reference(x, y, data_range: float = 1.0):
+    """Mean SSIM and MSE of two (H, W, C) float64 images by the window definition:
+    every 11 x 11 window wholly inside the image, the 2-D Gaussian weights
+    (sigma 1.5, sum 1), population moments about the window means."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    x = np.asarray(x, np.float64)
+    y = np.asarray(y, np.float64)
+    if x.ndim == 2:
+        x, y = x[:, :, None], y[:, :, None]
+    k = np.arange(11) - 5.0
+    g = np.exp(-k * k / (2 * 1.5**2))
+    w2 = np.outer(g, g)
+    w2 /= w2.sum()
+    c1, c2 = (0.01 * data_range) ** 2, (0.03 * data_range) ** 2
+    vals = []
+    for ch in range(x.shape[2]):
+        a = sliding_window_view(x[:, :, ch], (11, 11))  # (H-10, W-10, 11, 11)
+        b = sliding_window_view(y[:, :, ch], (11, 11))
+        ma = (a * w2).sum(axis=(2, 3))
+        mb = (b * w2).sum(axis=(2, 3))
+        da = a - ma[:, :, None, None]
+        db = b - mb[:, :, None, None]
+        va = (w2 * da * da).sum(axis=(2, 3))
+        vb = (w2 * db * db).sum(axis=(2, 3))
+        cov = (w2 * da * db).sum(axis=(2, 3))
+        vals.append(((2 * ma * mb + c1) * (2 * cov + c2)) / ((ma * ma + mb * mb + c1) * (va + vb + c2)))
+    mse = float(np.mean((x - y) ** 2)) / (data_range * data_range)
+    return float(np.mean(np.stack(vals))), mse

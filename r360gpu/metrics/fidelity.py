@@ -24,7 +24,12 @@ and ``skimage.metrics.structural_similarity(..., gaussian_weights=True,
 sigma=1.5, use_sample_covariance=False, data_range=1, channel_axis=-1)``, which
 filters with reflect padding and then crops the 5-pixel border, so the
 padding never enters the mean.  Images smaller than 11 pixels in either
-dimension are an input error.
+dimension are an input error.  :func:`ssim` and :func:`ssim_map` compute it in
+float64 (OpenCV separable filters); the per-view records
+(:func:`fidelity_view`, :func:`fidelity_views`) use the batched kernels of
+:mod:`r360gpu.kernels.ssim`, within ``SSIM_TOL`` of the same definition
+(tests/test_kernel_ssim.py), and measure all methods of a view against I_ref
+in one call.
 
 LPIPS.  Computed only with an LPIPS network exported to ONNX
 (:class:`LpipsModel`; AlexNet or VGG variant): two float32 NCHW inputs in
@@ -44,6 +49,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..kernels.ssim import ssim_mse_many
 from ..probes.base import file_sha256
 from . import _json
 
@@ -279,15 +285,40 @@ class FidelityView:
         )
 
 
-def fidelity_view(post, ref, lpips_model: LpipsModel | None = None) -> FidelityView:
+def _same_kind(posts: Sequence, ref) -> tuple[list, object]:
+    """All uint8, or all float32 (uint8 ones scaled to [0, 1]) when the kinds are mixed."""
+    arrs = [np.asarray(p) for p in posts]
+    r = np.asarray(ref)
+    kinds = {a.dtype == np.uint8 for a in (*arrs, r)}
+    if len(kinds) == 1:
+        return arrs, r
+    conv = lambda a: a.astype(np.float32) / np.float32(255.0) if a.dtype == np.uint8 else a  # noqa: E731
+    return [conv(a) for a in arrs], conv(r)
+
+
+def fidelity_views(posts: Sequence, ref, lpips_model: LpipsModel | None = None, *, ctx=None,
+                   what: Sequence[str] | None = None) -> list[FidelityView]:
+    """PSNR, SSIM and (with a model) LPIPS of every I_post of ``posts`` (e.g. the
+    methods of one view) against one I_ref; I_ref is prepared once.
+
+    what: names of the posts for error messages (default "I_post").
+    """
+    names = list(what) if what is not None else ["I_post"] * len(posts)
+    arrs, r = _same_kind(posts, ref)
+    stats = ssim_mse_many(arrs, r, ctx=ctx, what=names)
+    out = []
+    for a, (s, err) in zip(arrs, stats):
+        if lpips_model is None:
+            lp, reason, desc = None, NO_LPIPS_MODEL, None
+        else:
+            lp, reason, desc = lpips_model.distance(a, r), None, lpips_model.describe()
+        out.append(FidelityView(err, psnr_from_mse(err), s, lp, reason, desc))
+    return out
+
+
+def fidelity_view(post, ref, lpips_model: LpipsModel | None = None, *, ctx=None) -> FidelityView:
     """PSNR, SSIM and (with a model) LPIPS of I_post against I_ref."""
-    x, y = _pair(post, ref)
-    err = float(np.mean((x - y) ** 2))
-    if lpips_model is None:
-        lp, reason, desc = None, NO_LPIPS_MODEL, None
-    else:
-        lp, reason, desc = lpips_model.distance(x, y), None, lpips_model.describe()
-    return FidelityView(err, psnr_from_mse(err), ssim(x, y), lp, reason, desc)
+    return fidelity_views([post], ref, lpips_model, ctx=ctx)[0]
 
 
 @dataclass(frozen=True)

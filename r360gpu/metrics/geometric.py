@@ -118,6 +118,33 @@ def acc_depth_view(
     return _view(res.n_changed_in_mask, res.n_mask, xi, split, stage.lo, stage.hi, stage.hist, res.changed, "float")
 
 
+def acc_depth_views(
+    d_pre,
+    d_posts,
+    mask,
+    *,
+    compat: bool = False,
+    ght_params: GhtParams = GhtParams(),
+    ctx=None,
+) -> list[GeometricView]:
+    """:func:`acc_depth_view` of one D_pre against several D_post (the methods
+    of one view).  Float mode batches the GPU passes of all methods (D_pre and
+    the mask uploaded once, three waits in all); the results equal the
+    per-method calls."""
+    if compat or not len(d_posts):
+        return [acc_depth_view(d_pre, d, mask, compat=compat, ght_params=ght_params, ctx=ctx) for d in d_posts]
+    m = np.asarray(mask) != 0
+    p = ght_params.as_dict()
+    stages = kernel.delta_histograms(d_pre, d_posts, ctx=ctx)
+    splits = [ght(st.hist, **p).threshold for st in stages]
+    res = kernel.changed_in_masks(stages, m, splits, ctx=ctx)
+    return [
+        _view(r.n_changed_in_mask, r.n_mask, threshold_value(t, st.lo, st.hi, kernel.N_BINS), t, st.lo, st.hi,
+              st.hist, r.changed, "float")
+        for st, t, r in zip(stages, splits, res)
+    ]
+
+
 def _view(n_in, n_mask, threshold, split, lo, hi, hist, changed, mode) -> GeometricView:
     excluded = n_mask == 0
     acc = None if excluded else n_in / n_mask

@@ -42,14 +42,18 @@ D10, D15 (negative offsets erode).
 """
 from __future__ import annotations
 
+import hashlib
+import threading
+from collections import OrderedDict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
 from ..errors import InputError
 from ..kernels import mask_iou as K
+from ..gpu.context import get_context
+from ..kernels import morph
 from . import _json
 from .geometric import GeometricView, GhtParams, acc_depth_view
 from .semantic import (
@@ -61,7 +65,6 @@ from .semantic import (
     predicted_unions,
     scored_views,
     semantic_summary,
-    semantic_view_from_unions,
 )
 from .structural import check_mode, retained, structural_from_ious, structural_summary
 from ._masks import mask_stack, probe_name, target_mask, where
@@ -78,23 +81,73 @@ def boundary_label(offset: int) -> str:
     return f"E{-r}" if r < 0 else f"D{r}"
 
 
-def perturb_mask(mask, offset: int) -> np.ndarray:
-    """Erode (offset < 0) or dilate (offset > 0) a mask by |offset| pixels.
-
-    mask: (H, W), non-zero = target.  Returns bool (H, W).  One pass of
-    cv2.erode / cv2.dilate with the (2r+1) x (2r+1) elliptical element, OpenCV's
-    default border (see the module docstring).
-    """
-    m = target_mask(mask)
+def _check_offset(offset) -> int:
     r = int(offset)
     if r != offset:
         raise InputError(f"boundary offset must be a whole number of pixels, got {offset!r}")
+    return r
+
+
+def perturb_mask(mask, offset: int) -> np.ndarray:
+    """Erode (offset < 0) or dilate (offset > 0) a mask by |offset| pixels.
+
+    mask: (H, W), non-zero = target.  Returns bool (H, W).  Equal to one pass
+    of cv2.erode / cv2.dilate with the (2r+1) x (2r+1) elliptical element,
+    OpenCV's default border (see the module docstring); computed on packed
+    rows by :mod:`r360gpu.kernels.morph`.
+    """
+    m = target_mask(mask)
+    r = _check_offset(offset)
     if r == 0:
         return m.copy()
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * abs(r) + 1, 2 * abs(r) + 1))
-    src = m.astype(np.uint8)
-    out = cv2.erode(src, kernel) if r < 0 else cv2.dilate(src, kernel)
-    return out.astype(bool)
+    return K.unpack_bits(morph.perturb_packed(m, [r]), m.shape[1])[0]
+
+
+@dataclass(frozen=True)
+class BoundaryTargets:
+    """The perturbed targets of one view, packed on the device once and shared
+    by every method of the view (see :func:`boundary_targets`).
+
+    offsets: the offsets; packed: their masks (one per offset, in order);
+    areas: (len(offsets),) int64 pixel counts; shape: (H, W).
+    """
+
+    offsets: tuple[int, ...]
+    packed: K.PackedMasks
+    areas: np.ndarray
+    shape: tuple[int, int]
+
+
+_TARGETS: OrderedDict = OrderedDict()
+_TARGETS_LOCK = threading.Lock()
+_TARGETS_KEEP = 8  # views' worth of perturbed targets kept (a few MB on the device)
+
+
+def boundary_targets(target, offsets: Sequence[int] = BOUNDARY_OFFSETS, *, view: str = "", ctx=None) -> BoundaryTargets:
+    """Erode / dilate M^v by every offset and upload the stack once.
+
+    Results are memoised by the mask's content (a few recent views), so the
+    methods of one view scored one after another share one sweep.
+    """
+    m = target_mask(target, view)
+    offs = tuple(_check_offset(o) for o in offsets)
+    ctx = ctx or get_context()
+    bits = K.pack_bits(m)
+    key = (id(ctx), offs, m.shape, hashlib.blake2b(bits.tobytes(), digest_size=16).digest())
+    with _TARGETS_LOCK:
+        hit = _TARGETS.get(key)
+        # The entry holds its context, so id(ctx) cannot be reused while cached.
+        if hit is not None and hit[0] is ctx:
+            _TARGETS.move_to_end(key)
+            return hit[1]
+    words = morph.perturb_packed(m, offs)
+    areas = np.unpackbits(words.view(np.uint8).reshape(len(offs), -1), axis=1).sum(axis=1, dtype=np.int64)
+    bt = BoundaryTargets(offs, K.pack(K.BitMasks(words, m.shape[1]), ctx=ctx), areas, m.shape)
+    with _TARGETS_LOCK:
+        _TARGETS[key] = (ctx, bt)
+        while len(_TARGETS) > _TARGETS_KEEP:
+            _TARGETS.popitem(last=False)
+    return bt
 
 
 def threshold_sweep(
@@ -222,42 +275,40 @@ def boundary_sensitivity(
 
     for inp in inputs:
         m = target_mask(inp.target, inp.view)
-        targets = {o: perturb_mask(m, o) for o in offs}
-        packed = {o: K.pack(t, ctx=ctx) for o, t in targets.items()}
+        bt = boundary_targets(m, offs, view=inp.view, ctx=ctx)
+        targets = bt.packed
         if semantic:
             inp.given("pred_pre", "pred_post")
             u_pre, u_post, counts = predicted_unions(inp.pred_pre, inp.pred_post, m.shape, view=inp.view, ctx=ctx)
-            preds = K.pack(np.stack([u_pre, u_post]), ctx=ctx)
+            r = K.mask_iou(np.stack([u_pre, u_post]), targets, ctx=ctx)
             name = probe_name(inp.pred_pre, inp.pred_post)
-            for o in offs:
-                sem_views[o].append(
-                    semantic_view_from_unions(preds, packed[o], n_instances=counts, probe=name, ctx=ctx)
-                )
+            for j, o in enumerate(offs):
+                sem_views[o].append(_semantic_from_column(r, j, counts, name))
         if geometric:
             changed = _changed_mask(inp, m, compat, ght_params, ctx)
-            for o in offs:
-                r = K.mask_iou(changed, packed[o], ctx=ctx)
-                n_mask = int(r.area_b[0])
+            r = K.mask_iou(changed, targets, ctx=ctx)
+            for j, o in enumerate(offs):
+                n_mask = int(r.area_b[j])
                 if n_mask:  # the geometric axis never scores an empty target
-                    geo_vals[o].append(int(r.intersection[0, 0]) / n_mask)
+                    geo_vals[o].append(int(r.intersection[0, j]) / n_mask)
         if structural_mode is not None:
             inp.given("masks_a", "masks_b")
             a = mask_stack(inp.masks_a, m.shape, "structural probe masks (first rendering)", inp.view)
             b = mask_stack(inp.masks_b, m.shape, "structural probe masks (second rendering)", inp.view)
             pa, pb = K.pack(a, ctx=ctx), K.pack(b, ctx=ctx)
             iou_ab = K.mask_iou(pa, pb, ctx=ctx).iou
+            ra = K.mask_iou(pa, targets, ctx=ctx)
+            rb = K.mask_iou(pb, targets, ctx=ctx)
             name = probe_name(inp.masks_a, inp.masks_b)
-            for o in offs:
-                ra = K.mask_iou(pa, packed[o], ctx=ctx)
-                rb = K.mask_iou(pb, packed[o], ctx=ctx)
-                keep_a = retained(ra.iou[:, 0], retain_iou)
-                keep_b = retained(rb.iou[:, 0], retain_iou)
+            for j, o in enumerate(offs):
+                keep_a = retained(ra.iou[:, j], retain_iou)
+                keep_b = retained(rb.iou[:, j], retain_iou)
                 str_views[o].append(
                     structural_from_ious(
                         keep_a,
                         keep_b,
                         iou_ab[np.ix_(keep_a, keep_b)],
-                        area_target=int(rb.area_b[0]),
+                        area_target=int(rb.area_b[j]),
                         mode=structural_mode,
                         probe=name,
                     )
@@ -284,6 +335,25 @@ def boundary_sensitivity(
         rows["s_str"] = [s.s_str for s in sums]
         n_scored["structural"] = [s.n_scored for s in sums]
     return BoundaryTable(offs, tuple(boundary_label(o) for o in offs), rows, n_scored, structural_mode)
+
+
+def _semantic_from_column(r, j: int, counts: tuple[int, int], probe: str) -> SemanticView:
+    """SemanticView of the predicted pair [pre, post] against target column j of ``r``
+    (the same fields as semantic_view_from_unions fills)."""
+    area_t = int(r.area_b[j])
+    return SemanticView(
+        iou_pre=float(r.iou[0, j]),
+        iou_post=float(r.iou[1, j]),
+        empty_target=area_t == 0,
+        area_target=area_t,
+        area_pred_pre=int(r.area_a[0]),
+        area_pred_post=int(r.area_a[1]),
+        inter_pre=int(r.intersection[0, j]),
+        inter_post=int(r.intersection[1, j]),
+        n_instances_pre=int(counts[0]),
+        n_instances_post=int(counts[1]),
+        probe=probe,
+    )
 
 
 def _changed_mask(inp: BoundaryInput, m: np.ndarray, compat: bool, ght_params: GhtParams, ctx) -> np.ndarray:

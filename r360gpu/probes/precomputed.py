@@ -74,7 +74,7 @@ import numpy as np
 
 from r360gpu.errors import InputError, R360Warning
 from r360gpu.util import warning_log
-from r360gpu.probes import rle
+from r360gpu.probes import rle, sam_json
 from r360gpu.probes.base import (
     RENDERINGS,
     MaskSet,
@@ -240,7 +240,10 @@ def _gsam2_from_data(data, prompt: str, probe: str, path: Path) -> SemanticPredi
 
 
 def _segmentation_mask(seg, where: str, path: Path) -> np.ndarray:
-    """bool (H, W) from a nested 0/1 list or a COCO RLE object."""
+    """bool (H, W) from a nested 0/1 list, such a list already decoded by
+    :func:`r360gpu.probes.sam_json.load`, or a COCO RLE object."""
+    if isinstance(seg, np.ndarray):
+        return seg
     if isinstance(seg, dict):
         try:
             return rle.decode(seg, path)
@@ -297,7 +300,7 @@ def read_sam_records(records, path: str | os.PathLike, probe: str = "") -> MaskS
 def read_sam_json(path: str | os.PathLike, probe: str = "") -> MaskSet:
     """A MaskSet from one per-image SAM JSON file (a list of records)."""
     path = Path(path)
-    return read_sam_records(_load_json(path), path, probe)
+    return read_sam_records(sam_json.load(path), path, probe)
 
 
 def read_mask_png(path: str | os.PathLike) -> np.ndarray:
@@ -400,7 +403,7 @@ class SamJsonDir:
         self._merged_path = self.directory / "merged.json"
         self._merged: dict[str, list] | None = None
         if self._merged_path.is_file():
-            data = _load_json(self._merged_path)
+            data = sam_json.load(self._merged_path)
             if not isinstance(data, dict):
                 raise InputError("merged SAM masks must map image names to record lists", self._merged_path)
             self._merged = {}

@@ -1,0 +1,128 @@
+"""The measure stage of one view: every method at once.
+
+Given the probe outputs already at hand, :func:`measure_view_methods` returns
+each method's :class:`~r360gpu.metrics.record.ViewRecord` and boundary-sweep
+rows, computing what the methods share once per view:
+
+* fidelity: I_ref is prepared once (:func:`~r360gpu.metrics.fidelity.fidelity_views`);
+* geometric: D_pre and M^v are uploaded once and the GPU passes of all methods
+  share one submission (:func:`~r360gpu.metrics.geometric.acc_depth_views`);
+* boundary sweep: M^v is eroded / dilated and uploaded once
+  (:func:`~r360gpu.metrics.sensitivity.boundary_targets`).
+
+The values equal the per-method functions (semantic_view, structural_view,
+acc_depth_view, fidelity_view, boundary_sensitivity) called one method at a
+time, as ``r360gpu/scoring.py`` does (tests/test_metrics_measure.py).
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .fidelity import LpipsModel, fidelity_views
+from .geometric import GeometricView, GhtParams, acc_depth_views
+from .record import ViewRecord
+from .semantic import XI_DEFAULT, semantic_view
+from .sensitivity import NOT_GIVEN, BoundaryInput, boundary_sensitivity, boundary_targets
+from .structural import check_mode, structural_view
+
+
+@dataclass
+class MethodOutputs:
+    """One method's renderings and probe outputs on one view.
+
+    rgb: I_post (H, W, 3); depth: D_post (H, W) or None.
+    semantic: {semantic probe name: prediction on I_post}.
+    structural: {structural probe name: masks on I_post}.
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray | None = None
+    semantic: Mapping[str, object] = field(default_factory=dict)
+    structural: Mapping[str, object] = field(default_factory=dict)
+
+
+@dataclass
+class MethodMeasures:
+    """What the measure stage gives per method: the record, the boundary rows
+    ({row: {label: value}}, None when the sweep is off or lacks a probe), the
+    GeometricView (for pictures; None without depths) and the structural mask
+    pairs (first rendering, second rendering) per probe."""
+
+    record: ViewRecord
+    boundary: dict | None
+    geometric: GeometricView | None
+    pairs: dict
+
+
+def measure_view_methods(
+    *,
+    view: str,
+    scene: str,
+    target,
+    methods: Mapping[str, MethodOutputs],
+    semantic_pre: Mapping[str, object],
+    structural_first: Mapping[str, object],
+    mode: str,
+    pre_depth=None,
+    ref_rgb=None,
+    probes: Sequence[dict] = (),
+    boundary: bool = True,
+    xis: Sequence[float] = (XI_DEFAULT,),
+    compat: bool = False,
+    ght_params: GhtParams = GhtParams(),
+    lpips_model: LpipsModel | None = None,
+    ctx=None,
+) -> dict[str, MethodMeasures]:
+    """Measure every method of one view (see the module docstring).
+
+    target: M^v (H, W).  semantic_pre: {probe: prediction on I_pre}, in probe
+    order.  structural_first: {probe: masks} on I_ref (mode "reference") or on
+    I_pre ("reference_free"), in probe order.  pre_depth: D_pre or None;
+    ref_rgb: I_ref or None (no fidelity).  probes: the probe descriptions for
+    the records.  The boundary sweep uses the first semantic and the first
+    structural probe, and runs only when both exist.
+    """
+    check_mode(mode)
+    names = list(methods)
+    sem_names, str_names = list(semantic_pre), list(structural_first)
+    fid = {}
+    if ref_rgb is not None and names:
+        views = fidelity_views([methods[m].rgb for m in names], ref_rgb, lpips_model, ctx=ctx,
+                               what=[f"method {m}'s I_post" for m in names])
+        fid = dict(zip(names, views))
+    geo: dict[str, GeometricView] = {}
+    with_depth = [m for m in names if pre_depth is not None and methods[m].depth is not None]
+    if with_depth:
+        views = acc_depth_views(pre_depth, [methods[m].depth for m in with_depth], target, compat=compat,
+                                ght_params=ght_params, ctx=ctx)
+        geo = dict(zip(with_depth, views))
+    sweep = boundary and bool(sem_names) and bool(str_names)
+    if sweep:
+        boundary_targets(target, ctx=ctx)  # once for all methods (memoised)
+    out = {}
+    for m in names:
+        mo = methods[m]
+        sem_views = [semantic_view(semantic_pre[p], mo.semantic[p], target, view=view, ctx=ctx) for p in sem_names]
+        if mode == "reference":
+            pairs = {p: (mo.structural[p], structural_first[p]) for p in str_names}
+        else:
+            pairs = {p: (structural_first[p], mo.structural[p]) for p in str_names}
+        str_views = [structural_view(a, b, target, mode=mode, view=view, ctx=ctx) for a, b in pairs.values()]
+        g = geo.get(m)
+        record = ViewRecord.build(view, scene, m, probes=probes, semantic=sem_views, structural=str_views,
+                                  geometric=g, fidelity=fid.get(m))
+        rows = None
+        if sweep:
+            a, b = pairs[str_names[0]]
+            table = boundary_sensitivity(
+                [BoundaryInput(target, pred_pre=semantic_pre[sem_names[0]], pred_post=mo.semantic[sem_names[0]],
+                               masks_a=a, masks_b=b, geometric=g if g is not None else NOT_GIVEN, view=view)],
+                geometric=g is not None, structural_mode=mode, xis=xis, compat=compat, ght_params=ght_params,
+                ctx=ctx,
+            )
+            rows = {row: table.row(row) for row in table.rows}
+        out[m] = MethodMeasures(record, rows, g, pairs)
+    return out

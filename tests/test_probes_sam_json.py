@@ -1,0 +1,127 @@
+"""The fast SAM-JSON reader gives exactly the masks (and errors) of the standard one."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from r360gpu.errors import InputError
+from r360gpu.probes import precomputed as P
+from r360gpu.probes import sam_json
+
+
+def _standard(path):
+    """What the reader did before the fast path: json.loads + read_sam_records."""
+    return P.read_sam_records(json.loads(path.read_bytes().decode("utf-8")), path)
+
+
+def _same(path):
+    fast = P.read_sam_json(path)
+    slow = _standard(path)
+    assert fast.masks.dtype == slow.masks.dtype == bool
+    np.testing.assert_array_equal(fast.masks, slow.masks)
+    if slow.scores is None:
+        assert fast.scores is None
+    else:
+        np.testing.assert_array_equal(fast.scores, slow.scores)
+    return fast
+
+
+def _write(tmp_path, name, text):
+    p = tmp_path / name
+    p.write_text(text) if isinstance(text, str) else p.write_bytes(text)
+    return p
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (7, 1), (23, 41), (64, 33)])
+@pytest.mark.parametrize("indent", [None, 2])
+def test_public_script_format_round_trips(tmp_path, shape, indent):
+    rng = np.random.default_rng(abs(hash((shape, indent))) % 2**32)
+    masks = [rng.random(shape) < p for p in (0.0, 0.3, 1.0)]
+    recs = [{"segmentation": m.tolist(), "area": int(m.sum()), "bbox": [0, 0, 1, 1], "predicted_iou": 0.5 + i / 8}
+            for i, m in enumerate(masks)]
+    path = _write(tmp_path, "v.json", json.dumps(recs, indent=indent))
+    got = _same(path)
+    np.testing.assert_array_equal(got.masks, np.stack(masks))
+    if indent is None:  # json.dump's own spelling: the fast path is taken
+        assert sam_json._fast(path.read_bytes()) is not None
+
+
+def test_integer_lists_mask_key_and_mixed_values(tmp_path):
+    rng = np.random.default_rng(1)
+    m = (rng.random((9, 14)) < 0.5).astype(int)
+    mixed = [[bool(v) if j % 2 else int(v) for j, v in enumerate(row)] for row in m.tolist()]
+    recs = [{"mask": m.tolist()}, {"segmentation": mixed, "label": "a \"segmentation\": [[1]] string"},
+            {"segmentation": m.tolist(), "mask": (1 - m).tolist()}]
+    _same(_write(tmp_path, "v.json", json.dumps(recs)))
+
+
+@pytest.mark.parametrize(
+    "seg, message",
+    [
+        ("[]", "non-empty"),
+        ("[[]]", "non-empty"),
+        ("[[1, 0], [1]]", "different lengths"),
+        ("[[1, 0], [1, 0, 1]]", "different lengths"),
+        ("[[1, 2]]", "0/1 or true/false"),
+        ("[[1, -1]]", "0/1 or true/false"),
+        ('[["1", "0"]]', "0/1 or true/false"),
+        ("[[[1]]]", "H x W"),
+        ("[1, 0]", "H x W"),
+    ],
+)
+def test_bad_segmentations_give_the_standard_error(tmp_path, seg, message):
+    good = json.dumps([[True, False]])
+    path = _write(tmp_path, "bad.json", f'[{{"segmentation": {good}}}, {{"segmentation": {seg}}}]')
+    with pytest.raises(InputError, match=message) as exc:
+        P.read_sam_json(path)
+    assert "bad.json" in str(exc.value)
+    with pytest.raises(InputError) as exc2:
+        _standard(path)
+    assert str(exc.value) == str(exc2.value)
+
+
+@pytest.mark.parametrize("seg", ["[[1.0, 0.0]]", "[[true, 0], [1, false]]", "[ [ 1 ,0 ] ,\n [0,1]\t]", "[[1,0],[0,1]]"])
+def test_other_valid_spellings(tmp_path, seg):
+    _same(_write(tmp_path, "v.json", f'[{{"segmentation": {seg}}}]'))
+
+
+@pytest.mark.parametrize("text", ['[{"segmentation": [[1 0]]}]', '[{"segmentation": [[tr ue]]}]',
+                                  '[{"segmentation": [[1,,0]]}]', '[{"segmentation": [[1, 0]]', b'\xff[]'])
+def test_malformed_files_give_the_standard_error(tmp_path, text):
+    path = _write(tmp_path, "m.json", text)
+    with pytest.raises(InputError) as exc:
+        P.read_sam_json(path)
+    assert "m.json" in str(exc.value)
+    assert "malformed JSON" in str(exc.value) or "utf-8" in str(exc.value)
+
+
+def test_size_mismatch_between_records(tmp_path):
+    recs = [{"segmentation": [[1, 0]]}, {"segmentation": [[1], [0]]}]
+    with pytest.raises(InputError, match="record 1: segmentation is 2x1, record 0 is 1x2"):
+        P.read_sam_json(_write(tmp_path, "v.json", json.dumps(recs)))
+
+
+def test_empty_record_list_and_merged_file(tmp_path):
+    assert P.read_sam_json(_write(tmp_path, "e.json", "[]")).masks.shape == (0, 0, 0)
+    rng = np.random.default_rng(3)
+    m = rng.random((5, 6)) < 0.5
+    d = tmp_path / "sam"
+    d.mkdir()
+    (d / "merged.json").write_text(json.dumps({"v1.png": [{"segmentation": m.tolist()}], "v2.jpg": []}))
+    sd = P.SamJsonDir(d)
+    np.testing.assert_array_equal(sd.read("v1").masks[0], m)
+    assert sd.read("v2").masks.shape[0] == 0
+
+
+def test_parse_grid_rejects_non_grids():
+    for t in (b"[[1,0]]x", b"[[1,0],[0]]", b"[[10]]", b"[[1,0],[0,1],]", b"[[1,0]", b"[[1,0]][[1]]", b"[[2]]",
+              b"[[tru, true]]", b"[[truee]]", b"[[tr ue]]", b"[[true ,false]]", b"[[ falsee]]", b"[[fasle]]",
+              b"[[true,]]", b"[[t,f]]", b"[[rtue]]", b"[ [1]]", b"[[1, 0],[0, 1]]", b"[[1,0], [0,1]]",
+              b"[[1],[0,1]]", b"[[true], [false], [true]] ", b"[[1, 1, 0], [1, 0]]", b"[[1, 0], [1, 0, 1]]"):
+        assert sam_json.parse_grid(t) is None, t
+    np.testing.assert_array_equal(sam_json.parse_grid(b"[[1,0],[0,1]]"), [[True, False], [False, True]])
+    np.testing.assert_array_equal(sam_json.parse_grid(b"[[true, false], [false, true]]"), [[True, False], [False, True]])
+    np.testing.assert_array_equal(sam_json.parse_grid(b"[[true]]"), [[True]])
+    np.testing.assert_array_equal(sam_json.parse_grid(b"[[0],[1],[1]]"), [[False], [True], [True]])
