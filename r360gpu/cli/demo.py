@@ -30,7 +30,10 @@ def run(args) -> int:
     out = Path(args.out)
     t = time.perf_counter()
     print(f"generating the synthetic benchmark in {out / 'benchmark'} ...")
+    reused: list = []
     bundles = generate_benchmark(out / "benchmark", seed=args.scene_seed, n_views=args.n_views,
-                                 width=args.width, height=args.height, progress=not args.quiet)
-    print(f"  {len(bundles)} scenes in {time.perf_counter() - t:.1f} s")
+                                 width=args.width, height=args.height, progress=not args.quiet,
+                                 reuse=True, reused=reused)
+    kept = f" ({', '.join(reused)} unchanged since the last run: kept)" if reused else ""
+    print(f"  {len(bundles)} scenes in {time.perf_counter() - t:.1f} s{kept}")
     return score_and_report(bundles, out / "report", args)

@@ -10,7 +10,6 @@ from .cache import RunCache, fingerprint
 from .options import EvaluateOptions, default_probes
 from .pictures import PictureSink
 from .run import SceneRun, Timer, WarningLog
-from .stages import score_view
 
 
 def evaluate(
@@ -96,6 +95,12 @@ def evaluate(
     return results
 
 
+#: Views whose host-side work (reading, probes) may run ahead of the view being measured.
+LOOKAHEAD = 2
+#: Threads for the host-side work; the GPU thread and the writer thread come on top.
+HOST_THREADS = 2
+
+
 def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool) -> dict:
     """Every view of one scene (from the view cache where it has them); the scene's results entry."""
     from ..aggregate.results import method_axes
@@ -106,22 +111,33 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
         "bundle": fingerprint(bundle, [run.pre, run.reference, *run.methods.values()]),
         "options": opts.scoring_key(), "probes": run.probes_desc, "mode": run.mode, "depth": run.depth_mode,
         "lpips": run.lpips.describe() if run.lpips else None})
+    cells_of: dict = {}
+    todo = []
+    for v in run.views:
+        cells = view_cache.load_view(bundle.methods, v, pictures=sink.enabled) if view_cache else None
+        if cells is None:
+            todo.append(v)
+        else:
+            cells_of[v] = cells
+            run.done(v)
+    bar = _progress(len(run.views), len(run.views) - len(todo), bundle.name, progress)
+    try:
+        for v, cells in score_views(run, todo, sink, view_cache):
+            cells_of[v] = cells
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
     records: dict = {m: [] for m in bundle.methods}
     boundaries: dict = {m: [] for m in bundle.methods}
     pictures: dict = {m: {} for m in bundle.methods}
-    for v in _progress(run.views, bundle.name, progress):
-        cells = view_cache.load_view(bundle.methods, v, pictures=sink.enabled) if view_cache else None
-        if cells is None:
-            cells = score_view(run, v, sink)
-            if view_cache is not None:
-                for m, cell in cells.items():
-                    view_cache.store(m, v, cell)
-        for m, cell in cells.items():
+    for v in run.views:
+        for m, cell in cells_of[v].items():
             records[m].append(ViewRecord.from_dict(cell["record"]))
             boundaries[m].append(cell.get("boundary"))
             if cell.get("picture"):
                 pictures[m][v] = cell["picture"]
-        run.done(v)
     scene = {
         "prompt": bundle.prompt,
         "n_views": len(run.views),
@@ -138,9 +154,84 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     return scene
 
 
-def _progress(views, name, enabled):
+def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache):
+    """Score ``views``, yielding (view, cells) in order, with the stages overlapped:
+
+    this (the GPU) thread renders on the device and measures; ``HOST_THREADS``
+    threads read renders, masks and run the probes up to ``LOOKAHEAD`` views
+    ahead; one writer thread writes the pictures and then the view's cache
+    cells (so a cached cell always has its picture).
+    """
+    from collections import deque
+    from concurrent.futures import ThreadPoolExecutor
+
+    from .stages import gather, measure, picture_jobs, render_on_device
+    from .writer import BackgroundWriter
+
+    if not views:
+        return
+    host = ThreadPoolExecutor(max_workers=HOST_THREADS, thread_name_prefix="r360-host")
+    writer = BackgroundWriter(bound=LOOKAHEAD + 1)
+    inflight: deque = deque()
+    ok = False
+    try:
+        pending = iter(views)
+        while True:
+            while len(inflight) <= LOOKAHEAD:
+                v = next(pending, None)
+                if v is None:
+                    break
+                inflight.append((v, host.submit(gather, run, render_on_device(run, v))))
+            if not inflight:
+                break
+            v, fut = inflight.popleft()
+            data = fut.result()
+            cells, geos = measure(run, data, sink)
+            jobs = picture_jobs(run, data, geos) if sink.enabled else []
+            writer.submit(_finish_view, run, sink, view_cache, v, cells, jobs)
+            run.done(v)
+            yield v, cells
+        ok = True
+    finally:
+        for _, fut in inflight:
+            fut.cancel()
+        host.shutdown(wait=True, cancel_futures=True)
+        writer.close(wait_errors=ok)
+
+
+def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, cells: dict, jobs: list) -> None:
+    """Writer thread: the view's pictures, then its cache cells."""
+    import time
+
+    t = time.perf_counter()
+    if jobs:
+        from ..report.pictures import as_rgb8
+
+        # pre and the reference appear on every method's sheet: convert each image to 8 bits once
+        rgb8: dict = {}
+
+        def once(a):
+            if a is None:
+                return None
+            if id(a) not in rgb8:
+                rgb8[id(a)] = (a, as_rgb8(a))
+            return rgb8[id(a)][1]
+
+        for job in jobs:
+            job = {**job, "pre_rgb": once(job["pre_rgb"]), "post_rgb": once(job["post_rgb"]),
+                   "ref_rgb": once(job["ref_rgb"]),
+                   "structural": [(t_, once(rgb), ms) for t_, rgb, ms in job["structural"]]}
+            sink.method_view(**job)
+    if jobs:
+        run.timer.add("pictures", t)
+    if view_cache is not None:
+        for m, cell in cells.items():
+            view_cache.store(m, view, cell)
+
+
+def _progress(total: int, done: int, name: str, enabled: bool):
     if not enabled:
-        return views
+        return None
     from tqdm import tqdm
 
-    return tqdm(views, desc=f"scoring {name}", unit="view", dynamic_ncols=True, leave=True)
+    return tqdm(total=total, initial=done, desc=f"scoring {name}", unit="view", dynamic_ncols=True, leave=True)

@@ -15,32 +15,33 @@ class PictureSink:
         self.out = out
         self.enabled = out is not None and enabled
 
-    def method_view(self, scene: str, method: str, view: str, *, pre, post, ref, mask, geo, compat: bool,
-                    semantic, structural) -> str | None:
-        """Write the sheet of one method at one view; returns its path relative to ``out``.
+    def path_for(self, scene: str, method: str, view: str) -> str | None:
+        """Where the sheet of (scene, method, view) goes, relative to ``out`` (None without pictures)."""
+        return (Path("pictures") / scene / method / f"{view}.png").as_posix() if self.enabled else None
 
-        pre, post, ref: ViewImages; geo: GeometricView or None; semantic:
-        (pre, post) predictions of the first semantic probe or None;
-        structural: [(title, rgb, MaskSet)] of the first structural probe.
+    def method_view(self, *, scene: str, method: str, view: str, pre_rgb, post_rgb, ref_rgb, pre_depth, post_depth,
+                    mask, geo, compat: bool, semantic, structural) -> str:
+        """Write the sheet of one method at one view (host arrays only); returns its relative path.
+
+        geo: GeometricView or None; semantic: (pre, post) predictions of the
+        first semantic probe or None; structural: [(title, rgb, MaskSet)] of
+        the first structural probe.
         """
-        if not self.enabled:
-            return None
         from ..metrics.compat import compat_quantise, depth_delta
-        from ..render.sources import host_depth
         from ..report.pictures import view_contact_sheet
 
         delta = threshold = changed = None
         if geo is not None:
-            delta = depth_delta(host_depth(pre.depth), host_depth(post.depth))
+            delta = depth_delta(pre_depth, post_depth)
             changed, threshold = geo.changed, geo.threshold
             if compat:  # the heat map then shows the 8-bit gray levels the threshold applies to
                 delta = compat_quantise(delta)
-        rel = Path("pictures") / scene / method / f"{view}.png"
+        rel = self.path_for(scene, method, view)
         view_contact_sheet(
-            self.out / rel, title=f"{scene} / {method} / {view}", pre=pre.rgb, post=post.rgb, target=mask,
-            ref=None if ref is None else ref.rgb, delta=delta, threshold=threshold, changed=changed,
+            self.out / rel, title=f"{scene} / {method} / {view}", pre=pre_rgb, post=post_rgb, target=mask,
+            ref=ref_rgb, delta=delta, threshold=threshold, changed=changed,
             semantic_pre=None if semantic is None else semantic[0].union(),
             semantic_post=None if semantic is None else semantic[1].union(),
             structural=[(t, rgb, ms.masks) for t, rgb, ms in structural],
         )
-        return rel.as_posix()
+        return rel

@@ -18,6 +18,7 @@ score a chunk of its views (:func:`r360gpu.pipeline.stages.score_view`).
 from __future__ import annotations
 
 import fnmatch
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -28,13 +29,16 @@ from ..errors import InputError
 
 @dataclass
 class Timer:
-    """Seconds spent per stage, summed over the run."""
+    """Seconds spent per stage, summed over the run and over the threads that ran it
+    (stages overlap, so the sum may exceed the wall time)."""
 
     totals: dict = field(default_factory=dict)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def add(self, stage: str, t0: float) -> float:
         t = time.perf_counter()
-        self.totals[stage] = self.totals.get(stage, 0.0) + t - t0
+        with self._lock:
+            self.totals[stage] = self.totals.get(stage, 0.0) + t - t0
         return t
 
 
@@ -44,14 +48,18 @@ class WarningLog:
 
     items: list = field(default_factory=list)
     log: object = None  # print-like; each warning is printed once when given
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def add(self, message: str, *, scene=None, method=None, view=None, file=None) -> None:
+        """Record a warning (stages on any thread may call this); repeats are dropped."""
         item = {"scene": scene, "method": method, "view": view, "file": None if file is None else str(file),
                 "message": message}
-        if item not in self.items:
+        with self._lock:
+            if item in self.items:
+                return
             self.items.append(item)
-            if self.log is not None:
-                self.log(f"warning: {message}")
+        if self.log is not None:
+            self.log(f"warning: {message}")
 
 
 def select_views(names: list[str], patterns) -> list[str]:
@@ -126,8 +134,8 @@ class SceneRun:
     def done(self, view: str) -> None:
         """Drop what was kept for ``view``."""
         self._masks.pop(view, None)
-        for key in [k for k in self._fit_renders if k[1] == view]:
-            del self._fit_renders[key]
+        for key in [k for k in list(self._fit_renders) if k[1] == view]:
+            self._fit_renders.pop(key, None)
 
     def _fit(self, probes) -> None:
         """Probes that learn from the scene (the built-in appearance probe) fit on
