@@ -1,0 +1,104 @@
+"""The scoring pipeline's overlapped schedule: same cells as one view at a time, errors from
+any thread stop the run, pictures and cache cells come from one writer thread."""
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from bundle_factory import make_bundle, make_remove360
+from r360gpu.bundle import load_bundle
+from r360gpu.errors import InputError
+from r360gpu.pipeline import EvaluateOptions, default_probes, evaluate
+from r360gpu.pipeline.cache import RunCache
+from r360gpu.pipeline.pictures import PictureSink
+from r360gpu.pipeline.run import SceneRun, Timer, WarningLog
+from r360gpu.pipeline.stages import score_view
+from r360gpu.pipeline.writer import BackgroundWriter
+from r360gpu.probes.base import StructuralProbe
+
+OPTS = dict(n_boot=50, n_perm=20)
+
+
+@pytest.mark.parametrize("layout", ["remove360", "mixed"])
+def test_overlapped_views_give_the_cells_of_one_view_at_a_time(tmp_path, ctx, layout):
+    """remove360: every source read on host threads; mixed: splat scenes on the GPU thread too."""
+    root = make_remove360(tmp_path / "b") if layout == "remove360" else make_bundle(tmp_path / "b")
+    bundle = load_bundle(root)
+    res = evaluate(bundle, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    sem, stru = default_probes()
+    run = SceneRun(bundle, EvaluateOptions(**OPTS), ctx, sem, stru, cache=RunCache(None), timer=Timer(),
+                   warnings=WarningLog())
+    one_by_one = {v: score_view(run, v, PictureSink(None, False)) for v in run.views}
+    run.release()
+    for m, entry in res["scenes"][bundle.name]["methods"].items():
+        assert entry["views"] == [one_by_one[v][m]["record"] for v in run.views]
+
+
+class _FailsOn(StructuralProbe):
+    """The built-in structural probe, failing on one view (as a probe reading a broken file would)."""
+
+    cacheable = False
+
+    def __init__(self, view):
+        self.inner, self.view = default_probes()[1][0], view
+
+    @property
+    def name(self):
+        return "fails-on"
+
+    def params(self):
+        return {"view": self.view}
+
+    def predict(self, views):
+        for v in views:
+            if v.name == self.view:
+                raise InputError(f"view {v.name}: broken probe file")
+        return self.inner.predict(views)
+
+
+def test_an_error_on_a_host_thread_stops_the_run_and_leaves_no_cell_behind(tmp_path, ctx):
+    root = make_remove360(tmp_path / "b")
+    before = threading.active_count()
+    with pytest.raises(InputError, match="view_01: broken probe file"):
+        evaluate(root, out=tmp_path / "out", structural_probes=[_FailsOn("view_01")],
+                 options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    assert threading.active_count() == before  # no thread left running
+    cells = sorted(p.stem for p in (tmp_path / "out" / ".r360cache" / "views").rglob("*.json"))
+    assert "view_01" not in cells and "view_02" not in cells
+    # every cell written has its picture
+    for p in (tmp_path / "out" / ".r360cache" / "views").rglob("*.json"):
+        import json
+
+        assert (tmp_path / "out" / json.loads(p.read_text())["picture"]).is_file()
+
+
+def test_background_writer_runs_in_order_bounded_and_raises_the_first_error():
+    w = BackgroundWriter(bound=2)
+    done, gate = [], threading.Event()
+    w.submit(gate.wait)
+    w.submit(done.append, 1)
+    # a third job must wait for a free slot: release the gate from another thread
+    threading.Timer(0.2, gate.set).start()
+    w.submit(done.append, 2)
+    assert gate.is_set()  # the submit waited for a slot
+    with pytest.raises(ZeroDivisionError):
+        w.submit(lambda: 1 / 0)
+        w.submit(done.append, 3)  # may already raise the error
+        w.close()
+    w.close(wait_errors=False)
+    assert done[:2] == [1, 2]
+
+
+def test_warning_log_records_each_warning_once_from_any_thread():
+    printed = []
+    log = WarningLog(log=printed.append)
+    threads = [threading.Thread(target=log.add, args=("depth unit differs",),
+                                kwargs=dict(scene="s", method="m", view="v", file="d.png")) for _ in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert log.items == [{"scene": "s", "method": "m", "view": "v", "file": "d.png",
+                          "message": "depth unit differs"}]
+    assert printed == ["warning: depth unit differs"]
