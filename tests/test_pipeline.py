@@ -102,3 +102,29 @@ def test_warning_log_records_each_warning_once_from_any_thread():
     assert log.items == [{"scene": "s", "method": "m", "view": "v", "file": "d.png",
                           "message": "depth unit differs"}]
     assert printed == ["warning: depth unit differs"]
+
+
+def test_a_fully_cached_rerun_renders_nothing_and_a_stale_fit_record_is_caught(tmp_path, ctx, monkeypatch):
+    """The appearance probe's fit record completes the view cache key, so nothing is rendered;
+    when a view must be scored the probe is fitted first and the record checked."""
+    import json
+
+    from r360gpu.render.sources import SceneSource
+
+    root = make_bundle(tmp_path / "b")
+    opts = EvaluateOptions(**OPTS)
+    first = evaluate(root, out=tmp_path / "out", options=opts, ctx=ctx, progress=False)
+    images = SceneSource.images
+    calls = []
+    monkeypatch.setattr(SceneSource, "images", lambda self, v, c: calls.append(v) or images(self, v, c))
+    again = evaluate(root, out=tmp_path / "out", options=opts, ctx=ctx, progress=False)
+    assert calls == [] and "fit probes" not in again["timing"]["stages_s"]
+    assert again["scenes"] == first["scenes"] and again["probes"] == first["probes"]
+    # a fit record that no longer holds: the views are looked up again under the fitted key
+    (rec,) = (tmp_path / "out" / ".r360cache" / "fits").glob("*.json")
+    doc = json.loads(rec.read_text())
+    doc["semantic"][0]["params"]["model_sha256"] = "0" * 64
+    rec.write_text(json.dumps(doc))
+    next(iter((tmp_path / "out" / ".r360cache" / "views").rglob("view_01.json"))).unlink()
+    third = evaluate(root, out=tmp_path / "out", options=opts, ctx=ctx, progress=False)
+    assert third["scenes"] == first["scenes"] and third["probes"] == first["probes"]

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..errors import InputError
-from .cache import RunCache, fingerprint
+from .cache import RunCache
 from .options import EvaluateOptions, default_probes
 from .pictures import PictureSink
 from .run import SceneRun, Timer, WarningLog
@@ -107,19 +107,12 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     from ..metrics.record import ViewRecord
 
     bundle, opts = run.bundle, run.opts
-    view_cache = cache.views(bundle.name, {
-        "bundle": fingerprint(bundle, [run.pre, run.reference, *run.methods.values()]),
-        "options": opts.scoring_key(), "probes": run.probes_desc, "mode": run.mode, "depth": run.depth_mode,
-        "lpips": run.lpips.describe() if run.lpips else None})
-    cells_of: dict = {}
-    todo = []
-    for v in run.views:
-        cells = view_cache.load_view(bundle.methods, v, pictures=sink.enabled) if view_cache else None
-        if cells is None:
-            todo.append(v)
-        else:
-            cells_of[v] = cells
-            run.done(v)
+    view_cache, cells_of, todo = _cached_views(run, cache, sink)
+    if todo and run.fit_pending and run.fit():
+        # the fit record no longer holds: the key changes, so look the views up again
+        view_cache, cells_of, todo = _cached_views(run, cache, sink)
+    for v in cells_of:
+        run.done(v)
     bar = _progress(len(run.views), len(run.views) - len(todo), bundle.name, progress)
     try:
         for v, cells in score_views(run, todo, sink, view_cache):
@@ -152,6 +145,21 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
         axes = method_axes(records[m], xis=opts.xis, boundary=boundaries[m] if opts.boundary else None)
         scene["methods"][m] = {"axes": axes, "views": [r.to_dict() for r in records[m]], "pictures": pictures[m]}
     return scene
+
+
+def _cached_views(run: SceneRun, cache: RunCache, sink: PictureSink):
+    """(view cache, {view: cells} of the views it has, views to score)."""
+    view_cache = cache.views(run.bundle.name, {
+        "bundle": run.fingerprint, "options": run.opts.scoring_key(), "probes": run.probes_desc, "mode": run.mode,
+        "depth": run.depth_mode, "lpips": run.lpips.describe() if run.lpips else None})
+    cells_of, todo = {}, []
+    for v in run.views:
+        cells = view_cache.load_view(run.bundle.methods, v, pictures=sink.enabled) if view_cache else None
+        if cells is None:
+            todo.append(v)
+        else:
+            cells_of[v] = cells
+    return view_cache, cells_of, todo
 
 
 def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache):

@@ -8,7 +8,10 @@ holds
   method that brings its own pre adds an entry here and nothing else changes);
 * ``reference`` (or None) and ``methods``: the other sources;
 * the target masks (read on first use, dropped once the view is done);
-* the probes, already wrapped in the probe cache, and LPIPS;
+* the probes, already wrapped in the probe cache, and LPIPS; probes that
+  learn from the scene are fitted (as per-scene copies) on pre renders that
+  are then reused for scoring those views, or, when a fit record in the
+  cache says what the fit gives, only once a view has to be scored;
 * ``warnings``: a :class:`WarningLog` the stages add to.
 
 Everything it is built from (a bundle spec, :class:`~.options.EvaluateOptions`,
@@ -17,6 +20,7 @@ score a chunk of its views (:func:`r360gpu.pipeline.stages.score_view`).
 """
 from __future__ import annotations
 
+import copy
 import fnmatch
 import threading
 import time
@@ -98,11 +102,28 @@ class SceneRun:
         timer.add("load", t0)
         self._masks: dict = {}
         self._fit_renders: dict = {}
-        self._fit(sem_probes + str_probes)
+        from .cache import digest, fingerprint
+
+        self.fingerprint = fingerprint(bundle, [self.pre, self.reference, *self.methods.values()])
+        # Probes that learn from the scene are fitted as copies, one per scene: the caller's
+        # objects stay as given, so the fit record's key (their description) is the same every run.
+        sem_probes = [copy.deepcopy(p) if hasattr(p, "fit") else p for p in sem_probes]
+        str_probes = [copy.deepcopy(p) if hasattr(p, "fit") else p for p in str_probes]
+        self._to_fit = [p for p in sem_probes + str_probes if hasattr(p, "fit")]
         self.sem = [cache.wrap_probe(p) for p in sem_probes]
         self.stru = [cache.wrap_probe(p) for p in str_probes]
-        self.probes_desc = {"semantic": [p.describe() for p in self.sem],
-                            "structural": [p.describe() for p in self.stru]}
+        self.fit_pending = False
+        if self._to_fit:
+            # what the fit reads: pre's renders of the picked views and their masks
+            self._fit_key = digest({"bundle": self.fingerprint, "views": self._fit_views(), "depth": self.depth_mode,
+                                    "pre": self.pre.describe(), "probes": self._describe()})
+            recorded = cache.load_fit(self._fit_key)
+            if recorded is None:
+                self.fit()
+                cache.store_fit(self._fit_key, self._describe())
+            else:
+                self.fit_pending = True
+        self.probes_desc = recorded if self.fit_pending else self._describe()
         self.lpips = LpipsModel(opts.lpips_model) if opts.lpips_model and self.reference is not None else None
 
     @property
@@ -137,23 +158,40 @@ class SceneRun:
         for key in [k for k in list(self._fit_renders) if k[1] == view]:
             self._fit_renders.pop(key, None)
 
-    def _fit(self, probes) -> None:
-        """Probes that learn from the scene (the built-in appearance probe) fit on
-        pre renderings of up to ``fit_views`` views with a visible target."""
-        fitted = [p for p in probes if hasattr(p, "fit")]
-        if not fitted:
-            return
-        t0 = time.perf_counter()
+    def _describe(self) -> dict:
+        """The probes' descriptions as JSON gives them back (lists, not tuples), so a fresh one
+        compares equal to a recorded one."""
+        import json
+
+        return json.loads(json.dumps({"semantic": [p.describe() for p in self.sem],
+                                      "structural": [p.describe() for p in self.stru]}, default=str))
+
+    def _fit_views(self) -> list:
+        """Up to ``fit_views`` views with a visible target, evenly spread."""
         with_target = [v for v in self.views if self.mask(v).any()]
-        pick = []
-        if with_target:
-            idx = np.linspace(0, len(with_target) - 1, min(self.opts.fit_views, len(with_target))).round().astype(int)
-            pick = list(dict.fromkeys(with_target[i] for i in idx))
+        if not with_target:
+            return []
+        idx = np.linspace(0, len(with_target) - 1, min(self.opts.fit_views, len(with_target))).round().astype(int)
+        return list(dict.fromkeys(with_target[i] for i in idx))
+
+    def fit(self) -> bool:
+        """Fit the probes that learn from the scene (the built-in appearance probe) on pre
+        renderings of the fit views; the renders are kept for scoring those views.
+
+        Returns True when the probes' descriptions differ from ``probes_desc``
+        (which then came from a fit record that no longer holds).
+        """
+        t0 = time.perf_counter()
+        pick = self._fit_views()
         renders = [self.pre.images(v, self.camera(v)) for v in pick]
         self._fit_renders = {("pre", v): r for v, r in zip(pick, renders)}
-        for p in fitted:
+        for p in self._to_fit:
             p.fit([r.rgb for r in renders], [self.mask(v) for v in pick])
         self.timer.add("fit probes", t0)
+        desc = self._describe()
+        stale = getattr(self, "probes_desc", desc) != desc
+        self.probes_desc, self.fit_pending = desc, False
+        return stale
 
     def describe_sources(self) -> dict:
         return {"pre": self.pre.describe(),
