@@ -128,3 +128,23 @@ def test_a_fully_cached_rerun_renders_nothing_and_a_stale_fit_record_is_caught(t
     next(iter((tmp_path / "out" / ".r360cache" / "views").rglob("view_01.json"))).unlink()
     third = evaluate(root, out=tmp_path / "out", options=opts, ctx=ctx, progress=False)
     assert third["scenes"] == first["scenes"] and third["probes"] == first["probes"]
+
+
+def test_chunks_scored_from_pickled_inputs_give_the_runs_cells(tmp_path, ctx):
+    """What an executor in another process would get: pickled inputs in, the same cells out."""
+    import pickle
+
+    from r360gpu.pipeline.chunks import score_chunk
+
+    root = make_bundle(tmp_path / "b")
+    opts = EvaluateOptions(**OPTS)
+    res = evaluate(root, options=opts, ctx=ctx, progress=False)
+    sem, stru = default_probes()
+    cells = {}
+    for chunk in (["view_00", "view_02"], ["view_01"]):
+        args = pickle.loads(pickle.dumps((root, opts, sem, stru, chunk)))
+        cells.update(score_chunk(*args, ctx=ctx))
+    for m, entry in res["scenes"]["room"]["methods"].items():
+        assert entry["views"] == [cells[v][m]["record"] for v in res["scenes"]["room"]["views"]]
+    with pytest.raises(InputError, match="view_09"):
+        score_chunk(root, opts, sem, stru, ["view_09"], ctx=ctx)
