@@ -148,3 +148,11 @@ def test_chunks_scored_from_pickled_inputs_give_the_runs_cells(tmp_path, ctx):
         assert entry["views"] == [cells[v][m]["record"] for v in res["scenes"]["room"]["views"]]
     with pytest.raises(InputError, match="view_09"):
         score_chunk(root, opts, sem, stru, ["view_09"], ctx=ctx)
+
+
+def test_views_in_flight_shrink_for_large_images():
+    from r360gpu.pipeline.evaluate import LOOKAHEAD, MEMORY_BUDGET, _in_flight
+
+    assert _in_flight(20 << 20) == (LOOKAHEAD, LOOKAHEAD + 1)  # 480x360, 7 sources
+    assert _in_flight(MEMORY_BUDGET // 2) == (1, 1)
+    assert _in_flight(MEMORY_BUDGET * 3) == (0, 1)  # 8K: one view measured, one written, none ahead

@@ -168,7 +168,9 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache):
     this (the GPU) thread renders on the device and measures; ``HOST_THREADS``
     threads read renders, masks and run the probes up to ``LOOKAHEAD`` views
     ahead; one writer thread writes the pictures and then the view's cache
-    cells (so a cached cell always has its picture).
+    cells (so a cached cell always has its picture).  Once the first view's
+    size is known, fewer views are kept in flight when they would hold more
+    than ``MEMORY_BUDGET`` bytes (large images: 4K and up).
     """
     from collections import deque
     from concurrent.futures import ThreadPoolExecutor
@@ -179,13 +181,14 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache):
     if not views:
         return
     host = ThreadPoolExecutor(max_workers=HOST_THREADS, thread_name_prefix="r360-host")
-    writer = BackgroundWriter(bound=LOOKAHEAD + 1)
+    writer = None
+    lookahead = 0  # until the first view's size is known
     inflight: deque = deque()
     ok = False
     try:
         pending = iter(views)
         while True:
-            while len(inflight) <= LOOKAHEAD:
+            while len(inflight) <= lookahead:
                 v = next(pending, None)
                 if v is None:
                     break
@@ -194,6 +197,9 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache):
                 break
             v, fut = inflight.popleft()
             data = fut.result()
+            if writer is None:
+                lookahead, bound = _in_flight(_view_bytes(data))
+                writer = BackgroundWriter(bound=bound)
             cells, geos = measure(run, data, sink)
             jobs = picture_jobs(run, data, geos) if sink.enabled else []
             writer.submit(_finish_view, run, sink, view_cache, v, cells, jobs)
@@ -204,7 +210,24 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache):
         for _, fut in inflight:
             fut.cancel()
         host.shutdown(wait=True, cancel_futures=True)
-        writer.close(wait_errors=ok)
+        if writer is not None:
+            writer.close(wait_errors=ok)
+
+
+#: Bytes of renders the overlapped schedule may hold beyond the view being measured.
+MEMORY_BUDGET = 2 << 30
+
+
+def _view_bytes(data) -> int:
+    imgs = [*data.pres.values(), data.ref, *data.posts.values()]
+    return sum(getattr(a, "nbytes", 0) for im in imgs if im is not None for a in (im.rgb, im.depth, im.alpha))
+
+
+def _in_flight(view_bytes: int) -> tuple[int, int]:
+    """(views read ahead, views waiting for the writer) within MEMORY_BUDGET (at least 0 and 1)."""
+    slots = MEMORY_BUDGET // max(1, view_bytes)
+    lookahead = min(LOOKAHEAD, max(0, slots // 2))
+    return lookahead, min(LOOKAHEAD + 1, max(1, slots - lookahead))
 
 
 def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, cells: dict, jobs: list) -> None:
