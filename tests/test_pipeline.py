@@ -156,3 +156,42 @@ def test_views_in_flight_shrink_for_large_images():
     assert _in_flight(20 << 20) == (LOOKAHEAD, LOOKAHEAD + 1)  # 480x360, 7 sources
     assert _in_flight(MEMORY_BUDGET // 2) == (1, 1)
     assert _in_flight(MEMORY_BUDGET * 3) == (0, 1)  # 8K: one view measured, one written, none ahead
+
+
+@pytest.mark.parametrize("size", [(300, 400), (120, 160), (61, 97)])
+def test_picture_sink_writes_the_sheet_of_the_full_size_inputs(tmp_path, size):
+    """The sink brings images and masks to the panel size first (once per view); the sheet
+    must be byte for byte the one the report draws from the full-size inputs."""
+    import numpy as np
+
+    from r360gpu.metrics.compat import depth_delta
+    from r360gpu.probes.base import MaskSet, SemanticPrediction
+    from r360gpu.report.pictures import view_contact_sheet
+
+    h, w = size
+    rng = np.random.default_rng(h)
+    yy, xx = np.mgrid[:h, :w]
+    blob = lambda cy, cx, r: (yy - cy) ** 2 + (xx - cx) ** 2 < r * r  # noqa: E731
+    pre, post, ref = (rng.uniform(size=(h, w, 3)).astype(np.float32) for _ in range(3))
+    d_pre = rng.uniform(1, 5, (h, w)).astype(np.float32)
+    d_post = d_pre.copy()
+    d_post[blob(h / 2, w / 2, h / 5)] += 1
+    target = blob(h / 2, w / 2, h / 4)
+
+    class Geo:
+        changed = blob(h / 2, w / 2, h / 5)
+        threshold = 0.5
+
+    sem = (SemanticPrediction(target[None], np.ones(1, np.float32), ["x"], "s"),
+           SemanticPrediction(np.zeros((0, h, w), bool), np.zeros(0, np.float32), [], "s"))
+    masks = MaskSet(np.stack([blob(h / 3, w / 3, h / 6), target, blob(h / 4, w / 2, h / 8)]), None, "t")
+    sink = PictureSink(tmp_path / "out", True)
+    job = dict(scene="s", method="m", view="v", pre_rgb=pre, post_rgb=post, ref_rgb=ref, pre_depth=d_pre,
+               post_depth=d_post, mask=target, geo=Geo, compat=False, semantic=sem,
+               structural=[("a on I_pre", pre, masks), ("a on I_post", post, masks)])
+    sink.view([job, {**job, "method": "m2"}])
+    direct = view_contact_sheet(
+        tmp_path / "direct.png", title="s / m / v", pre=pre, post=post, target=target, ref=ref,
+        delta=depth_delta(d_pre, d_post), threshold=0.5, changed=Geo.changed, semantic_pre=sem[0].union(),
+        semantic_post=sem[1].union(), structural=[("a on I_pre", pre, masks.masks), ("a on I_post", post, masks.masks)])
+    assert (tmp_path / "out" / "pictures" / "s" / "m" / "v.png").read_bytes() == direct.read_bytes()

@@ -236,23 +236,7 @@ def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, cells:
 
     t = time.perf_counter()
     if jobs:
-        from ..report.pictures import as_rgb8
-
-        # pre and the reference appear on every method's sheet: convert each image to 8 bits once
-        rgb8: dict = {}
-
-        def once(a):
-            if a is None:
-                return None
-            if id(a) not in rgb8:
-                rgb8[id(a)] = (a, as_rgb8(a))
-            return rgb8[id(a)][1]
-
-        for job in jobs:
-            job = {**job, "pre_rgb": once(job["pre_rgb"]), "post_rgb": once(job["post_rgb"]),
-                   "ref_rgb": once(job["ref_rgb"]),
-                   "structural": [(t_, once(rgb), ms) for t_, rgb, ms in job["structural"]]}
-            sink.method_view(**job)
+        sink.view(jobs)
     if jobs:
         run.timer.add("pictures", t)
     if view_cache is not None:

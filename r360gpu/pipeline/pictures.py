@@ -20,7 +20,7 @@ class PictureSink:
         return (Path("pictures") / scene / method / f"{view}.png").as_posix() if self.enabled else None
 
     def method_view(self, *, scene: str, method: str, view: str, pre_rgb, post_rgb, ref_rgb, pre_depth, post_depth,
-                    mask, geo, compat: bool, semantic, structural) -> str:
+                    mask, geo, compat: bool, semantic, structural, _shrink=None) -> str:
         """Write the sheet of one method at one view (host arrays only); returns its relative path.
 
         geo: GeometricView or None; semantic: (pre, post) predictions of the
@@ -28,7 +28,7 @@ class PictureSink:
         the first structural probe.
         """
         from ..metrics.compat import compat_quantise, depth_delta
-        from ..report.pictures import view_contact_sheet
+        from ..report.pictures import PANEL_WIDTH, view_contact_sheet
 
         delta = threshold = changed = None
         if geo is not None:
@@ -36,12 +36,82 @@ class PictureSink:
             changed, threshold = geo.changed, geo.threshold
             if compat:  # the heat map then shows the 8-bit gray levels the threshold applies to
                 delta = compat_quantise(delta)
+        # Everything but the heat map is brought to the panel size first (once per array
+        # and view when a _Shrink is shared): the panels resize exactly so, so the sheet is the same.
+        small = _shrink or _Shrink(PANEL_WIDTH)
         rel = self.path_for(scene, method, view)
         view_contact_sheet(
-            self.out / rel, title=f"{scene} / {method} / {view}", pre=pre_rgb, post=post_rgb, target=mask,
-            ref=ref_rgb, delta=delta, threshold=threshold, changed=changed,
-            semantic_pre=None if semantic is None else semantic[0].union(),
-            semantic_post=None if semantic is None else semantic[1].union(),
-            structural=[(t, rgb, ms.masks) for t, rgb, ms in structural],
+            self.out / rel, title=f"{scene} / {method} / {view}", pre=small.rgb(pre_rgb), post=small.rgb(post_rgb),
+            target=small.mask(mask), ref=None if ref_rgb is None else small.rgb(ref_rgb), delta=delta,
+            threshold=threshold, changed=None if changed is None else small.mask(changed),
+            semantic_pre=None if semantic is None else small.union(semantic[0]),
+            semantic_post=None if semantic is None else small.union(semantic[1]),
+            structural=[(t, small.rgb(rgb), small.masks(ms.masks)) for t, rgb, ms in structural],
+            width=PANEL_WIDTH,
         )
         return rel
+
+    def view(self, jobs: list) -> None:
+        """Write the sheets of one view's methods, converting the images they share once."""
+        from ..report.pictures import PANEL_WIDTH
+
+        shrink = _Shrink(PANEL_WIDTH)
+        for job in jobs:
+            self.method_view(**job, _shrink=shrink)
+
+
+class _Shrink:
+    """RGB images and masks at a panel's size, made once per array (keyed by identity).
+
+    Uses the picture module's own conversion and resizing, in its order
+    (8-bit, then area-average / nearest resize), so a panel made from the
+    result is the panel made from the full-size input.
+    """
+
+    def __init__(self, width: int):
+        self.width = width
+        self._memo: dict = {}
+
+    def _once(self, a, make):
+        hit = self._memo.get(id(a))
+        if hit is None or hit[0] is not a:
+            hit = (a, make(a))  # the array is kept so its id stays unique
+            self._memo[id(a)] = hit
+        return hit[1]
+
+    def rgb(self, a):
+        from ..report.pictures import _resize_rgb, as_rgb8
+
+        return self._once(a, lambda x: _resize_rgb(as_rgb8(x), self.width))
+
+    def _size(self, shape):
+        from ..report.pictures import _size_for
+
+        return _size_for(shape, self.width)
+
+    def mask(self, m):
+        import numpy as np
+
+        from ..report.pictures import _resize_mask
+
+        return self._once(m, lambda x: _resize_mask(np.asarray(x) != 0, self._size(np.shape(x))))
+
+    def union(self, prediction):
+        """A semantic prediction's union mask, at the panel size."""
+        return self._once(prediction, lambda p: self.mask(p.union()))
+
+    def masks(self, stack):
+        import numpy as np
+
+        from ..report.pictures import _resize_mask
+
+        def make(x):
+            a = np.asarray(x) != 0
+            if a.ndim == 2:
+                a = a[None]
+            if a.ndim != 3 or not a.shape[0]:
+                return a
+            size = self._size(a.shape[1:])
+            return np.stack([_resize_mask(k, size) for k in a])
+
+        return self._once(stack, make)
