@@ -254,7 +254,7 @@ def test_interrupted_run_names_how_to_resume(tmp_path, capsys, monkeypatch):
 
     def interrupt(*a, **k):
         raise KeyboardInterrupt
-    monkeypatch.setattr(pipeline_evaluate, "score_view", interrupt)
+    monkeypatch.setattr(pipeline_evaluate, "gather", interrupt)
     assert cli.main(["score", str(b), "--out", str(tmp_path / "o"), *SCORE_FLAGS]) == 130
     err = capsys.readouterr().err
     assert "r360gpu: interrupted" in err and "run the same command again to resume" in err

@@ -83,35 +83,6 @@ def test_progress_bar_on_a_terminal():
     assert "\r" in out.getvalue() and "3/3" in out.getvalue()
 
 
-def test_generated_benchmark_is_reused_when_unchanged(tmp_path, ctx):
-    from r360gpu.synthetic import generate_benchmark
-    from r360gpu.synthetic.bundle import STAMP
-
-    kw = dict(seed=0, n_views=2, width=48, height=32, detail=0.1, scenes=("room",), methods=["clean"], ctx=ctx)
-    folder = generate_benchmark(tmp_path, reuse=True, **kw)[0]
-    files = sorted(p for p in folder.rglob("*") if p.is_file())
-    mtimes = {p: p.stat().st_mtime_ns for p in files}
-    said = []
-    assert generate_benchmark(tmp_path, reuse=True, log=said.append, **kw) == [folder]
-    assert said and "reused" in said[0]
-    assert {p: p.stat().st_mtime_ns for p in files} == mtimes  # nothing rewritten
-    # a damaged file (same size) is noticed and the bundle regenerated
-    ply = folder / "pre.ply"
-    data = bytearray(ply.read_bytes())
-    data[-1] ^= 0xFF
-    ply.write_bytes(bytes(data))
-    said.clear()
-    generate_benchmark(tmp_path, reuse=True, log=said.append, **kw)
-    assert not said and ply.stat().st_mtime_ns != mtimes[ply] and (folder / STAMP).is_file()
-    # other parameters: regenerated; without reuse: regenerated
-    said.clear()
-    generate_benchmark(tmp_path, reuse=True, log=said.append, **{**kw, "n_views": 3})
-    assert not said and len(list((folder / "masks").glob("*.png"))) == 3
-    before = (folder / "scene.toml").stat().st_mtime_ns
-    generate_benchmark(tmp_path, reuse=False, **{**kw, "n_views": 3})
-    assert (folder / "scene.toml").stat().st_mtime_ns != before
-
-
 def _has_vulkan_driver() -> bool:
     return bool(glob.glob("/usr/share/vulkan/icd.d/*.json") or glob.glob("/etc/vulkan/icd.d/*.json"))
 

@@ -56,6 +56,28 @@ def test_same_seed_gives_byte_identical_files(tmp_path, ctx):
     assert (c[0] / "pre.ply").read_bytes() != fa["room/pre.ply"]
 
 
+def test_an_unchanged_benchmark_is_reused_and_a_changed_one_rewritten(tmp_path, ctx):
+    import os
+
+    kwargs = dict(seed=3, n_views=3, width=64, height=48, detail=0.05, scenes=("room",), ctx=ctx)
+    first = _files(generate_benchmark(tmp_path, **kwargs)[0])
+    ply = tmp_path / "room" / "pre.ply"
+    stamp = ply.stat().st_mtime_ns
+    reused: list = []
+    generate_benchmark(tmp_path, **kwargs, reuse=True, reused=reused)
+    assert reused == ["room"] and ply.stat().st_mtime_ns == stamp
+    # other bytes of the same size with the old mtime restored (as `cp -p` leaves them): rewritten
+    data = bytearray(ply.read_bytes())
+    data[-1] ^= 0xFF
+    ply.write_bytes(bytes(data))
+    os.utime(ply, ns=(stamp, stamp))
+    reused = []
+    generate_benchmark(tmp_path, **kwargs, reuse=True, reused=reused)
+    assert reused == [] and _files(tmp_path / "room") == first
+    generate_benchmark(tmp_path, **{**kwargs, "n_views": 2}, reuse=True, reused=reused)
+    assert reused == [] and not (tmp_path / "room" / "masks" / "view_002.png").exists()
+
+
 def test_bundle_files_load_back(tmp_path, scenes, masks, ctx):
     tomllib = pytest.importorskip("tomllib")
     sc = scenes["room"]

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 from .score import add_scoring_options, score_and_report
 
@@ -33,8 +32,10 @@ def run(args) -> int:
     check_output_folder(out / "report")
     t = time.perf_counter()
     print(f"generating the synthetic benchmark in {out / 'benchmark'} ...")
+    reused: list = []
     bundles = generate_benchmark(out / "benchmark", seed=args.scene_seed, n_views=args.n_views,
-                                 width=args.width, height=args.height, progress=not args.quiet, reuse=True,
-                                 log=print)
-    print(f"  {len(bundles)} scenes in {time.perf_counter() - t:.1f} s")
+                                 width=args.width, height=args.height, progress=not args.quiet,
+                                 reuse=True, reused=reused)
+    kept = f" ({', '.join(reused)} unchanged since the last run: kept)" if reused else ""
+    print(f"  {len(bundles)} scenes in {time.perf_counter() - t:.1f} s{kept}")
     return score_and_report(bundles, out / "report", args)

@@ -5,11 +5,16 @@ Read in this order:
 * :mod:`.options`   -- :class:`EvaluateOptions` (the ``score`` flags) and the default probes;
 * :mod:`.run`       -- :class:`~.run.SceneRun`: one scene's sources (a pre per method,
   reference, methods), target masks and probes, opened once; the timer and the warning log;
-* :mod:`.stages`    -- the per-view stages: render -> probe -> measure -> picture,
-  :func:`~.stages.score_view` giving one cell per method;
-* :mod:`.cache`     -- the view cache (per-view cells) and the probe cache under ``OUT/.r360cache``;
+* :mod:`.stages`    -- the per-view stages: render -> probe -> measure -> picture, split by
+  where they may run (GPU thread / any thread); :func:`~.stages.score_view` runs them in a row;
+* :mod:`.cache`     -- the view cache (per-view cells), the probe cache and fit records
+  under ``OUT/.r360cache``;
 * :mod:`.pictures`  -- :class:`~.pictures.PictureSink`, the contact sheets the stages feed;
-* :mod:`.evaluate`  -- :func:`evaluate`: scenes in, the results document out.
+* :mod:`.writer`    -- :class:`~.writer.BackgroundWriter`: pictures and cache cells off the GPU thread;
+* :mod:`.evaluate`  -- :func:`evaluate`: scenes in, the results document out; the views of a
+  scene overlapped (GPU thread renders and measures, host threads read and probe ahead);
+* :mod:`.chunks`    -- :func:`~.chunks.score_chunk`: a chunk of views from picklable inputs,
+  for executors in other processes.
 
 Pooling across scenes is :mod:`r360gpu.aggregate.pooling`; scenes built from
 in-memory objects are :func:`r360gpu.bundle.scene_from_objects`.

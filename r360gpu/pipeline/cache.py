@@ -12,6 +12,11 @@
   deleted recomputes the view and writes it.
 * Probe cache: ``probes/``, :class:`~r360gpu.probes.cache.ProbeCache`, keyed
   by image content, so re-scoring never re-runs a probe on an unchanged image.
+* Fit records: ``fits/<key>.json``, the descriptions of probes that learn
+  from the scene (the appearance probe) after fitting, keyed by what the
+  fit reads.  They complete the view cache key without fitting, so a run
+  whose views are all cached renders nothing; a run with a view to score
+  still fits first (and checks the record).
 """
 from __future__ import annotations
 
@@ -52,6 +57,21 @@ class RunCache:
         from ..probes.cache import cached
 
         return cached(probe, self.probes)
+
+    def load_fit(self, key: str):
+        """The probe descriptions recorded after a fit with inputs ``key``, or None."""
+        if self.root is None:
+            return None
+        try:
+            return json.loads((self.root / "fits" / f"{key}.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+
+    def store_fit(self, key: str, probes_desc: dict) -> None:
+        if self.root is not None:
+            from ..util.atomic import write_json
+
+            write_json(self.root / "fits" / f"{key}.json", probes_desc)
 
     def views(self, scene: str, key_parts: dict) -> "ViewCache | None":
         if self.root is None:

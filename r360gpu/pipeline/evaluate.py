@@ -1,17 +1,18 @@
 """evaluate(): scenes in, the results document out."""
 from __future__ import annotations
 
+import contextvars
 import time
 from pathlib import Path
 
 from .. import __version__
 from ..errors import InputError
 from ..util import warning_log
-from .cache import RunCache, fingerprint
+from .cache import RunCache
 from .options import EvaluateOptions, default_probes
 from .pictures import PictureSink
 from .run import SceneRun, Timer, WarningLog
-from .stages import score_view
+from .stages import gather
 
 
 def evaluate(
@@ -70,7 +71,7 @@ def evaluate(
         log(f"note: {line}")
     out = Path(out) if out is not None else None
     cache = RunCache(out, force=force)
-    sink = PictureSink(out, opts.pictures, ctx=ctx)
+    sink = PictureSink(out, opts.pictures)
     with warning_log.collecting():
         return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log)
 
@@ -130,6 +131,12 @@ def missing_methods(bundles) -> list[str]:
     return lines
 
 
+#: Views whose host-side work (reading, probes) may run ahead of the view being measured.
+LOOKAHEAD = 2
+#: Threads for the host-side work; the GPU thread and the writer thread come on top.
+HOST_THREADS = 2
+
+
 def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool) -> dict:
     """Every view of one scene (from the view cache where it has them); the scene's results entry."""
     from ..aggregate.results import method_axes
@@ -137,38 +144,32 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     from ..metrics.record import ViewRecord
 
     bundle, opts = run.bundle, run.opts
-    view_cache = cache.views(bundle.name, {
-        "bundle": fingerprint(bundle, [*run.pres.values(), run.reference, *run.methods.values()]),
-        "options": opts.scoring_key(), "probes": run.probes_desc, "mode": run.mode, "depth": run.depth_mode,
-        "lpips": run.lpips.describe() if run.lpips else None})
+    view_cache, cells_of, todo = _cached_views(run, cache, sink)
+    if todo and run.fit_pending and run.fit():
+        # the fit record no longer holds: the key changes, so look the views up again
+        view_cache, cells_of, todo = _cached_views(run, cache, sink)
+    for v in cells_of:
+        warning_log.replay(next(iter(cells_of[v].values())).get("warnings"))
+        run.done(v)
+    done = f" ({len(cells_of)} cached)" if cells_of else ""
+    # The progress iterator reports an item once the next one is asked for: primed with the
+    # first view, advanced as each view is done.  score_views runs to its end (its writer
+    # thread is then closed, every picture written) before the scene is assembled.
+    ticks = iter(_progress(todo, f"scoring {bundle.name}{done}", progress))
+    next(ticks, None)
+    for v, cells in score_views(run, todo, sink, view_cache):
+        cells_of[v] = cells
+        next(ticks, None)
     scored = [*bundle.methods, *run.controls.values()]
     records: dict = {m: [] for m in scored}
     boundaries: dict = {m: [] for m in scored}
     pictures: dict = {m: {} for m in scored}
-    for v in _progress(run.views, bundle.name, progress):
-        cells = None
-        if view_cache:
-            cells = view_cache.load_view(bundle.methods, v, pictures=sink.enabled)
-            if cells is not None:
-                ctl = view_cache.load_view(run.controls.values(), v, pictures=False)
-                cells = None if ctl is None else {**cells, **ctl}
-        if cells is not None:
-            warning_log.replay(next(iter(cells.values())).get("warnings"))
-        else:
-            w_mark = warning_log.mark()
-            with warning_log.where(view=v):
-                cells = score_view(run, v, sink)
-            for i, cell in enumerate(cells.values()):  # a view's warnings once (counts add up on replay)
-                cell["warnings"] = warning_log.since(w_mark) if i == 0 else None
-            if view_cache is not None:
-                for m, cell in cells.items():
-                    view_cache.store(m, v, cell)
-        for m, cell in cells.items():
+    for v in run.views:
+        for m, cell in cells_of[v].items():
             records[m].append(ViewRecord.from_dict(cell["record"]))
             boundaries[m].append(cell.get("boundary"))
             if cell.get("picture"):
                 pictures[m][v] = cell["picture"]
-        run.done(v)
     scene = {
         "prompt": bundle.prompt,
         "n_views": len(run.views),
@@ -192,7 +193,119 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     return scene
 
 
-def _progress(views, name, enabled):
+def _cached_views(run: SceneRun, cache: RunCache, sink: PictureSink):
+    """(view cache, {view: cells} of the views it has, views to score)."""
+    view_cache = cache.views(run.bundle.name, {
+        "bundle": run.fingerprint, "options": run.opts.scoring_key(), "probes": run.probes_desc, "mode": run.mode,
+        "depth": run.depth_mode, "lpips": run.lpips.describe() if run.lpips else None})
+    cells_of, todo = {}, []
+    for v in run.views:
+        cells = view_cache.load_view(run.bundle.methods, v, pictures=sink.enabled) if view_cache else None
+        if cells is not None and run.controls:  # the controls' cells (no pictures) must be there too
+            ctl = view_cache.load_view(run.controls.values(), v, pictures=False)
+            cells = None if ctl is None else {**cells, **ctl}
+        if cells is None:
+            todo.append(v)
+        else:
+            cells_of[v] = cells
+    return view_cache, cells_of, todo
+
+
+def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache):
+    """Score ``views``, yielding (view, cells) in order, with the stages overlapped:
+
+    this (the GPU) thread renders on the device and measures; ``HOST_THREADS``
+    threads read renders, masks and run the probes up to ``LOOKAHEAD`` views
+    ahead; one writer thread writes the pictures and then the view's cache
+    cells (so a cached cell always has its picture).  Once the first view's
+    size is known, fewer views are kept in flight when they would hold more
+    than ``MEMORY_BUDGET`` bytes (large images: 4K and up).
+    """
+    from collections import deque
+    from concurrent.futures import ThreadPoolExecutor
+
+    from .stages import measure, picture_jobs, render_on_device
+    from .writer import BackgroundWriter
+
+    if not views:
+        return
+    host = ThreadPoolExecutor(max_workers=HOST_THREADS, thread_name_prefix="r360-host")
+    writer = None
+    lookahead = 0  # until the first view's size is known
+    inflight: deque = deque()
+    ok = False
+    try:
+        pending = iter(views)
+        while True:
+            while len(inflight) <= lookahead:
+                v = next(pending, None)
+                if v is None:
+                    break
+                with warning_log.where(view=v):
+                    data = render_on_device(run, v)
+                # contextvars do not follow work into a pool: the run's warning log and the
+                # view's place in it go along explicitly
+                inflight.append((v, host.submit(contextvars.copy_context().run, _gather, run, data)))
+            if not inflight:
+                break
+            v, fut = inflight.popleft()
+            data = fut.result()
+            if writer is None:
+                lookahead, bound = _in_flight(_view_bytes(data))
+                writer = BackgroundWriter(bound=bound)
+            with warning_log.where(view=v):
+                cells, geos = measure(run, data, sink)
+                jobs = picture_jobs(run, data, geos, cells) if sink.enabled else []
+            # a view's warnings go with its first cell (once: counts add up on replay)
+            next(iter(cells.values()))["warnings"] = warning_log.for_view(run.bundle.name, v)
+            writer.submit(contextvars.copy_context().run, _finish_view, run, sink, view_cache, v, cells, jobs)
+            run.done(v)
+            yield v, cells
+        ok = True
+    finally:
+        for _, fut in inflight:
+            fut.cancel()
+        host.shutdown(wait=True, cancel_futures=True)
+        if writer is not None:
+            writer.close(wait_errors=ok)
+
+
+#: Bytes of renders the overlapped schedule may hold beyond the view being measured.
+MEMORY_BUDGET = 2 << 30
+
+
+def _gather(run: SceneRun, data):
+    with warning_log.where(view=data.view):
+        return gather(run, data)
+
+
+def _view_bytes(data) -> int:
+    imgs = [*data.pres.values(), data.ref, *data.posts.values()]
+    return sum(getattr(a, "nbytes", 0) for im in imgs if im is not None for a in (im.rgb, im.depth, im.alpha))
+
+
+def _in_flight(view_bytes: int) -> tuple[int, int]:
+    """(views read ahead, views waiting for the writer) within MEMORY_BUDGET (at least 0 and 1)."""
+    slots = MEMORY_BUDGET // max(1, view_bytes)
+    lookahead = min(LOOKAHEAD, max(0, slots // 2))
+    return lookahead, min(LOOKAHEAD + 1, max(1, slots - lookahead))
+
+
+def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, cells: dict, jobs: list) -> None:
+    """Writer thread: the view's pictures, then its cache cells."""
+    import time
+
+    t = time.perf_counter()
+    if jobs:
+        sink.view(jobs)
+    if jobs:
+        run.timer.add("pictures", t)
+    if view_cache is not None:
+        for m, cell in cells.items():
+            view_cache.store(m, view, cell)
+
+
+def _progress(views, desc, enabled):
     from ..util.progress import progress
 
-    return progress(views, desc=f"scoring {name}", unit="view", enabled=enabled)
+    return progress(views, desc=desc, unit="view", enabled=enabled)

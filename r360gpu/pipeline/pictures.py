@@ -11,38 +11,109 @@ from pathlib import Path
 class PictureSink:
     """Writes per-(method, view) contact sheets under ``out/pictures`` (does nothing when disabled)."""
 
-    def __init__(self, out: Path | None, enabled: bool, *, ctx=None):
+    def __init__(self, out: Path | None, enabled: bool):
         self.out = out
         self.enabled = out is not None and enabled
-        self.ctx = ctx  # the run's GPU context: depth on a caller's device is read back through it
 
-    def method_view(self, scene: str, method: str, view: str, *, pre, post, ref, mask, geo, compat: bool,
-                    semantic, structural, record: dict | None = None) -> str | None:
-        """Write the sheet of one method at one view; returns its path relative to ``out``.
+    def path_for(self, scene: str, method: str, view: str) -> str | None:
+        """Where the sheet of (scene, method, view) goes, relative to ``out`` (None without pictures)."""
+        return (Path("pictures") / scene / method / f"{view}.png").as_posix() if self.enabled else None
 
-        pre, post, ref: ViewImages; geo: GeometricView or None; semantic:
-        (pre, post) predictions of the first semantic probe or None;
-        structural: [(title, rgb, MaskSet)] of the first structural probe;
-        record: the view's record (its numbers are drawn on the sheet).
+    def method_view(self, *, scene: str, method: str, view: str, pre_rgb, post_rgb, ref_rgb, pre_depth, post_depth,
+                    mask, geo, compat: bool, semantic, structural, record: dict | None = None,
+                    _shrink=None) -> str:
+        """Write the sheet of one method at one view (host arrays only); returns its relative path.
+
+        geo: GeometricView or None; semantic: (pre, post) predictions of the
+        first semantic probe or None; structural: [(title, rgb, MaskSet)] of
+        the first structural probe; record: the view's record (its numbers
+        are drawn on the sheet, so they survive copying it).
         """
-        if not self.enabled:
-            return None
         from ..metrics.compat import compat_quantise, depth_delta
-        from ..render.sources import host_depth
-        from ..report.pictures import view_contact_sheet
+        from ..report.pictures import PANEL_WIDTH, view_contact_sheet
 
         delta = threshold = changed = None
         if geo is not None:
-            delta = depth_delta(host_depth(pre.depth, self.ctx), host_depth(post.depth, self.ctx))
+            delta = depth_delta(pre_depth, post_depth)
             changed, threshold = geo.changed, geo.threshold
             if compat:  # the heat map then shows the 8-bit gray levels the threshold applies to
                 delta = compat_quantise(delta)
-        rel = Path("pictures") / scene / method / f"{view}.png"
+        # Everything but the heat map is brought to the panel size first (once per array
+        # and view when a _Shrink is shared): the panels resize exactly so, so the sheet is the same.
+        small = _shrink or _Shrink(PANEL_WIDTH)
+        rel = self.path_for(scene, method, view)
         view_contact_sheet(
-            self.out / rel, title=f"{scene} / {method} / {view}", pre=pre.rgb, post=post.rgb, target=mask,
-            ref=None if ref is None else ref.rgb, delta=delta, threshold=threshold, changed=changed,
-            semantic_pre=None if semantic is None else semantic[0].union(),
-            semantic_post=None if semantic is None else semantic[1].union(),
-            structural=[(t, rgb, ms.masks) for t, rgb, ms in structural], record=record,
+            self.out / rel, title=f"{scene} / {method} / {view}", pre=small.rgb(pre_rgb), post=small.rgb(post_rgb),
+            target=small.mask(mask), ref=None if ref_rgb is None else small.rgb(ref_rgb), delta=delta,
+            threshold=threshold, changed=None if changed is None else small.mask(changed),
+            semantic_pre=None if semantic is None else small.union(semantic[0]),
+            semantic_post=None if semantic is None else small.union(semantic[1]),
+            structural=[(t, small.rgb(rgb), small.masks(ms.masks)) for t, rgb, ms in structural],
+            width=PANEL_WIDTH, record=record,
         )
-        return rel.as_posix()
+        return rel
+
+    def view(self, jobs: list) -> None:
+        """Write the sheets of one view's methods, converting the images they share once."""
+        from ..report.pictures import PANEL_WIDTH
+
+        shrink = _Shrink(PANEL_WIDTH)
+        for job in jobs:
+            self.method_view(**job, _shrink=shrink)
+
+
+class _Shrink:
+    """RGB images and masks at a panel's size, made once per array (keyed by identity).
+
+    Uses the picture module's own conversion and resizing, in its order
+    (8-bit, then area-average / nearest resize), so a panel made from the
+    result is the panel made from the full-size input.
+    """
+
+    def __init__(self, width: int):
+        self.width = width
+        self._memo: dict = {}
+
+    def _once(self, a, make):
+        hit = self._memo.get(id(a))
+        if hit is None or hit[0] is not a:
+            hit = (a, make(a))  # the array is kept so its id stays unique
+            self._memo[id(a)] = hit
+        return hit[1]
+
+    def rgb(self, a):
+        from ..report.pictures import _resize_rgb, as_rgb8
+
+        return self._once(a, lambda x: _resize_rgb(as_rgb8(x), self.width))
+
+    def _size(self, shape):
+        from ..report.pictures import _size_for
+
+        return _size_for(shape, self.width)
+
+    def mask(self, m):
+        import numpy as np
+
+        from ..report.pictures import _resize_mask
+
+        return self._once(m, lambda x: _resize_mask(np.asarray(x) != 0, self._size(np.shape(x))))
+
+    def union(self, prediction):
+        """A semantic prediction's union mask, at the panel size."""
+        return self._once(prediction, lambda p: self.mask(p.union()))
+
+    def masks(self, stack):
+        import numpy as np
+
+        from ..report.pictures import _resize_mask
+
+        def make(x):
+            a = np.asarray(x) != 0
+            if a.ndim == 2:
+                a = a[None]
+            if a.ndim != 3 or not a.shape[0]:
+                return a
+            size = self._size(a.shape[1:])
+            return np.stack([_resize_mask(k, size) for k in a])
+
+        return self._once(stack, make)

@@ -11,7 +11,10 @@ holds
   methods to show what each axis reads on an unedited scene ("identity": the
   pre) and on a real removal ("reference");
 * the target masks (read on first use, dropped once the view is done);
-* the probes, already wrapped in the probe cache, and LPIPS;
+* the probes, already wrapped in the probe cache, and LPIPS; probes that
+  learn from the scene are fitted (as per-scene copies) on pre renders that
+  are then reused for scoring those views, or, when a fit record in the
+  cache says what the fit gives, only once a view has to be scored;
 * ``warnings``: a :class:`WarningLog` the stages add to.
 
 Everything it is built from (a bundle spec, :class:`~.options.EvaluateOptions`,
@@ -20,7 +23,9 @@ score a chunk of its views (:func:`r360gpu.pipeline.stages.score_view`).
 """
 from __future__ import annotations
 
+import copy
 import fnmatch
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -31,13 +36,16 @@ from ..errors import InputError
 
 @dataclass
 class Timer:
-    """Seconds spent per stage, summed over the run."""
+    """Seconds spent per stage, summed over the run and over the threads that ran it
+    (stages overlap, so the sum may exceed the wall time)."""
 
     totals: dict = field(default_factory=dict)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def add(self, stage: str, t0: float) -> float:
         t = time.perf_counter()
-        self.totals[stage] = self.totals.get(stage, 0.0) + t - t0
+        with self._lock:
+            self.totals[stage] = self.totals.get(stage, 0.0) + t - t0
         return t
 
 
@@ -131,13 +139,30 @@ class SceneRun:
         self._masks: dict = {}
         self._fit_renders: dict = {}
         from ..bundle.load import require_target
+        from .cache import digest, fingerprint
 
         require_target(self.views, self.mask, bundle.masks)
-        self._fit(sem_probes + str_probes)
+        self.fingerprint = fingerprint(bundle, [*self.pres.values(), self.reference, *self.methods.values()])
+        # Probes that learn from the scene are fitted as copies, one per scene: the caller's
+        # objects stay as given, so the fit record's key (their description) is the same every run.
+        learns = lambda p: getattr(p, "learns_from_scene", False)  # noqa: E731 (probes.base.Probe.fit)
+        sem_probes = [copy.deepcopy(p) if learns(p) else p for p in sem_probes]
+        str_probes = [copy.deepcopy(p) if learns(p) else p for p in str_probes]
+        self._to_fit = [p for p in sem_probes + str_probes if learns(p)]
         self.sem = [cache.wrap_probe(p) for p in sem_probes]
         self.stru = [cache.wrap_probe(p) for p in str_probes]
-        self.probes_desc = {"semantic": [p.describe() for p in self.sem],
-                            "structural": [p.describe() for p in self.stru]}
+        self.fit_pending = False
+        if self._to_fit:
+            # what the fit reads: pre's renders of the picked views and their masks
+            self._fit_key = digest({"bundle": self.fingerprint, "views": self._fit_views(), "depth": self.depth_mode,
+                                    "pre": self.pre.describe(), "probes": self._describe()})
+            recorded = cache.load_fit(self._fit_key)
+            if recorded is None:
+                self.fit()
+                cache.store_fit(self._fit_key, self._describe())
+            else:
+                self.fit_pending = True
+        self.probes_desc = recorded if self.fit_pending else self._describe()
         self.lpips = LpipsModel(opts.lpips_model) if opts.lpips_model and self.reference is not None else None
 
     @property
@@ -169,26 +194,43 @@ class SceneRun:
     def done(self, view: str) -> None:
         """Drop what was kept for ``view``."""
         self._masks.pop(view, None)
-        for key in [k for k in self._fit_renders if k[1] == view]:
-            del self._fit_renders[key]
+        for key in [k for k in list(self._fit_renders) if k[1] == view]:
+            self._fit_renders.pop(key, None)
 
-    def _fit(self, probes) -> None:
-        """Probes that learn from the scene (the built-in appearance probe) fit on
-        pre renderings of up to ``fit_views`` views with a visible target."""
-        fitted = [p for p in probes if getattr(p, "learns_from_scene", False)]
-        if not fitted:
-            return
-        t0 = time.perf_counter()
+    def _describe(self) -> dict:
+        """The probes' descriptions as JSON gives them back (lists, not tuples), so a fresh one
+        compares equal to a recorded one."""
+        import json
+
+        return json.loads(json.dumps({"semantic": [p.describe() for p in self.sem],
+                                      "structural": [p.describe() for p in self.stru]}, default=str))
+
+    def _fit_views(self) -> list:
+        """Up to ``fit_views`` views with a visible target, evenly spread."""
         with_target = [v for v in self.views if self.mask(v).any()]
-        pick = []
-        if with_target:
-            idx = np.linspace(0, len(with_target) - 1, min(self.opts.fit_views, len(with_target))).round().astype(int)
-            pick = list(dict.fromkeys(with_target[i] for i in idx))
+        if not with_target:
+            return []
+        idx = np.linspace(0, len(with_target) - 1, min(self.opts.fit_views, len(with_target))).round().astype(int)
+        return list(dict.fromkeys(with_target[i] for i in idx))
+
+    def fit(self) -> bool:
+        """Fit the probes that learn from the scene (the built-in appearance probe) on pre
+        renderings of the fit views; the renders are kept for scoring those views.
+
+        Returns True when the probes' descriptions differ from ``probes_desc``
+        (which then came from a fit record that no longer holds).
+        """
+        t0 = time.perf_counter()
+        pick = self._fit_views()
         renders = [self.pre.images(v, self.camera(v)) for v in pick]
         self._fit_renders = {("pre", v): r for v, r in zip(pick, renders)}
-        for p in fitted:
+        for p in self._to_fit:
             p.fit([r.rgb for r in renders], [self.mask(v) for v in pick])
         self.timer.add("fit probes", t0)
+        desc = self._describe()
+        stale = getattr(self, "probes_desc", desc) != desc
+        self.probes_desc, self.fit_pending = desc, False
+        return stale
 
     def describe_sources(self) -> dict:
         out = {"pre": self.pre.describe(),

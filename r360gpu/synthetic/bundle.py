@@ -11,7 +11,6 @@ One bundle folder per scene::
         pre.ply                 original reconstruction (INRIA 3DGS .ply)
         reference.ply           the scene without the target (hidden background present)
         methods/<method>.ply    one per simulated method (see r360gpu.synthetic.methods)
-        generated.json          (generate_benchmark) the generator's parameters and every file's SHA-256
 
 Every file is written atomically; ``scene.toml`` is written last (and
 removed first when a bundle is regenerated), so a folder holding one is
@@ -21,7 +20,6 @@ boundary pixels.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import sys
@@ -49,7 +47,6 @@ CAMERA_FORMATS = ("colmap", "transforms")
 MARKER = "synthetic.json"
 #: Written after everything else: the generator's parameters and each file's size and SHA-256, so an
 #: unchanged bundle is reused instead of regenerated (:func:`generate_benchmark`).
-STAMP = "generated.json"
 
 
 def _rng(*keys) -> np.random.Generator:
@@ -152,7 +149,6 @@ def _prepare(folder: Path) -> None:
                          "refusing to overwrite it", folder)
     folder.mkdir(parents=True, exist_ok=True)
     # Gone first, written last: a half-regenerated folder is never taken for a bundle.
-    (folder / STAMP).unlink(missing_ok=True)
     (folder / "scene.toml").unlink(missing_ok=True)
 
 
@@ -173,9 +169,41 @@ def _remove_stale(folder: Path, views: set[str], methods: set[str], camera_forma
             (folder / "cameras").rmdir()
 
 
+def _sha256(path: Path) -> str:
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 22), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _bundle_files(folder: Path) -> dict[str, str]:
+    """{relative path: sha256} of the files a bundle is made of (not the marker, not scene.toml)."""
+    return {p.relative_to(folder).as_posix(): _sha256(p) for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name not in (MARKER, "scene.toml") and not p.name.startswith(".")}
+
+
+def reusable_bundle(folder: str | os.PathLike, request: dict) -> bool:
+    """True when ``folder`` holds a complete synthetic bundle made for ``request`` whose files
+    still have the contents they were written with (so regenerating would give the same bytes)."""
+    folder = Path(folder)
+    try:
+        meta = json.loads((folder / MARKER).read_text(encoding="utf-8"))
+        toml = (folder / "scene.toml").read_bytes()
+    except (OSError, ValueError):
+        return False
+    import hashlib
+
+    return (isinstance(meta, dict) and meta.get("request") == request
+            and meta.get("scene_toml_sha256") == hashlib.sha256(toml).hexdigest()
+            and meta.get("files") == _bundle_files(folder))
+
+
 def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int = 0,
                  methods: Sequence[str] | None = None, camera_format: str = "colmap", ctx=None,
-                 progress: bool = False) -> Path:
+                 progress: bool = False, request: dict | None = None) -> Path:
     """Write ``scene`` as a bundle into ``folder`` (created; an earlier synthetic bundle there
     is replaced) and return the folder.
 
@@ -183,6 +211,8 @@ def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int 
     names from :data:`~r360gpu.synthetic.methods.METHODS` (default: all, in
     that order).  camera_format: "colmap" (``cameras/`` binary model) or
     "transforms" (``transforms.json``).  ctx: GPU context for the mask renders.
+    request: the arguments the bundle was made from, recorded in the marker
+    with the files' SHA-256 so :func:`reusable_bundle` can tell it is current.
     """
     methods = list(METHODS) if methods is None else list(methods)
     unknown = [m for m in methods if m not in METHODS]
@@ -249,25 +279,29 @@ def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int 
         "mask_pixels": {name: int(m.sum()) for name, m in masks.items()},
         "methods": {m: " ".join((METHODS[m].__doc__ or "").split()) for m in methods},
     }
+    toml = scene_toml(scene, methods, seed=seed, cameras=cameras)
+    if request is not None:
+        import hashlib
+
+        meta.update(request=request, files=_bundle_files(folder),
+                    scene_toml_sha256=hashlib.sha256(toml.encode("utf-8")).hexdigest())
     write_text(folder / MARKER, json.dumps(meta, indent=2) + "\n")
-    write_text(folder / "scene.toml", scene_toml(scene, methods, seed=seed, cameras=cameras))
+    write_text(folder / "scene.toml", toml)
     return folder
 
 
 def generate_benchmark(out_dir: str | os.PathLike, *, seed: int = 0, n_views: int = 20, width: int = 480,
                        height: int = 360, scenes: Sequence[str] = ("room", "garden"), detail: float = 1.0,
                        methods: Sequence[str] | None = None, camera_format: str = "colmap", ctx=None,
-                       progress: bool = False, reuse: bool = False, log=None) -> list[Path]:
+                       progress: bool = False, reuse: bool = False, reused: list | None = None) -> list[Path]:
     """Generate the built-in synthetic benchmark: one bundle per scene under ``out_dir``.
 
     Returns the bundle folders (``out_dir / scene``) in the order of
     ``scenes``.  See :func:`make_scene` for seed, n_views, width, height and
     detail, :func:`write_bundle` for methods, camera_format and ctx.
-    reuse: keep a bundle generated earlier with the same parameters and
-    r360gpu version whose files are intact (:func:`stamp_matches`) instead of
-    writing it again; its files (and modification times) stay untouched, so
-    a scoring cache keyed on them stays valid.  log: print-like, told which
-    bundles were reused.
+    reuse: keep a scene's bundle that was made with the same arguments and
+    whose files are unchanged (checked by content) instead of writing it
+    again; the names of the scenes kept are appended to ``reused``.
     """
     scenes = list(scenes)
     unknown = [s for s in scenes if s not in SCENES]
@@ -282,56 +316,16 @@ def generate_benchmark(out_dir: str | os.PathLike, *, seed: int = 0, n_views: in
         raise InputError("exists and is not a folder", out)
     folders = []
     for name in scenes:
-        params = {"generator": "r360gpu.synthetic", "r360gpu_version": __version__, "scene": name,
-                  "seed": int(seed), "n_views": int(n_views), "width": int(width), "height": int(height),
-                  "detail": float(detail), "methods": list(METHODS) if methods is None else list(methods),
-                  "camera_format": camera_format}
-        folder = out / name
-        if reuse and stamp_matches(folder, params):
-            if log is not None:
-                log(f"  {name}: unchanged since it was generated, reused")
-            folders.append(folder)
+        request = {"r360gpu_version": __version__, "scene": name, "seed": int(seed), "n_views": int(n_views),
+                   "width": int(width), "height": int(height), "detail": float(detail),
+                   "methods": list(METHODS) if methods is None else list(methods), "camera_format": camera_format}
+        if reuse and reusable_bundle(out / name, request):
+            folders.append(out / name)
+            if reused is not None:
+                reused.append(name)
             continue
         scene = make_scene(name, seed=seed, n_views=n_views, width=width, height=height, detail=detail)
-        folders.append(write_bundle(scene, folder, seed=seed, methods=methods, camera_format=camera_format,
-                                    ctx=ctx, progress=progress))
-        _write_stamp(folder, params)
+        folders.append(write_bundle(scene, out / name, seed=seed, methods=methods, camera_format=camera_format,
+                                    ctx=ctx, progress=progress, request=request))
     return folders
 
-
-def _file_digests(folder: Path) -> dict:
-    out = {}
-    for p in sorted(folder.rglob("*")):
-        if p.is_file() and p.name != STAMP:
-            h = hashlib.sha256()
-            with open(p, "rb") as f:
-                for block in iter(lambda: f.read(1 << 20), b""):
-                    h.update(block)
-            out[p.relative_to(folder).as_posix()] = [p.stat().st_size, h.hexdigest()]
-    return out
-
-
-def _write_stamp(folder: Path, params: dict) -> None:
-    write_text(folder / STAMP, json.dumps({"params": params, "files": _file_digests(folder)}, indent=1) + "\n")
-
-
-def stamp_matches(folder: str | os.PathLike, params: dict) -> bool:
-    """True when ``folder`` was generated with ``params`` (version included) and every file is as written:
-    the same set of files, each with its recorded size and SHA-256."""
-    folder = Path(folder)
-    try:
-        stamp = json.loads((folder / STAMP).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return False
-    if not isinstance(stamp, dict) or stamp.get("params") != params:
-        return False
-    files = stamp.get("files")
-    if not isinstance(files, dict):
-        return False
-    present = sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file() and p.name != STAMP)
-    if present != sorted(files):  # quick check before hashing
-        return False
-    for rel, (size, _) in files.items():
-        if (folder / rel).stat().st_size != size:
-            return False
-    return _file_digests(folder) == files

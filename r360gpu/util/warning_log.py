@@ -21,6 +21,7 @@ import contextvars
 import os
 import re
 import sys
+import threading
 import warnings
 from contextlib import contextmanager
 from typing import Iterator, TextIO
@@ -44,24 +45,38 @@ class WarningLog:
         self._seen: set[tuple] = set()
         self.counts: dict[str, dict[str, int]] = {}
         self.done: set = set()
+        # What each (scene, view) added, for the view cache (see for_view); stages of
+        # different views run on different threads at once.
+        self.by_view: dict[tuple, dict] = {}
+        self._lock = threading.RLock()
 
     def add(self, message: str, *, scene=None, method=None, view=None, file=None) -> bool:
         """Record (and print) a warning unless the same one was recorded already; True when new."""
         rec = {"scene": scene, "method": method, "view": view,
                "file": None if file is None else os.fspath(file), "message": str(message)}
         key = tuple(rec[k] for k in KEYS)
-        if key in self._seen:
-            return False
-        self._seen.add(key)
-        self._records.append(rec)
+        with self._lock:
+            if key in self._seen:
+                return False
+            self._seen.add(key)
+            self._records.append(rec)
+            if view is not None:
+                self._view_entry(scene, view)["records"].append(dict(rec))
         if self.stream is not None:
             stream = sys.stderr if self.stream == "stderr" else self.stream  # (the current one: tests swap it)
             print(f"r360gpu: warning: {format_record(rec)}", file=stream, flush=True)
         return True
 
-    def count(self, kind: str, key: str, n: int = 1) -> None:
-        d = self.counts.setdefault(kind, {})
-        d[key] = d.get(key, 0) + n
+    def count(self, kind: str, key: str, n: int = 1, *, scene=None, view=None) -> None:
+        with self._lock:
+            d = self.counts.setdefault(kind, {})
+            d[key] = d.get(key, 0) + n
+            if view is not None:
+                vc = self._view_entry(scene, view)["counts"].setdefault(kind, {})
+                vc[key] = vc.get(key, 0) + n
+
+    def _view_entry(self, scene, view) -> dict:
+        return self.by_view.setdefault((scene, view), {"records": [], "counts": {}})
 
     def records(self) -> list[dict]:
         return [dict(r) for r in self._records]
@@ -92,10 +107,24 @@ def warn(message: str, *, file=None, **where) -> None:
 
 
 def count(kind: str, key: str, n: int = 1) -> None:
-    """Count an event (no-op outside a run)."""
+    """Count an event (no-op outside a run), attributed to the scene and view set by :func:`where`."""
     log = _log.get()
     if log is not None:
-        log.count(kind, str(key), n)
+        loc = _where.get()
+        log.count(kind, str(key), n, scene=loc.get("scene"), view=loc.get("view"))
+
+
+def for_view(scene, view) -> dict:
+    """The warnings and counts raised while ``where(scene=..., view=...)`` named this view
+    ({"records": [...], "counts": {...}}), to store with its cached result and :func:`replay`
+    when the cache serves it.  Safe while other views' stages run on other threads."""
+    log = _log.get()
+    if log is None:
+        return {"records": [], "counts": {}}
+    with log._lock:
+        e = log.by_view.get((scene, view)) or {"records": [], "counts": {}}
+        return {"records": [dict(r) for r in e["records"]],
+                "counts": {k: dict(v) for k, v in e["counts"].items()}}
 
 
 _done_outside_runs: set = set()

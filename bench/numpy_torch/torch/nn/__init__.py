@@ -1,0 +1,2 @@
+"""torch.nn: only ``functional`` (see ``torch/__init__.py``)."""
+from . import functional  # noqa: F401

@@ -1,0 +1,43 @@
+"""Scoring a chunk of a scene's views from picklable inputs, for executors in other processes.
+
+:func:`score_chunk` takes what can cross a process boundary (a bundle folder
+or :class:`~r360gpu.bundle.Bundle` of file specs, :class:`~.options.EvaluateOptions`,
+probe objects, view names) and returns plain JSON-ready cells, so a process
+pool or a cluster scheduler can score the views of one scene in parallel:
+each worker opens its own GPU context and :class:`~.run.SceneRun`.  Probes
+that learn from the scene fit on the same views in every worker (the fit
+views follow from the bundle and options, not from the chunk), so every
+chunk scores with the same fitted probe.
+"""
+from __future__ import annotations
+
+
+def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, adapter: str | None = None,
+                ctx=None) -> dict:
+    """{view: {method: cell}} for ``views`` of one scene, computed in this process.
+
+    bundle: a bundle folder or a loaded Bundle; options: EvaluateOptions
+    (its ``views`` patterns select the scene's views the fit may use);
+    views: names among the scene's views; cells as :func:`~.stages.score_view`
+    gives them (no pictures, no cache: the caller owns the output folder).
+    """
+    from ..bundle import Bundle, load_bundle
+    from ..errors import InputError
+    from ..gpu import get_context
+    from .cache import RunCache
+    from .pictures import PictureSink
+    from .run import SceneRun, Timer, WarningLog
+    from .stages import score_view
+
+    ctx = ctx or get_context(adapter)
+    b = bundle if isinstance(bundle, Bundle) else load_bundle(bundle)
+    run = SceneRun(b, options, ctx, list(semantic_probes), list(structural_probes), cache=RunCache(None),
+                   timer=Timer(), warnings=WarningLog())
+    try:
+        unknown = [v for v in views if v not in run.views]
+        if unknown:
+            raise InputError(f"scene {b.name}: views {unknown[:5]} are not among its evaluation views")
+        sink = PictureSink(None, False)
+        return {v: score_view(run, v, sink) for v in views}
+    finally:
+        run.release()

@@ -1,0 +1,216 @@
+"""The scoring pipeline's overlapped schedule: same cells as one view at a time, errors from
+any thread stop the run, pictures and cache cells come from one writer thread."""
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from bundle_factory import make_bundle, make_remove360
+from r360gpu.bundle import load_bundle
+from r360gpu.errors import InputError
+from r360gpu.pipeline import EvaluateOptions, default_probes, evaluate
+from r360gpu.pipeline.cache import RunCache
+from r360gpu.pipeline.pictures import PictureSink
+from r360gpu.pipeline.run import SceneRun, Timer, WarningLog
+from r360gpu.pipeline.stages import score_view
+from r360gpu.pipeline.writer import BackgroundWriter
+from r360gpu.probes.base import StructuralProbe
+
+OPTS = dict(n_boot=50, n_perm=20)
+
+
+@pytest.mark.parametrize("layout", ["remove360", "mixed"])
+def test_overlapped_views_give_the_cells_of_one_view_at_a_time(tmp_path, ctx, layout):
+    """remove360: every source read on host threads; mixed: splat scenes on the GPU thread too."""
+    root = make_remove360(tmp_path / "b") if layout == "remove360" else make_bundle(tmp_path / "b")
+    bundle = load_bundle(root)
+    res = evaluate(bundle, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    sem, stru = default_probes()
+    run = SceneRun(bundle, EvaluateOptions(**OPTS), ctx, sem, stru, cache=RunCache(None), timer=Timer(),
+                   warnings=WarningLog())
+    one_by_one = {v: score_view(run, v, PictureSink(None, False)) for v in run.views}
+    run.release()
+    for m, entry in res["scenes"][bundle.name]["methods"].items():
+        assert entry["views"] == [one_by_one[v][m]["record"] for v in run.views]
+
+
+class _FailsOn(StructuralProbe):
+    """The built-in structural probe, failing on one view (as a probe reading a broken file would)."""
+
+    cacheable = False
+
+    def __init__(self, view):
+        self.inner, self.view = default_probes()[1][0], view
+
+    @property
+    def name(self):
+        return "fails-on"
+
+    def params(self):
+        return {"view": self.view}
+
+    def predict(self, views):
+        for v in views:
+            if v.name == self.view:
+                raise InputError(f"view {v.name}: broken probe file")
+        return self.inner.predict(views)
+
+
+def test_an_error_on_a_host_thread_stops_the_run_and_leaves_no_cell_behind(tmp_path, ctx):
+    root = make_remove360(tmp_path / "b")
+    before = threading.active_count()
+    with pytest.raises(InputError, match="view_01: broken probe file"):
+        evaluate(root, out=tmp_path / "out", structural_probes=[_FailsOn("view_01")],
+                 options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    assert threading.active_count() == before  # no thread left running
+    cells = sorted(p.stem for p in (tmp_path / "out" / ".r360cache" / "views").rglob("*.json"))
+    assert "view_01" not in cells and "view_02" not in cells
+    # every method cell written has its picture (the controls' cells, under "pre"/"reference", have none)
+    for p in (tmp_path / "out" / ".r360cache" / "views").rglob("*.json"):
+        import json
+
+        if p.parent.name in ("pre", "reference"):
+            assert json.loads(p.read_text())["picture"] is None
+            continue
+        assert (tmp_path / "out" / json.loads(p.read_text())["picture"]).is_file()
+
+
+def test_background_writer_runs_in_order_bounded_and_raises_the_first_error():
+    w = BackgroundWriter(bound=2)
+    done, gate = [], threading.Event()
+    w.submit(gate.wait)
+    w.submit(done.append, 1)
+    # a third job must wait for a free slot: release the gate from another thread
+    threading.Timer(0.2, gate.set).start()
+    w.submit(done.append, 2)
+    assert gate.is_set()  # the submit waited for a slot
+    with pytest.raises(ZeroDivisionError):
+        w.submit(lambda: 1 / 0)
+        w.submit(done.append, 3)  # may already raise the error
+        w.close()
+    w.close(wait_errors=False)
+    assert done[:2] == [1, 2]
+
+
+def test_warning_log_records_each_warning_once_from_any_thread():
+    """The run's warning log (util.warning_log) is shared by the stage threads: each warning once,
+    printed once, and attributed to the view whose stage raised it (for the view cache)."""
+    import contextvars
+    import io
+
+    from r360gpu.util import warning_log
+
+    stream = io.StringIO()
+    with warning_log.collecting(stream):
+        def stage(view):
+            with warning_log.where(scene="s", view=view):
+                warning_log.warn("depth unit differs", file="d.png", method="m")
+                warning_log.count("missing_probe_files", "p:dir")
+
+        threads = [threading.Thread(target=contextvars.copy_context().run, args=(stage, "v" if i % 2 else "w"))
+                   for i in range(8)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        recs = warning_log.records()
+        per_view = warning_log.for_view("s", "v")
+    assert sorted(r["view"] for r in recs) == ["v", "w"]
+    assert all(r["message"] == "depth unit differs" and r["file"] == "d.png" for r in recs)
+    assert stream.getvalue().count("r360gpu: warning:") == 2
+    assert [r["view"] for r in per_view["records"]] == ["v"]
+    assert per_view["counts"] == {"missing_probe_files": {"p:dir": 4}}
+
+
+def test_a_fully_cached_rerun_renders_nothing_and_a_stale_fit_record_is_caught(tmp_path, ctx, monkeypatch):
+    """The appearance probe's fit record completes the view cache key, so nothing is rendered;
+    when a view must be scored the probe is fitted first and the record checked."""
+    import json
+
+    from r360gpu.render.sources import SceneSource
+
+    root = make_bundle(tmp_path / "b")
+    opts = EvaluateOptions(**OPTS)
+    first = evaluate(root, out=tmp_path / "out", options=opts, ctx=ctx, progress=False)
+    images = SceneSource.images
+    calls = []
+    monkeypatch.setattr(SceneSource, "images", lambda self, v, c: calls.append(v) or images(self, v, c))
+    again = evaluate(root, out=tmp_path / "out", options=opts, ctx=ctx, progress=False)
+    assert calls == [] and "fit probes" not in again["timing"]["stages_s"]
+    assert again["scenes"] == first["scenes"] and again["probes"] == first["probes"]
+    # a fit record that no longer holds: the views are looked up again under the fitted key
+    (rec,) = (tmp_path / "out" / ".r360cache" / "fits").glob("*.json")
+    doc = json.loads(rec.read_text())
+    doc["semantic"][0]["params"]["model_sha256"] = "0" * 64
+    rec.write_text(json.dumps(doc))
+    next(iter((tmp_path / "out" / ".r360cache" / "views").rglob("view_01.json"))).unlink()
+    third = evaluate(root, out=tmp_path / "out", options=opts, ctx=ctx, progress=False)
+    assert third["scenes"] == first["scenes"] and third["probes"] == first["probes"]
+
+
+def test_chunks_scored_from_pickled_inputs_give_the_runs_cells(tmp_path, ctx):
+    """What an executor in another process would get: pickled inputs in, the same cells out."""
+    import pickle
+
+    from r360gpu.pipeline.chunks import score_chunk
+
+    root = make_bundle(tmp_path / "b")
+    opts = EvaluateOptions(**OPTS)
+    res = evaluate(root, options=opts, ctx=ctx, progress=False)
+    sem, stru = default_probes()
+    cells = {}
+    for chunk in (["view_00", "view_02"], ["view_01"]):
+        args = pickle.loads(pickle.dumps((root, opts, sem, stru, chunk)))
+        cells.update(score_chunk(*args, ctx=ctx))
+    for m, entry in res["scenes"]["room"]["methods"].items():
+        assert entry["views"] == [cells[v][m]["record"] for v in res["scenes"]["room"]["views"]]
+    with pytest.raises(InputError, match="view_09"):
+        score_chunk(root, opts, sem, stru, ["view_09"], ctx=ctx)
+
+
+def test_views_in_flight_shrink_for_large_images():
+    from r360gpu.pipeline.evaluate import LOOKAHEAD, MEMORY_BUDGET, _in_flight
+
+    assert _in_flight(20 << 20) == (LOOKAHEAD, LOOKAHEAD + 1)  # 480x360, 7 sources
+    assert _in_flight(MEMORY_BUDGET // 2) == (1, 1)
+    assert _in_flight(MEMORY_BUDGET * 3) == (0, 1)  # 8K: one view measured, one written, none ahead
+
+
+@pytest.mark.parametrize("size", [(300, 400), (120, 160), (61, 97)])
+def test_picture_sink_writes_the_sheet_of_the_full_size_inputs(tmp_path, size):
+    """The sink brings images and masks to the panel size first (once per view); the sheet
+    must be byte for byte the one the report draws from the full-size inputs."""
+    import numpy as np
+
+    from r360gpu.metrics.compat import depth_delta
+    from r360gpu.probes.base import MaskSet, SemanticPrediction
+    from r360gpu.report.pictures import view_contact_sheet
+
+    h, w = size
+    rng = np.random.default_rng(h)
+    yy, xx = np.mgrid[:h, :w]
+    blob = lambda cy, cx, r: (yy - cy) ** 2 + (xx - cx) ** 2 < r * r  # noqa: E731
+    pre, post, ref = (rng.uniform(size=(h, w, 3)).astype(np.float32) for _ in range(3))
+    d_pre = rng.uniform(1, 5, (h, w)).astype(np.float32)
+    d_post = d_pre.copy()
+    d_post[blob(h / 2, w / 2, h / 5)] += 1
+    target = blob(h / 2, w / 2, h / 4)
+
+    class Geo:
+        changed = blob(h / 2, w / 2, h / 5)
+        threshold = 0.5
+
+    sem = (SemanticPrediction(target[None], np.ones(1, np.float32), ["x"], "s"),
+           SemanticPrediction(np.zeros((0, h, w), bool), np.zeros(0, np.float32), [], "s"))
+    masks = MaskSet(np.stack([blob(h / 3, w / 3, h / 6), target, blob(h / 4, w / 2, h / 8)]), None, "t")
+    sink = PictureSink(tmp_path / "out", True)
+    job = dict(scene="s", method="m", view="v", pre_rgb=pre, post_rgb=post, ref_rgb=ref, pre_depth=d_pre,
+               post_depth=d_post, mask=target, geo=Geo, compat=False, semantic=sem,
+               structural=[("a on I_pre", pre, masks), ("a on I_post", post, masks)])
+    sink.view([job, {**job, "method": "m2"}])
+    direct = view_contact_sheet(
+        tmp_path / "direct.png", title="s / m / v", pre=pre, post=post, target=target, ref=ref,
+        delta=depth_delta(d_pre, d_post), threshold=0.5, changed=Geo.changed, semantic_pre=sem[0].union(),
+        semantic_post=sem[1].union(), structural=[("a on I_pre", pre, masks.masks), ("a on I_post", post, masks.masks)])
+    assert (tmp_path / "out" / "pictures" / "s" / "m" / "v.png").read_bytes() == direct.read_bytes()
