@@ -26,6 +26,8 @@ def evaluate(
     force: bool = False,
     progress: bool = True,
     log=print,
+    executor=None,
+    ray_address: str | None = None,
 ) -> dict:
     """Score one or more scene bundles; returns the results document (a dict).
 
@@ -41,12 +43,20 @@ def evaluate(
     ctx / adapter / device: the GPU context, an adapter choice, or a caller's
         ``wgpu.GPUDevice``.
     force: recompute everything (the cache under ``out`` is cleared first).
+    executor: None or "serial" (views scored here, one after another), "ray"
+        (uncached views scored as Ray tasks, :mod:`.distributed`; needs the
+        ``r360gpu[ray]`` extra), or a :class:`~.distributed.RayExecutor`.
+    ray_address: with executor="ray": "local" (default), "auto" or a cluster address.
     """
     from ..aggregate.pooling import aggregate_results
     from ..bundle import Bundle, load_bundle
     from ..gpu import get_context
 
     opts = options or EvaluateOptions()
+    if executor is not None or ray_address is not None:
+        from .distributed import open_executor
+
+        executor = open_executor(executor, ray_address=ray_address, adapter=adapter, device=device, log=log)
     ctx = ctx or get_context(adapter, device=device)
     if semantic_probes is None or structural_probes is None:
         d_sem, d_str = default_probes()
@@ -82,7 +92,7 @@ def evaluate(
         run = SceneRun(bundle, opts, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
                        warnings=warnings)
         try:
-            results["scenes"][bundle.name] = evaluate_scene(run, cache, sink, progress)
+            results["scenes"][bundle.name] = evaluate_scene(run, cache, sink, progress, executor)
         finally:
             run.release()
         results["probes"] = run.probes_desc
@@ -90,13 +100,16 @@ def evaluate(
     results["timing"] = {"stages_s": {k: round(v, 3) for k, v in timer.totals.items()},
                          "total_s": round(time.perf_counter() - t_start, 3),
                          "views": n_views_done}
+    if executor is not None:  # what ran where; a comparison of runs leaves timing out
+        results["timing"]["executor"] = executor.describe()
+        executor.close()
     if warnings.items:
         results["warnings"] = warnings.items
     aggregate_results(results, n_boot=opts.n_boot, n_perm=opts.n_perm, seed=opts.seed)
     return results
 
 
-def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool) -> dict:
+def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool, executor=None) -> dict:
     """Every view of one scene (from the view cache where it has them); the scene's results entry."""
     from ..aggregate.results import method_axes
     from ..aggregate.validity import scene_validity
@@ -111,13 +124,13 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     records: dict = {m: [] for m in scored}
     boundaries: dict = {m: [] for m in scored}
     pictures: dict = {m: {} for m in scored}
-    for v in _progress(run.views, bundle.name, progress):
-        cells = None
-        if view_cache:
-            cells = view_cache.load_view(bundle.methods, v, pictures=sink.enabled)
-            if cells is not None:
-                ctl = view_cache.load_view(run.controls.values(), v, pictures=False)
-                cells = None if ctl is None else {**cells, **ctl}
+    # The executor hook: cells of the views not in the view cache come from
+    # the executor (.distributed.RayExecutor), which also stores them there.
+    fresh = executor.score_scene(run, view_cache, sink, progress) if executor is not None else {}
+    for v in _progress(run.views, bundle.name, progress and executor is None):
+        cells = fresh.pop(v, None)
+        if cells is None and view_cache:
+            cells = view_cache.load_scored(bundle.methods, run.controls.values(), v, pictures=sink.enabled)
         if cells is None:
             cells = score_view(run, v, sink)
             if view_cache is not None:

@@ -70,7 +70,8 @@ def select_views(names: list[str], patterns) -> list[str]:
 class SceneRun:
     """The opened sources, masks and probes of one scene (see the module docstring)."""
 
-    def __init__(self, bundle, opts, ctx, sem_probes, str_probes, *, cache, timer: Timer, warnings: WarningLog):
+    def __init__(self, bundle, opts, ctx, sem_probes, str_probes, *, cache, timer: Timer, warnings: WarningLog,
+                 fit: bool = True):
         from ..metrics.fidelity import LpipsModel
         from ..render.sources import open_source
 
@@ -103,7 +104,8 @@ class SceneRun:
         timer.add("load", t0)
         self._masks: dict = {}
         self._fit_renders: dict = {}
-        self._fit(sem_probes + str_probes)
+        if fit:  # False: the probes come fitted already (a worker of .distributed gets the driver's fit)
+            self._fit(sem_probes + str_probes)
         self.sem = [cache.wrap_probe(p) for p in sem_probes]
         self.stru = [cache.wrap_probe(p) for p in str_probes]
         self.probes_desc = {"semantic": [p.describe() for p in self.sem],
