@@ -179,6 +179,25 @@ def test_scenes_holding_device_renders_are_refused(scenes, ray_instance, ctx):
         evaluate(scene, ctx=ctx, options=EvaluateOptions(**OPTS), progress=False, executor="ray")
 
 
+def test_resource_requests_are_checked(ray_instance):
+    from r360gpu.errors import InputError
+
+    ex = RayExecutor(RayOptions(gpus_per_task=1), log=lambda *a: None)
+    ex.start()  # joins the module's instance (2 CPUs, no GPU)
+    with pytest.raises(InputError, match="asks for 1 GPU"):
+        ex._resources()
+    ex.options = RayOptions(cpus_per_task=3)
+    with pytest.raises(InputError, match="asks for 3 CPU"):
+        ex._resources()
+    ex.options = RayOptions()  # defaults: no GPU on this cluster, one CPU a task, two at once
+    assert ex._resources() == (0.0, 1.0, 2)
+    ex.close()
+    assert ray_instance.is_initialized()  # an executor leaves alone the instance it did not start
+    for bad in (dict(chunk=0), dict(cpus=0), dict(gpus_per_task=-1), dict(gpus_per_task=0, cpus_per_task=0)):
+        with pytest.raises(InputError):
+            RayOptions(**bad)
+
+
 def test_a_worker_on_another_version_fails_clearly(scenes, ray_instance, monkeypatch):
     from r360gpu.errors import InputError
     from r360gpu.pipeline import distributed

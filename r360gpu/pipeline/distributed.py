@@ -60,8 +60,9 @@ class RayOptions:
     """How the work goes onto Ray.
 
     address: "local" (start a Ray instance here, or use the one this process
-        already joined), "auto" (the cluster RAY_ADDRESS names), or a cluster
-        address (``HOST:PORT`` or ``ray://HOST:PORT``).
+        already joined), "auto" (the cluster RAY_ADDRESS names; without it,
+        one ``ray start`` began on this machine), or a cluster address
+        (``HOST:PORT`` or ``ray://HOST:PORT``).
     cpus: CPUs of a local instance (None: Ray's default, every core).
     gpus_per_task: GPUs each task asks for (None: 1 when the cluster has
         GPUs, else 0).  cpus_per_task: CPUs each task asks for.
@@ -159,12 +160,11 @@ class RayExecutor:
                 kw["num_cpus"] = self.options.cpus
                 ray.init(**kw)
             else:
-                if address == "auto" and not os.environ.get("RAY_ADDRESS"):
-                    raise InputError("--ray auto joins the cluster named by RAY_ADDRESS, which is not set")
                 try:
                     ray.init(address=address, **kw)
                 except ConnectionError as e:
-                    raise InputError(f"cannot join the Ray cluster at {address!r}: {e}") from None
+                    hint = " (RAY_ADDRESS is not set)" if address == "auto" and not os.environ.get("RAY_ADDRESS") else ""
+                    raise InputError(f"cannot join the Ray cluster at {address!r}{hint}: {e}") from None
             self._started = True
         elif address != "local":
             self.log(f"note: this process is already connected to a Ray cluster; --ray {address} is not joined")
@@ -273,7 +273,11 @@ class RayExecutor:
         for stage, s in result["timing"].items():
             run.timer.totals[stage] = run.timer.totals.get(stage, 0.0) + s
         self.nodes[result["node"]] = self.nodes.get(result["node"], 0) + 1
-        self.adapters.add(result["adapter"])
+        if result["adapter"] not in self.adapters:
+            self.adapters.add(result["adapter"])
+            here = run.ctx.describe().get("name", "?")
+            if result["adapter"] != here:  # results.json names the driver's adapter
+                self.log(f"note: Ray tasks ran on adapter {result['adapter']!r}; this process uses {here!r}")
 
     def describe(self) -> dict:
         """What ran where (goes into the results' timing, which a comparison of runs leaves out)."""
