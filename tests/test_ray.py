@@ -207,6 +207,31 @@ def test_a_worker_on_another_version_fails_clearly(scenes, ray_instance, monkeyp
         distributed.score_chunk(common, ["view_000"])
 
 
+def test_model_probes_reopen_their_files_when_sent_to_a_worker(tmp_path):
+    """ONNX sessions cannot be pickled: a probe sent to a Ray worker reopens its model files by path."""
+    import pickle
+
+    import numpy as np
+
+    pytest.importorskip("onnx")
+    from onnx_graphs import sam_decoder, sam_encoder_nchw
+    from r360gpu.probes.base import ProbeView
+    from r360gpu.probes.sam_amg import AmgParams, SamAmgProbe
+
+    enc = sam_encoder_nchw(tmp_path / "sam.encoder.onnx")
+    dec = sam_decoder(tmp_path / "sam.decoder.onnx", iou=[0.99, 0.95, 0.92, 0.93], radius=[80, 160, 168, 240],
+                      slope=[1.0, 1.0, 1.0, 1e-5])
+    probe = SamAmgProbe(enc, dec, params=AmgParams(points_per_side=2))
+    sent = pickle.loads(pickle.dumps(probe))
+    assert sent.models.encoder.session is not probe.models.encoder.session
+    assert sent.describe() == probe.describe()
+    view = [ProbeView("v0", np.random.default_rng(0).integers(0, 255, (64, 64, 3), dtype=np.uint8), "post")]
+    a, b = probe.predict(view)[0], sent.predict(view)[0]
+    assert a.count == b.count > 0
+    np.testing.assert_array_equal(a.masks, b.masks)
+    np.testing.assert_array_equal(a.scores, b.scores)
+
+
 # -- two nodes on this machine -------------------------------------------------------------------------------------
 
 def _free_port() -> int:
