@@ -9,7 +9,8 @@ Read in this order:
   :func:`~.stages.score_view` giving one cell per method;
 * :mod:`.cache`     -- the view cache (per-view cells) and the probe cache under ``OUT/.r360cache``;
 * :mod:`.pictures`  -- :class:`~.pictures.PictureSink`, the contact sheets the stages feed;
-* :mod:`.evaluate`  -- :func:`evaluate`: scenes in, the results document out.
+* :mod:`.evaluate`  -- :func:`evaluate`: scenes in, the results document out;
+* :mod:`.distributed` -- the Ray executor: uncached views scored as Ray tasks (optional ``ray``).
 
 Pooling across scenes is :mod:`r360gpu.aggregate.pooling`; scenes built from
 in-memory objects are :func:`r360gpu.bundle.scene_from_objects`.
