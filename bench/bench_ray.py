@@ -1,13 +1,15 @@
 """Scoring on Ray vs the serial run: views/s with 1 and 2 local workers on the same input.
 
-One synthetic scene is scored serially (in this process), then with
+One synthetic scene is scored serially (in this process) and with
 ``executor="ray"`` on a local Ray instance of 1 and of 2 CPUs (one task per
-CPU), then serially again.  Each run starts from an empty output folder.  Printed per run: Ray
-start-up, the scoring wall time (driver load + probe fit + tasks + aggregate),
-views/s, the ratio to serial, and whether the results document equals the
-serial one (timing and creation time left out).
+CPU), in interleaved rounds, each run into an empty output folder.  Printed
+per configuration (median over rounds): Ray start-up, the scoring wall time
+(driver load + probe fit + tasks + aggregate), views/s, the ratio to serial,
+and whether every results document equals the first serial one (timing and
+creation time left out); then the CPU cores the serial run already uses and
+how many tasks were busy at once.
 
-    python bench/bench_ray.py [--views 8] [--width 320] [--height 240] [--workers 1 2] [--no-pictures]
+    python bench/bench_ray.py [--views 8] [--width 320] [--height 240] [--workers 1 2] [--rounds 2] [--no-pictures]
 
 Needs the ``ray`` extra (pip install 'r360gpu[ray]').
 """
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 import tempfile
 import time
@@ -36,6 +39,7 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--chunk", type=int, default=None, help="views per task (default: the executor's)")
     ap.add_argument("--no-pictures", action="store_true")
+    ap.add_argument("--rounds", type=int, default=2, help="interleaved rounds; the median is shown (default 2)")
     args = ap.parse_args(argv)
 
     import ray
@@ -53,54 +57,61 @@ def main(argv=None) -> int:
           f"LP_NUM_THREADS={os.environ.get('LP_NUM_THREADS', 'unset')}")
     ctx = get_context()
     opts = EvaluateOptions(n_boot=200, n_perm=100, pictures=not args.no_pictures)
+    configs = [0, *args.workers]  # 0: serial
+    runs = {n: [] for n in configs}  # n -> [(ray start s, scoring s, process CPU s, timing, tasks, equal)]
     with tempfile.TemporaryDirectory(prefix="r360-bench-ray-") as tmp:
         tmp = Path(tmp)
         bundle = generate_benchmark(tmp / "bench", seed=0, n_views=args.views, width=args.width, height=args.height,
                                     scenes=(args.scene,), detail=0.5, ctx=ctx)[0]
-        t = time.perf_counter()
-        serial = evaluate(bundle, out=tmp / "serial", options=opts, ctx=ctx, progress=False)
-        serial_s = time.perf_counter() - t
-        rows = [("serial", 0.0, serial_s, serial["timing"], None, True)]
-        for n in args.workers:
-            t = time.perf_counter()
-            ray.init(num_cpus=n, include_dashboard=False, object_store_memory=300 * 2**20,
-                     logging_level="WARNING")
-            start_s = time.perf_counter() - t
-            ex = RayExecutor(RayOptions(chunk=args.chunk), log=lambda *a: None)
-            try:
-                t = time.perf_counter()
-                res = evaluate(bundle, out=tmp / f"ray{n}", options=opts, ctx=ctx, progress=False, executor=ex)
-                wall = time.perf_counter() - t
-            finally:
-                ray.shutdown()
-            rows.append((f"ray, {n} worker{'s' if n > 1 else ''}", start_s, wall, res["timing"], ex.tasks,
-                         comparable(res) == comparable(serial)))
-        # the serial run again, last: the machine's load drifts, so the baseline is the mean of both
-        t = time.perf_counter()
-        again = evaluate(bundle, out=tmp / "serial2", options=opts, ctx=ctx, progress=False)
-        rows.append(("serial (again, last)", 0.0, time.perf_counter() - t, again["timing"], None,
-                     comparable(again) == comparable(serial)))
-        serial_s = (serial_s + rows[-1][2]) / 2
+        serial = None
+        # Rounds interleave the configurations, so a change of the machine's load hits them alike.
+        for r in range(args.rounds):
+            for n in configs:
+                out = tmp / f"r{r}-{n}"
+                start_s, ex = 0.0, None
+                if n:
+                    t = time.perf_counter()
+                    ray.init(num_cpus=n, include_dashboard=False, object_store_memory=300 * 2**20,
+                             logging_level="WARNING")
+                    start_s = time.perf_counter() - t
+                    ex = RayExecutor(RayOptions(chunk=args.chunk), log=lambda *a: None)
+                try:
+                    t, c = time.perf_counter(), time.process_time()
+                    res = evaluate(bundle, out=out, options=opts, ctx=ctx, progress=False, executor=ex)
+                    wall, cpu = time.perf_counter() - t, time.process_time() - c
+                finally:
+                    if n:
+                        ray.shutdown()
+                serial = serial or res
+                runs[n].append((start_s, wall, cpu, res["timing"], ex.tasks if ex else None,
+                                comparable(res) == comparable(serial)))
 
-    print()
-    print(f"baseline: mean of the two serial runs, {serial_s:.1f} s")
-    print("| run | Ray start s | scoring s | views/s | vs serial | tasks | fit s | results equal serial |")
-    print("|---|---:|---:|---:|---:|---:|---:|---|")
-    for name, start_s, wall, timing, tasks, equal in rows:
-        vps = args.views / wall
-        fit = timing["stages_s"].get("fit probes", 0.0)
-        print(f"| {name} | {start_s:.1f} | {wall:.1f} | {vps:.3f} | {serial_s / wall:.2f}x | "
-              f"{'-' if tasks is None else tasks} | {fit:.1f} | {equal} |")
-    print()
-    s = rows[0][3]["stages_s"]
-    print("serial stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in s.items()))
-    for name, _, _, timing, _, _ in rows[1:-1]:
-        st = timing["stages_s"]
-        print(f"{name}: summed worker stages (s): "
-              + ", ".join(f"{k} {v:.1f}" for k, v in st.items() if k not in ("load", "fit probes", "ray wait"))
-              + f"; driver waited {st.get('ray wait', 0):.1f}")
-    return 0 if all(r[5] for r in rows) else 1
+    def med(n, i):
+        return statistics.median(x[i] for x in runs[n])
 
+    base = med(0, 1)
+    print()
+    print(f"median of {args.rounds} interleaved rounds; views/s = {args.views} views / scoring wall time "
+          "(driver load + probe fit + tasks + aggregate; Ray start-up apart)")
+    print("| run | Ray start s | scoring s | views/s | vs serial | tasks | results equal serial |")
+    print("|---|---:|---:|---:|---:|---:|---|")
+    for n in configs:
+        name = "serial" if n == 0 else f"Ray, {n} worker{'s' if n > 1 else ''}"
+        tasks = "-" if n == 0 else runs[n][0][4]
+        equal = all(x[5] for x in runs[n])
+        print(f"| {name} | {med(n, 0):.1f} | {med(n, 1):.1f} | {args.views / med(n, 1):.3f} | "
+              f"{base / med(n, 1):.2f}x | {tasks} | {equal} |")
+    print()
+    st = runs[0][-1][3]["stages_s"]
+    print(f"serial: this process used {med(0, 2) / med(0, 1):.2f} CPU cores on average (lavapipe threads "
+          f"included); stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in st.items()))
+    for n in args.workers:
+        st = runs[n][-1][3]["stages_s"]
+        work = sum(v for k, v in st.items() if k not in ("load", "fit probes", "ray wait"))
+        print(f"Ray, {n} worker(s): task stages summed {work:.1f} s over {st.get('ray wait', 0):.1f} s of tasks "
+              f"({work / max(st.get('ray wait', 1e-9), 1e-9):.2f} tasks busy at once); driver load + fit "
+              f"{st.get('load', 0) + st.get('fit probes', 0):.1f} s")
+    return 0 if all(x[5] for n in configs for x in runs[n]) else 1
 
 if __name__ == "__main__":
     sys.exit(main())
