@@ -89,7 +89,47 @@ def register(sub) -> None:
                    help="scene name of the METHOD=FOLDER folders (default: the folder name), or of the one "
                         "bundle given")
     add_scoring_options(p)
+    add_ray_options(p)
     p.set_defaults(func=run)
+
+
+def add_ray_options(p) -> None:
+    g = p.add_argument_group("Ray (scale-out; needs pip install 'r360gpu[ray]')")
+    g.add_argument("--ray", metavar="ADDRESS", default=None,
+                   help="score the views as Ray tasks: 'local' starts a Ray instance here, 'auto' joins the cluster "
+                        "RAY_ADDRESS names, anything else is a cluster address (HOST:PORT). Every node must see the "
+                        "bundles (and probe model files) at the same paths and run the same r360gpu version")
+    g.add_argument("--ray-cpus", type=int, metavar="N", default=None,
+                   help="CPUs of the instance --ray local starts (default: all)")
+    g.add_argument("--ray-gpus-per-task", type=float, metavar="G", default=None,
+                   help="GPUs each task asks for (default: 1 when the cluster has GPUs, else 0)")
+    g.add_argument("--ray-cpus-per-task", type=float, metavar="C", default=1.0,
+                   help="CPUs each task asks for (default 1)")
+    g.add_argument("--ray-chunk", type=int, metavar="N", default=None,
+                   help="views per task (default: ceil(views / (2 x workers)), at most 16)")
+
+
+def executor_from_args(args):
+    """A RayExecutor for --ray (None without it); the other --ray-* flags need --ray."""
+    from ..errors import InputError
+
+    address = args.ray
+    if address is None:
+        given = [flag for flag, unset in (("--ray-cpus", args.ray_cpus is None),
+                                          ("--ray-gpus-per-task", args.ray_gpus_per_task is None),
+                                          ("--ray-cpus-per-task", args.ray_cpus_per_task == 1.0),
+                                          ("--ray-chunk", args.ray_chunk is None)) if not unset]
+        if given:
+            raise InputError(f"{', '.join(given)} need(s) --ray")
+        return None
+    from ..pipeline.distributed import RayExecutor, RayOptions, import_ray
+
+    import_ray()  # says how to install it before any work starts
+    if args.ray_cpus is not None and address != "local":
+        raise InputError("--ray-cpus sizes the instance --ray local starts; a cluster has its own size")
+    opts = RayOptions(address=address, cpus=args.ray_cpus, gpus_per_task=args.ray_gpus_per_task,
+                      cpus_per_task=args.ray_cpus_per_task, chunk=args.ray_chunk)
+    return RayExecutor(opts, adapter=args.adapter)
 
 
 def options_from_args(args):
@@ -130,7 +170,7 @@ def probes_from_args(args):
     return sem, stru
 
 
-def score_and_report(bundles, out, args) -> int:
+def score_and_report(bundles, out, args, executor=None) -> int:
     """evaluate() (which writes every output under ``out``, all together or not at all), then the
     summary and where the files are; ``out`` is locked for the run."""
     from ..util.filehash import memo_file
@@ -138,10 +178,10 @@ def score_and_report(bundles, out, args) -> int:
     from ..util.warning_log import collecting
 
     with open_output_folder(out), collecting(), memo_file(Path(out) / ".r360hashes.json"):
-        return _score_and_report(bundles, Path(out), args)
+        return _score_and_report(bundles, Path(out), args, executor)
 
 
-def _score_and_report(bundles, out, args) -> int:
+def _score_and_report(bundles, out, args, executor) -> int:
     from ..pipeline import evaluate
     from ..report.html import REPORT_HTML
     from ..report.outputs import summary_lines
@@ -151,7 +191,7 @@ def _score_and_report(bundles, out, args) -> int:
     sem, stru = probes_from_args(args)
     results = evaluate(bundles, out=out, semantic_probes=sem, structural_probes=stru,
                        options=options_from_args(args), adapter=args.adapter, force=args.force,
-                       progress=not args.quiet)
+                       progress=not args.quiet, executor=executor)
     for line in summary_lines(results):
         print(line)
     print(f"\nreport: {Path(out) / REPORT_HTML}")
@@ -194,4 +234,5 @@ def run(args) -> int:
     from ..util.outdir import check_output_folder
 
     out = check_output_folder(args.out)  # before any work
-    return score_and_report(bundles_from_args(args), out, args)
+    executor = executor_from_args(args)  # says how to install Ray before any work starts
+    return score_and_report(bundles_from_args(args), out, args, executor)

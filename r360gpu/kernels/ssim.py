@@ -281,7 +281,9 @@ def _ssim_mse_cpu(xs: list[np.ndarray], y: np.ndarray) -> list[tuple[float, floa
             mse = float(np.dot(d, d)) / float(scale * scale) / d.size  # exact integer sum
         else:
             d = (x.reshape(-1) - yf).astype(np.float64)
-            mse = float(np.dot(d, d)) / d.size
+            # numpy's pairwise sum, not BLAS dot: BLAS splits the sum by its thread count, which
+            # differs between processes (Ray workers run single-threaded), and so would the last bits
+            mse = float(np.square(d).sum()) / d.size
         out.append((float(sums[k] / (vh * vw * c)), mse))
     return out
 

@@ -14,7 +14,8 @@ Read in this order:
 * :mod:`.evaluate`  -- :func:`evaluate`: scenes in, the results document out; the views of a
   scene overlapped (GPU thread renders and measures, host threads read and probe ahead);
 * :mod:`.chunks`    -- :func:`~.chunks.score_chunk`: a chunk of views from picklable inputs,
-  for executors in other processes.
+  for executors in other processes;
+* :mod:`.distributed` -- the Ray executor: uncached views scored as Ray tasks (optional ``ray``).
 
 Pooling across scenes is :mod:`r360gpu.aggregate.pooling`; scenes built from
 in-memory objects are :func:`r360gpu.bundle.scene_from_objects`.

@@ -110,6 +110,14 @@ class ViewCache:
             cells[m] = cell
         return cells
 
+    def load_scored(self, methods, controls, view: str, *, pictures: bool) -> dict | None:
+        """Every cell of ``view`` (the methods', whose pictures are checked, and the controls'), or None."""
+        cells = self.load_view(methods, view, pictures=pictures)
+        if cells is None:
+            return None
+        ctl = self.load_view(controls, view, pictures=False)
+        return None if ctl is None else {**cells, **ctl}
+
     def store(self, method: str, view: str, cell: dict) -> None:
         from ..util.atomic import write_json
 

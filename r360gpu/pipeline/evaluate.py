@@ -28,6 +28,8 @@ def evaluate(
     force: bool = False,
     progress: bool = True,
     log=print,
+    executor=None,
+    ray_address: str | None = None,
 ) -> dict:
     """Score one or more scene bundles; returns the results document (a dict).
 
@@ -45,11 +47,19 @@ def evaluate(
     ctx / adapter / device: the GPU context, an adapter choice, or a caller's
         ``wgpu.GPUDevice``.
     force: recompute everything (the cache under ``out`` is cleared first).
+    executor: None or "serial" (views scored here, overlapped), "ray"
+        (uncached views scored as Ray tasks, :mod:`.distributed`; needs the
+        ``r360gpu[ray]`` extra), or a :class:`~.distributed.RayExecutor`.
+    ray_address: with executor="ray": "local" (default), "auto" or a cluster address.
     """
     from ..bundle import Bundle, load_bundle
     from ..gpu import get_context
 
     opts = options or EvaluateOptions()
+    if executor is not None or ray_address is not None:
+        from .distributed import open_executor
+
+        executor = open_executor(executor, ray_address=ray_address, adapter=adapter, device=device, log=log)
     ctx = ctx or get_context(adapter, device=device)
     if semantic_probes is None or structural_probes is None:
         d_sem, d_str = default_probes()
@@ -73,10 +83,12 @@ def evaluate(
     cache = RunCache(out, force=force)
     sink = PictureSink(out, opts.pictures)
     with warning_log.collecting():
-        return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log)
+        return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,
+                         executor)
 
 
-def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log) -> dict:
+def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,
+              executor=None) -> dict:
     from ..aggregate.pooling import aggregate_results
 
     timer = Timer()
@@ -97,7 +109,7 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
             run = SceneRun(bundle, opts, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
                            warnings=warnings)
             try:
-                scene_res = evaluate_scene(run, cache, sink, progress)
+                scene_res = evaluate_scene(run, cache, sink, progress, executor)
             finally:
                 run.release()
         if opts.compat:
@@ -110,6 +122,9 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
     results["timing"] = {"stages_s": {k: round(v, 3) for k, v in timer.totals.items()},
                          "total_s": round(time.perf_counter() - t_start, 3),
                          "views": n_views_done}
+    if executor is not None:  # what ran where; a comparison of runs leaves timing out
+        results["timing"]["executor"] = executor.describe()
+        executor.close()
     aggregate_results(results, n_boot=opts.n_boot, n_perm=opts.n_perm, seed=opts.seed)
     results["warnings"], results["warning_counts"] = warning_log.records(), warning_log.counts()
     if out is not None:
@@ -137,7 +152,7 @@ LOOKAHEAD = 2
 HOST_THREADS = 2
 
 
-def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool) -> dict:
+def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool, executor=None) -> dict:
     """Every view of one scene (from the view cache where it has them); the scene's results entry."""
     from ..aggregate.results import method_axes
     from ..aggregate.validity import scene_validity
@@ -151,6 +166,11 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     for v in cells_of:
         warning_log.replay(next(iter(cells_of[v].values())).get("warnings"))
         run.done(v)
+    if executor is not None and todo:
+        # The executor hook: the views the cache lacks are scored elsewhere (.distributed.RayExecutor),
+        # which stores their cells (and pictures) in the cache as they arrive.
+        cells_of.update(executor.score_scene(run, view_cache, sink, progress))
+        todo = []
     done = f" ({len(cells_of)} cached)" if cells_of else ""
     # The progress iterator reports an item once the next one is asked for: primed with the
     # first view, advanced as each view is done.  score_views runs to its end (its writer

@@ -106,7 +106,8 @@ def open_pres(bundle, src) -> tuple[dict, dict]:
 class SceneRun:
     """The opened sources, masks and probes of one scene (see the module docstring)."""
 
-    def __init__(self, bundle, opts, ctx, sem_probes, str_probes, *, cache, timer: Timer, warnings: WarningLog):
+    def __init__(self, bundle, opts, ctx, sem_probes, str_probes, *, cache, timer: Timer, warnings: WarningLog,
+                 fit: bool = True):
         from ..metrics.fidelity import LpipsModel
         from ..render.sources import open_source
 
@@ -148,7 +149,8 @@ class SceneRun:
         learns = lambda p: getattr(p, "learns_from_scene", False)  # noqa: E731 (probes.base.Probe.fit)
         sem_probes = [copy.deepcopy(p) if learns(p) else p for p in sem_probes]
         str_probes = [copy.deepcopy(p) if learns(p) else p for p in str_probes]
-        self._to_fit = [p for p in sem_probes + str_probes if learns(p)]
+        # fit=False: the probes come fitted already (a worker of .distributed gets the driver's fit)
+        self._to_fit = [p for p in sem_probes + str_probes if learns(p)] if fit else []
         self.sem = [cache.wrap_probe(p) for p in sem_probes]
         self.stru = [cache.wrap_probe(p) for p in str_probes]
         self.fit_pending = False

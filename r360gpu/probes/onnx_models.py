@@ -239,6 +239,7 @@ class OnnxModel:
     def __init__(self, path: str | os.PathLike, device: str = "cpu", role: str = "model"):
         self.path = Path(path)
         self.role = role
+        self.device = device
         if not self.path.is_file():
             raise InputError(f"{role} model file does not exist", self.path)
         providers = providers_for(device)
@@ -260,6 +261,11 @@ class OnnxModel:
         self.inputs = {i.name: TensorInfo(i.name, tuple(i.shape), i.type) for i in self.session.get_inputs()}
         self.outputs = {o.name: TensorInfo(o.name, tuple(o.shape), o.type) for o in self.session.get_outputs()}
         self._digests: dict[str, str] | None = None
+
+    def __reduce__(self):
+        # A session cannot be pickled: another process (a Ray worker) opens the
+        # same file again, so every node must see the model at this path.
+        return (OnnxModel, (self.path, self.device, self.role))
 
     def signature(self) -> str:
         """ "inputs: ...; outputs: ..." with names, types and shapes (for error messages)."""
