@@ -141,3 +141,23 @@ def test_console_summary_marks_axes_that_are_not_ok_somewhere():
     assert "0.700!" in row and "0.900 " in row and "0.900!" not in row
     assert any("s_str in garden" in line for line in lines)
     assert any("structural axis blind: because." in line for line in lines)
+
+
+def test_overall_tables_mark_axes_that_are_not_ok_somewhere(with_controls):
+    """tables.md / .tex: the Overall cells of an axis that is weak or blind in some scene carry a dagger."""
+    import copy
+
+    from r360gpu.report.results_tables import main_table
+    from r360gpu.report.tables import render_latex as to_latex, render_markdown as to_markdown
+
+    _, res = with_controls
+    res = copy.deepcopy(res)
+    res["validity"] = {"s_sem": [], "s_geo": ["room"], "s_str": []}
+    md = to_markdown(main_table(res))
+    geo_col = [line.split("|")[4] for line in md.splitlines() if line.startswith("| clean")][0]
+    sem_col = [line.split("|")[3] for line in md.splitlines() if line.startswith("| clean")][0]
+    assert "\u2020" in geo_col and "\u2020" not in sem_col
+    assert "s_geo: the probe check is not ok (weak or blind) in room" in md
+    assert r"$^{\dagger}$" in to_latex(main_table(res))
+    res["validity"] = {"s_sem": [], "s_geo": [], "s_str": []}
+    assert "\u2020" not in to_markdown(main_table(res))

@@ -147,6 +147,30 @@ def has_lpips(results: dict) -> bool:
     return any(pooled_fidelity(results, m)["lpips"] is not None for m in method_names(results))
 
 
+def doubt_mark(results: dict, key: str, cell: Cell) -> Cell:
+    """``cell`` with a dagger when axis ``key`` is not "ok" (weak or blind probe) in some scene
+    (``results["validity"]``, from r360gpu.aggregate.validity); other cells unchanged."""
+    if not (results.get("validity") or {}).get(key) or cell.text in ("", "--"):
+        return cell
+    from dataclasses import replace
+
+    return replace(cell, text=cell.text + "†", latex=_latex_number(cell.text) + r"$^{\dagger}$")
+
+
+def _latex_number(text: str) -> str:
+    return text.replace("-", "$-$") if text.startswith("-") else text
+
+
+def doubt_notes(results: dict, only: str | None = None) -> list[str]:
+    """One sentence per axis that carries the dagger, naming its scenes."""
+    out = []
+    for axis, scenes in (results.get("validity") or {}).items():
+        if scenes and (only is None or axis == only):
+            out.append(f"† {axis}: the probe check is not ok (weak or blind) in {', '.join(scenes)}; "
+                       "see each scene's validity notes before reading this axis as evidence of removal.")
+    return out
+
+
 def main_table(results: dict) -> Table:
     """tab:main_results: removal axes, RQS, AvgRank | pixel fidelity, one row per method.
 
@@ -175,7 +199,7 @@ def main_table(results: dict) -> Table:
     for j, (key, _, decimals, higher) in enumerate(cols, start=1):
         values = [overall_value(results, m, key) for m in methods]
         for row, cell in zip(rows, _number_cells(values, decimals, True, higher)):
-            row[j] = cell
+            row[j] = doubt_mark(results, key, cell)
     notes = [
         f"acc_seg = s_sem (IoU threshold 0.3); acc_depth = s_geo; {str_note}.",
         f"RQS is the geometric mean of the three {_pooling(results)} pooled axes; AvgRank is the mean of the "
@@ -186,6 +210,7 @@ def main_table(results: dict) -> Table:
         notes.append(f"{what} compare I_post with the post-removal reference rendering I_ref, "
                      "pooled over every view with a reference; they are diagnostics outside RQS and AvgRank.")
     notes.append("Best and second best per column are emphasised.")
+    notes += doubt_notes(results)
     return Table(
         key="main_results",
         title="Overall evaluation: removal axes, RQS and AvgRank"
@@ -209,9 +234,9 @@ def axis_table(results: dict, key: str) -> Table:
             for s in scenes]
     overall = [overall_value(results, m, key) for m in methods]
     label = "Overall (pooled views)" if key in ("psnr", "ssim", "lpips") else f"Overall ({_pooling(results)})"
-    rows.append([Cell(label)] + _number_cells(overall, decimals, True, higher))
+    rows.append([Cell(label)] + [doubt_mark(results, key, c) for c in _number_cells(overall, decimals, True, higher)])
     notes = ["Best and second best per row are emphasised"
-             + (" (lowest is best)." if not higher else ".")]
+             + (" (lowest is best)." if not higher else ".")] + doubt_notes(results, only=key)
     if key == "s_str":
         notes.insert(0, structural_header(results)[2] + ".")
     if key in ("iou_drop", "psnr", "ssim", "lpips"):
