@@ -78,8 +78,8 @@ def main() -> None:
 
     from r360gpu.bundle import load_bundle
     from r360gpu.gpu import get_context
-    from viewer.app import ViewerApp
-    from viewer.quality import ResolutionPolicy
+    from r360gpu.viewer.app import ViewerApp
+    from r360gpu.viewer.quality import ResolutionPolicy
 
     ctx = get_context()
     with tempfile.TemporaryDirectory() as tmp:

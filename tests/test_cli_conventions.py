@@ -113,8 +113,8 @@ def test_r360_keeps_the_callers_working_directory(tmp_path, ctx):
 
 def test_view_takes_prompt_and_method_name(tmp_path, monkeypatch, ctx):
     """`view` loads a public-layout folder with --prompt / --method-name and hands the viewer the Bundle."""
-    pytest.importorskip("viewer.launch")
-    import viewer.launch
+    pytest.importorskip("r360gpu.viewer.launch")
+    import r360gpu.viewer.launch
 
     from r360gpu.bundle import Bundle
     from public_benchmark import make_public_benchmark
@@ -124,7 +124,7 @@ def test_view_takes_prompt_and_method_name(tmp_path, monkeypatch, ctx):
     folder = root / "OC" / "room"
     (folder / "prompt.txt").unlink()
     seen = []
-    monkeypatch.setattr(viewer.launch, "run", lambda args: seen.append(args.bundle) or 0)
+    monkeypatch.setattr(r360gpu.viewer.launch, "run", lambda args: seen.append(args.bundle) or 0)
     monkeypatch.setattr("r360gpu.cli.view.missing_modules", lambda: [])
     assert main(["view", str(folder), "--prompt", "couch", "--method-name", "OC"]) == 0
     assert isinstance(seen[0], Bundle) and seen[0].prompt == "couch" and list(seen[0].methods) == ["OC"]

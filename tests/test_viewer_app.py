@@ -20,9 +20,9 @@ from r360gpu.metrics.record import ViewRecord  # noqa: E402
 from r360gpu.metrics.semantic import SemanticView  # noqa: E402
 from r360gpu.render import Renderer  # noqa: E402
 from viewer_fixtures import BALL_CENTRE, write_bundle  # noqa: E402
-from viewer.app import ViewerApp  # noqa: E402
-from viewer.quality import ResolutionPolicy  # noqa: E402
-from viewer.results import load_results  # noqa: E402
+from r360gpu.viewer.app import ViewerApp  # noqa: E402
+from r360gpu.viewer.quality import ResolutionPolicy  # noqa: E402
+from r360gpu.viewer.results import load_results  # noqa: E402
 
 W, H = 64, 48
 
@@ -189,7 +189,7 @@ def test_focus_on_the_target(bundle, ctx, tmp_path):
 
 
 def test_screenshot_and_recording(bundle, ctx, tmp_path):
-    from viewer.capture import path_through
+    from r360gpu.viewer.capture import path_through
 
     app, canvas, clock = make_app(bundle, ctx, tmp_path)
     img = draw(canvas, clock)
@@ -291,7 +291,7 @@ def test_cached_probe_masks_are_drawn(bundle, ctx, tmp_path):
     from r360gpu.probes.base import MaskSet
     from r360gpu.probes.cache import ProbeCache, cache_key
     from r360gpu.render.sources import open_source
-    from viewer.results import SceneResults
+    from r360gpu.viewer.results import SceneResults
 
     desc = {"name": "toy-sam", "kind": "structural", "models": {}, "params": {"k": 1}}
     src = open_source(bundle.methods["floaters"], ctx=ctx)
@@ -353,7 +353,7 @@ def test_command_line_start(bundle, tmp_path):
     from rendercanvas.offscreen import OffscreenRenderCanvas
 
     from r360gpu.errors import InputError
-    from viewer.launch import add_arguments, open_viewer
+    from r360gpu.viewer.launch import add_arguments, open_viewer
 
     p = argparse.ArgumentParser()
     add_arguments(p)

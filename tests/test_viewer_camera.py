@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from r360gpu.io import Camera
-from viewer import camera as vc
-from viewer.camera import CameraController, look_rotation
+from r360gpu.viewer import camera as vc
+from r360gpu.viewer.camera import CameraController, look_rotation
 
 UP = np.array([0.0, 0.0, 1.0])
 

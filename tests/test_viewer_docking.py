@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import pytest
 
-from viewer.compose import layout
-from viewer.docking import MIN_VIEW, dock
+from r360gpu.viewer.compose import layout
+from r360gpu.viewer.docking import MIN_VIEW, dock
 
 
 def _overlap(a, b) -> bool:

@@ -7,11 +7,11 @@ import pytest
 from r360gpu.metrics.geometric import acc_depth_view
 from r360gpu.render import Renderer
 from viewer_fixtures import make_parts, orbit_cameras
-from viewer import colormaps
-from viewer.compose import Compositor, fit_rect, layout, picture_at, wipe_fraction
-from viewer.layers import PlaneImage
-from viewer.live import delta_stats, live_axis
-from viewer.overlays import (CHANGED_RGB, OverlayPass, OverlaySettings, overlay_reference, pack_mask,
+from r360gpu.viewer import colormaps
+from r360gpu.viewer.compose import Compositor, fit_rect, layout, picture_at, wipe_fraction
+from r360gpu.viewer.layers import PlaneImage
+from r360gpu.viewer.live import delta_stats, live_axis
+from r360gpu.viewer.overlays import (CHANGED_RGB, OverlayPass, OverlaySettings, overlay_reference, pack_mask,
                              read_picture, resize_nearest)
 
 W, H = 48, 36
@@ -133,7 +133,7 @@ def test_layout_arithmetic():
 def _compose(ctx, fmt, lay, pictures, size):
     import wgpu
 
-    from viewer.capture import read_texture
+    from r360gpu.viewer.capture import read_texture
 
     tex = ctx.device.create_texture(size=(*size, 1), format=fmt,
                                     usage=wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC)

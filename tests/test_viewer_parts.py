@@ -10,10 +10,10 @@ import pytest
 
 from r360gpu.errors import InputError
 from viewer_fixtures import orbit_cameras
-from viewer.capture import PathRecorder, path_through, save_png
-from viewer.quality import ResolutionPolicy
-from viewer.results import load_results
-from viewer.target import estimate_target, projected_mask
+from r360gpu.viewer.capture import PathRecorder, path_through, save_png
+from r360gpu.viewer.quality import ResolutionPolicy
+from r360gpu.viewer.results import load_results
+from r360gpu.viewer.target import estimate_target, projected_mask
 
 
 def test_policy_refines_when_still_and_adapts_while_moving():
@@ -112,7 +112,7 @@ def test_view_command(monkeypatch):
 
 
 def test_launch_parsing():
-    from viewer.launch import parse_keys, parse_size
+    from r360gpu.viewer.launch import parse_keys, parse_size
 
     assert parse_size("640x480") == (640, 480)
     with pytest.raises(InputError):
@@ -125,7 +125,7 @@ def test_launch_parsing():
 
 def test_no_display_is_a_clear_error(monkeypatch):
     pytest.importorskip("glfw")
-    from viewer.launch import WindowUnavailableError, check_display
+    from r360gpu.viewer.launch import WindowUnavailableError, check_display
 
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)

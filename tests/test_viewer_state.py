@@ -5,7 +5,7 @@ import string
 
 import pytest
 
-from viewer.state import (COLORMAPS, COMPARE_MODES, KEY_BINDINGS, Action, ViewerState, handle_key)
+from r360gpu.viewer.state import (COLORMAPS, COMPARE_MODES, KEY_BINDINGS, Action, ViewerState, handle_key)
 
 SCENES = ("pre", "reference", "clean", "floaters")
 

@@ -64,7 +64,7 @@ def test_window_draws_scene_and_panels(display, tmp_path, ctx):
         ARTIFACT.unlink()
     env = dict(os.environ, DISPLAY=display)
     env.setdefault("XDG_RUNTIME_DIR", "/tmp")
-    cmd = [sys.executable, "-m", "viewer", str(bundle), "--size", f"{SIZE[0]}x{SIZE[1]}",
+    cmd = [sys.executable, "-m", "r360gpu.viewer", str(bundle), "--size", f"{SIZE[0]}x{SIZE[1]}",
            "--screenshot", str(ARTIFACT), "--keys", "4 Shift+1 Tab v"]
     run = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, f"viewer failed:\n{run.stdout}\n{run.stderr}"
@@ -97,7 +97,7 @@ MISSING_RGB = (255, 217, 115)
 def _run_viewer(display, bundle, keys: str, shot: Path | None, tmp_path: Path, *, size=SIZE, results=None):
     env = dict(os.environ, DISPLAY=display)
     env.setdefault("XDG_RUNTIME_DIR", "/tmp")
-    cmd = [sys.executable, "-m", "viewer", str(bundle), "--size", f"{size[0]}x{size[1]}", "--keys", keys,
+    cmd = [sys.executable, "-m", "r360gpu.viewer", str(bundle), "--size", f"{size[0]}x{size[1]}", "--keys", keys,
            "--capture-dir", str(tmp_path / "captures")]
     if shot is not None:
         cmd += ["--screenshot", str(shot)]

@@ -1,6 +1,6 @@
 """``r360gpu view BUNDLE [--results PATH]``: the interactive viewer (needs the ``viewer`` extra).
 
-The viewer lives in the top-level ``viewer`` package and is imported only
+The viewer lives in the ``r360gpu.viewer`` package and is imported only
 when the command runs, so r360gpu works without its optional dependencies
 (glfw, imgui-bundle, rendercanvas).
 """
@@ -25,10 +25,10 @@ def missing_modules() -> list[str]:
 
 
 def _add_arguments(p) -> None:
-    # The same options as ``python -m viewer``; defined here too so that
+    # The same options as ``python -m r360gpu.viewer``; defined here too so that
     # ``r360gpu view --help`` works without the extra installed.
     try:
-        from viewer.launch import add_arguments
+        from r360gpu.viewer.launch import add_arguments
     except ImportError:
         add_arguments = None
     if add_arguments is not None:
@@ -59,7 +59,7 @@ def run(args) -> int:
             f"the viewer needs {', '.join(missing)}, which {'is' if len(missing) == 1 else 'are'} not installed; "
             f"install the viewer extra: {INSTALL_HINT}")
     try:
-        from viewer.launch import run as launch
+        from r360gpu.viewer.launch import run as launch
     except ImportError as e:
         raise ViewerUnavailableError(f"cannot import the viewer package ({e}); install r360gpu with the viewer "
                                      f"extra: {INSTALL_HINT}") from None

@@ -1,7 +1,7 @@
 """imgui panels of the viewer (wgpu-py's imgui renderer, imgui-bundle, implot).
 
 Two docked windows beside the pictures (never over them: the pictures are
-laid out in what the docks leave, :mod:`viewer.docking`):
+laid out in what the docks leave, :mod:`r360gpu.viewer.docking`):
 
 * "r360gpu viewer" (left edge): scenes A / B, comparison mode, camera,
   overlays with colour map / range / opacity and a colour bar, captures, status;
@@ -48,7 +48,7 @@ def _fmt(x, digits: int = 3) -> str:
 
 
 class Panels:
-    """The imgui layer of a :class:`viewer.app.ViewerApp`."""
+    """The imgui layer of a :class:`r360gpu.viewer.app.ViewerApp`."""
 
     def __init__(self, app):
         from wgpu.utils.imgui import ImguiRenderer

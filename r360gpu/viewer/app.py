@@ -1,19 +1,19 @@
 """The viewer application: a rendercanvas canvas, r360gpu's renderer, overlays, composition and imgui.
 
 :class:`ViewerApp` is the hub: it holds the bundle, the layers (one per
-scene), the camera and the :class:`~viewer.state.ViewerState`, configures
+scene), the camera and the :class:`~r360gpu.viewer.state.ViewerState`, configures
 the canvas with r360gpu's device (one wgpu device is shared by the canvas,
 imgui and r360gpu) and hands each job to one part:
 
-* :class:`viewer.input.Input` -- keys, mouse and the state machine's actions;
-* :class:`viewer.frame.FrameLoop` -- one frame, start to end, with the
-  panels docked beside the pictures (:mod:`viewer.docking`);
-* :class:`viewer.pictures.Pictures` -- rendering and overlays of the shown scenes;
-* :class:`viewer.live.LiveMeter` -- the live geometric axis at the viewpoint;
-* :class:`viewer.target.SceneTarget` -- the 3D target estimate (focus, masks
+* :class:`r360gpu.viewer.input.Input` -- keys, mouse and the state machine's actions;
+* :class:`r360gpu.viewer.frame.FrameLoop` -- one frame, start to end, with the
+  panels docked beside the pictures (:mod:`r360gpu.viewer.docking`);
+* :class:`r360gpu.viewer.pictures.Pictures` -- rendering and overlays of the shown scenes;
+* :class:`r360gpu.viewer.live.LiveMeter` -- the live geometric axis at the viewpoint;
+* :class:`r360gpu.viewer.target.SceneTarget` -- the 3D target estimate (focus, masks
   away from the evaluation views);
-* :class:`viewer.capture.Captures` -- screenshots, recordings, fly-throughs;
-* :class:`viewer.panels.Panels` -- the imgui panels and the pane labels.
+* :class:`r360gpu.viewer.capture.Captures` -- screenshots, recordings, fly-throughs;
+* :class:`r360gpu.viewer.panels.Panels` -- the imgui panels and the pane labels.
 
 Any rendercanvas canvas works (glfw for the desktop app, the offscreen
 canvas for headless tests).
@@ -51,7 +51,7 @@ def _texture_usage():
 class ViewerApp:
     """The viewer on ``canvas`` for ``bundle`` (:class:`r360gpu.bundle.Bundle`).
 
-    results: optional :class:`viewer.results.SceneResults`; ctx: the
+    results: optional :class:`r360gpu.viewer.results.SceneResults`; ctx: the
     :class:`GpuContext` (default :func:`r360gpu.gpu.get_context`); policy:
     the :class:`ResolutionPolicy`; capture_dir: where screenshots and
     recordings go; gui: draw the imgui panels; clock: time source (seconds).

@@ -2,9 +2,9 @@
 
 :class:`Pictures` decides which layers a frame reads (the shown scenes, plus
 pre for the |dD| overlays), the picture aspect and render size, renders
-every shown scene at the frame's camera (:mod:`viewer.layers`; unchanged
+every shown scene at the frame's camera (:mod:`r360gpu.viewer.layers`; unchanged
 cameras are not re-rendered) and records the overlay pass of each
-(:mod:`viewer.overlays`) into a device buffer the compositor draws.  It
+(:mod:`r360gpu.viewer.overlays`) into a device buffer the compositor draws.  It
 keeps the device copies of target masks and probe masks at render size.
 """
 from __future__ import annotations
@@ -23,7 +23,7 @@ MASK_CACHE = 32
 
 
 class Pictures:
-    """Rendering and overlays of one :class:`viewer.app.ViewerApp`.
+    """Rendering and overlays of one :class:`r360gpu.viewer.app.ViewerApp`.
 
     After :meth:`render`: ``last_delta`` {scene: DeltaStats} of the |dD|
     overlays, ``missing`` the shown scenes without a picture here (a

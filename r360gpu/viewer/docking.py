@@ -5,7 +5,7 @@ docked either at the right edge or along the bottom, whichever leaves the
 larger pictures for the comparison mode and picture aspect at hand (side by
 side with wide pictures leaves room below; a single tall picture leaves room
 at the right).  The pictures are laid out in what is left
-(:func:`viewer.compose.layout`).  Rectangles are (x0, y0, width, height) in
+(:func:`r360gpu.viewer.compose.layout`).  Rectangles are (x0, y0, width, height) in
 framebuffer pixels.
 """
 from __future__ import annotations

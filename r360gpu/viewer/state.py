@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 
 #: Comparison layouts, in the order the Tab key cycles them.
 COMPARE_MODES = ("none", "side", "wipe")
-#: Colour maps of the depth and |dD| overlays (see :mod:`viewer.colormaps`).
+#: Colour maps of the depth and |dD| overlays (see :mod:`r360gpu.viewer.colormaps`).
 COLORMAPS = ("turbo", "viridis", "inferno", "gray")
 #: Overlay switches and the key toggling each.
 OVERLAY_KEYS = {"z": "depth", "x": "delta", "v": "changed", "b": "outline", "n": "probes"}

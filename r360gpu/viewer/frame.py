@@ -2,13 +2,13 @@
 
 :meth:`FrameLoop.frame`: apply held movement keys (or the next camera of a
 fly-through) -> note whether the camera moved -> dock the panels beside the
-pictures (:mod:`viewer.docking`) and lay the pictures out
-(:mod:`viewer.compose`) -> pick the render scale (progressive: reduced while
-the camera moves, full once it rests, :mod:`viewer.quality`) -> render and
-overlay each shown scene (:mod:`viewer.pictures`) -> measure the live axis
-once the camera rests (:mod:`viewer.live`) -> compose into the window ->
-view captures -> imgui panels and pane labels (:mod:`viewer.panels`) ->
-window captures (:mod:`viewer.capture`).
+pictures (:mod:`r360gpu.viewer.docking`) and lay the pictures out
+(:mod:`r360gpu.viewer.compose`) -> pick the render scale (progressive: reduced while
+the camera moves, full once it rests, :mod:`r360gpu.viewer.quality`) -> render and
+overlay each shown scene (:mod:`r360gpu.viewer.pictures`) -> measure the live axis
+once the camera rests (:mod:`r360gpu.viewer.live`) -> compose into the window ->
+view captures -> imgui panels and pane labels (:mod:`r360gpu.viewer.panels`) ->
+window captures (:mod:`r360gpu.viewer.capture`).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from .docking import Docks, dock
 
 
 class FrameLoop:
-    """The frame function of one :class:`viewer.app.ViewerApp` and what the last frame did.
+    """The frame function of one :class:`r360gpu.viewer.app.ViewerApp` and what the last frame did.
 
     last_layout, last_camera, last_scale, docks: the last frame's layout,
     render camera, render scale and panel docks; frames: frames drawn;

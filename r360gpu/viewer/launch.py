@@ -102,7 +102,7 @@ def check_display() -> None:
 
 
 def open_viewer(args, canvas, *, gui: bool = True, inputs=None):
-    """Build a :class:`viewer.app.ViewerApp` on ``canvas`` from the command line (``inputs``: the
+    """Build a :class:`r360gpu.viewer.app.ViewerApp` on ``canvas`` from the command line (``inputs``: the
     result of :func:`load_inputs`, loaded here when None), at ``--view`` with ``--keys`` pressed."""
     from .app import ViewerApp
 

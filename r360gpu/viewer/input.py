@@ -1,8 +1,8 @@
 """Keyboard and pointer input of the viewer: events -> state machine -> app actions.
 
-:class:`Input` turns rendercanvas events into :func:`viewer.state.handle_key`
+:class:`Input` turns rendercanvas events into :func:`r360gpu.viewer.state.handle_key`
 transitions and camera moves, and carries out the state machine's
-:class:`~viewer.state.Action` requests on the app (camera jumps, captures,
+:class:`~r360gpu.viewer.state.Action` requests on the app (camera jumps, captures,
 closing the window).
 """
 from __future__ import annotations
@@ -14,7 +14,7 @@ from .state import Action, handle_key
 
 
 class Input:
-    """Input handling of one :class:`viewer.app.ViewerApp`.
+    """Input handling of one :class:`r360gpu.viewer.app.ViewerApp`.
 
     modifiers: the modifier keys of the last event; drag: (kind, x, y) of
     the mouse drag under way ("turn", "pan" or "wipe"), or None.

@@ -121,7 +121,7 @@ def unique_path(path: Path) -> Path:
 
 
 class Captures:
-    """Screenshots, recordings and fly-throughs of one :class:`viewer.app.ViewerApp`.
+    """Screenshots, recordings and fly-throughs of one :class:`r360gpu.viewer.app.ViewerApp`.
 
     pending: (kind, path or None) of the screenshots asked for and not yet
     written; recorder: the :class:`PathRecorder` of the recording under way

@@ -1,6 +1,6 @@
 """GPU overlays of one panel (host side of ``shaders/viewer_overlay.wgsl``).
 
-The overlay pass turns a scene's :class:`~viewer.layers.PlaneImage` into the
+The overlay pass turns a scene's :class:`~r360gpu.viewer.layers.PlaneImage` into the
 panel's picture, packed rgba8 (one u32 per pixel, row-major, sRGB values as
 the renderer's colours are): the scene's colour clipped to [0, 1], then, each
 mixed in with ``opacity``,
@@ -57,7 +57,7 @@ class DeltaStats:
 
 @dataclass
 class OverlaySettings:
-    """What to draw on one panel (from :class:`viewer.state.Overlays` plus live data).
+    """What to draw on one panel (from :class:`r360gpu.viewer.state.Overlays` plus live data).
 
     depth_range / heat_range: colour-map ranges in scene units.
     delta: the pair's :class:`DeltaStats`, or None when no pre depth is available.
