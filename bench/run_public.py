@@ -8,7 +8,8 @@ then ``evaluate_semantic.py``, ``evaluate_depth.py`` and
 ``evaluate_sam.py`` (each writes its JSON into the scene folder).  They run
 in this one process (run_pipeline.py starts one per script, which would
 only add interpreter and import time to the peer).  Without torch installed,
-``bench/numpy_torch`` stands in for the few torch calls the modules make.
+``bench/public_peer/torch_standin.py`` stands in for the few torch calls the
+modules make (the same stand-in the compat fixture's numbers were made with).
 The code is loaded from PUBLIC_CHECKOUT at run time; none of it is part of
 this repository.
 """
@@ -23,7 +24,12 @@ from pathlib import Path
 def main(argv=None) -> int:
     public, scene = (Path(a).resolve() for a in (argv or sys.argv[1:]))
     if importlib.util.find_spec("torch") is None:
-        sys.path.insert(0, str(Path(__file__).resolve().parent / "numpy_torch"))
+        import tempfile
+
+        sys.path.insert(0, str(Path(__file__).resolve().parent / "public_peer"))
+        from run_public_eval import _torch_standin
+
+        sys.path.insert(0, _torch_standin(Path(tempfile.mkdtemp(prefix="r360-torch-standin-"))))
     sys.path.insert(0, str(public))
     from remove360.evaluation.depth import evaluate_depth_scene, summarize_depth_results
     from remove360.evaluation.sam import evaluate_sam_scene

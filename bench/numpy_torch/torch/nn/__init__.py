@@ -1,2 +1,0 @@
-"""torch.nn: only ``functional`` (see ``torch/__init__.py``)."""
-from . import functional  # noqa: F401
