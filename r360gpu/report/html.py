@@ -744,7 +744,7 @@ def report_html(results: dict, out_dir: str | os.PathLike, *,
 
     # First screen: which method leaks, where
     h.append('<section id="leaks"><h2>Which method leaks, where</h2>')
-    main = main_table(results)
+    main = main_table(results, doubt_marks=False)  # marked below, with the reasons as tooltips
     flags, doubt_notes = _doubt_flags(results, main)
     h.append(table_html(main, flags=flags))
     for n in doubt_notes:

@@ -171,8 +171,11 @@ def doubt_notes(results: dict, only: str | None = None) -> list[str]:
     return out
 
 
-def main_table(results: dict) -> Table:
+def main_table(results: dict, *, doubt_marks: bool = True) -> Table:
     """tab:main_results: removal axes, RQS, AvgRank | pixel fidelity, one row per method.
+
+    doubt_marks: a dagger on the cells of an axis that is weak or blind in some
+    scene, and a note naming the scenes (report.html marks them its own way).
 
     The fidelity columns are left out when no scene has a reference, LPIPS
     when no LPIPS model ran.
@@ -199,7 +202,7 @@ def main_table(results: dict) -> Table:
     for j, (key, _, decimals, higher) in enumerate(cols, start=1):
         values = [overall_value(results, m, key) for m in methods]
         for row, cell in zip(rows, _number_cells(values, decimals, True, higher)):
-            row[j] = doubt_mark(results, key, cell)
+            row[j] = doubt_mark(results, key, cell) if doubt_marks else cell
     notes = [
         f"acc_seg = s_sem (IoU threshold 0.3); acc_depth = s_geo; {str_note}.",
         f"RQS is the geometric mean of the three {_pooling(results)} pooled axes; AvgRank is the mean of the "
@@ -210,7 +213,7 @@ def main_table(results: dict) -> Table:
         notes.append(f"{what} compare I_post with the post-removal reference rendering I_ref, "
                      "pooled over every view with a reference; they are diagnostics outside RQS and AvgRank.")
     notes.append("Best and second best per column are emphasised.")
-    notes += doubt_notes(results)
+    notes += doubt_notes(results) if doubt_marks else []
     return Table(
         key="main_results",
         title="Overall evaluation: removal axes, RQS and AvgRank"
