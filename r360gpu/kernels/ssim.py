@@ -78,17 +78,23 @@ def gaussian_taps() -> np.ndarray:
     return g / g.sum()
 
 
+def image_hwc(img, what: str) -> np.ndarray:
+    """``img`` as (H, W, C) with C 1 or 3 (a gray (H, W) image gets C = 1); InputError otherwise."""
+    a = np.asarray(img)
+    if a.ndim == 2:
+        a = a[:, :, None]
+    if a.ndim != 3 or a.shape[2] not in (1, 3) or a.shape[0] < 1 or a.shape[1] < 1:
+        raise InputError(f"{what} must be (H, W, 3) RGB or (H, W) gray, got shape {np.shape(img)}")
+    return a
+
+
 def check_image(img, what: str) -> np.ndarray:
     """(H, W, C) uint8 or float32 view of an image; floats must lie in [0, 1].
 
     One min and one max (NaN propagates through both, and +-Inf is out of
     range) replace a separate finiteness pass.
     """
-    a = np.asarray(img)
-    if a.ndim == 2:
-        a = a[:, :, None]
-    if a.ndim != 3 or a.shape[2] not in (1, 3) or a.shape[0] < 1 or a.shape[1] < 1:
-        raise InputError(f"{what} must be (H, W, 3) RGB or (H, W) gray, got shape {np.shape(img)}")
+    a = image_hwc(img, what)
     if a.dtype == np.uint8:
         return np.ascontiguousarray(a)
     if not np.issubdtype(a.dtype, np.floating):

@@ -49,7 +49,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.ssim import ssim_mse_many
+from ..kernels.ssim import image_hwc, ssim_mse_many
 from ..probes.base import file_sha256
 from . import _json
 
@@ -64,11 +64,7 @@ NO_LPIPS_MODEL = "no LPIPS model given"
 
 def as_image(img, what: str = "image") -> np.ndarray:
     """float64 (H, W, C) in [0, 1] from uint8 or float (H, W[, C]) input."""
-    a = np.asarray(img)
-    if a.ndim == 2:
-        a = a[:, :, None]
-    if a.ndim != 3 or a.shape[2] not in (1, 3) or a.shape[0] < 1 or a.shape[1] < 1:
-        raise InputError(f"{what} must be (H, W, 3) RGB or (H, W) gray, got shape {np.shape(img)}")
+    a = image_hwc(img, what)
     if a.dtype == np.uint8:
         return a.astype(np.float64) / 255.0
     if not np.issubdtype(a.dtype, np.floating):
