@@ -157,7 +157,8 @@ class SceneRun:
         if self._to_fit:
             # what the fit reads: pre's renders of the picked views and their masks
             self._fit_key = digest({"bundle": self.fingerprint, "views": self._fit_views(), "depth": self.depth_mode,
-                                    "pre": self.pre.describe(), "probes": self._describe()})
+                                    "pre": self.pre.describe(), "probes": self._describe(),
+                                    "own_pres": {n: src.describe() for n, src in self.pres.items() if n != "pre"}})
             recorded = cache.load_fit(self._fit_key)
             if recorded is None:
                 self.fit()
@@ -219,15 +220,19 @@ class SceneRun:
         """Fit the probes that learn from the scene (the built-in appearance probe) on pre
         renderings of the fit views; the renders are kept for scoring those views.
 
+        With methods that bring their own pre, the fit sees the fit views of every pre
+        source: each pipeline renders the scene its own way, and a probe fitted on one of
+        them alone can miss the object in another's renders (IoU_pre 0 for that method).
+
         Returns True when the probes' descriptions differ from ``probes_desc``
         (which then came from a fit record that no longer holds).
         """
         t0 = time.perf_counter()
         pick = self._fit_views()
-        renders = [self.pre.images(v, self.camera(v)) for v in pick]
-        self._fit_renders = {("pre", v): r for v, r in zip(pick, renders)}
+        self._fit_renders = {(name, v): src.images(v, self.camera(v)) for name, src in self.pres.items()
+                             for v in pick}
         for p in self._to_fit:
-            p.fit([r.rgb for r in renders], [self.mask(v) for v in pick])
+            p.fit([r.rgb for r in self._fit_renders.values()], [self.mask(v) for _, v in self._fit_renders])
         self.timer.add("fit probes", t0)
         desc = self._describe()
         stale = getattr(self, "probes_desc", desc) != desc
