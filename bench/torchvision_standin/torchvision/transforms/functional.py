@@ -9,8 +9,8 @@ def to_pil_image(pic, mode=None):
 
 def resize(img, size, interpolation=None, max_size=None, antialias=True):
     if not isinstance(img, Image.Image):
-        raise NotImplementedError("stand-in resize takes PIL images")
+        raise TypeError("the stand-in resize takes PIL images (what Grounded-SAM-2 passes)")
     if isinstance(size, int):
-        raise NotImplementedError("stand-in resize takes an (h, w) size")
+        raise TypeError("the stand-in resize takes an (h, w) size")
     h, w = size
     return img.resize((int(w), int(h)), Image.BILINEAR)
