@@ -92,3 +92,19 @@ def test_tab_main_results_avg_rank_column():
         assert overall[m]["avg_rank"].matches(s.avg_rank[j]), (m, s.avg_rank[j])
     assert METHODS[int(np.argmin(s.avg_rank))] == "3DGIC+i"
     assert METHODS[int(np.argmin(s.med_rank))] == "OC"  # the paper's point about MedRank
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_average_ranks_equal_scipy_rankdata(seed):
+    from scipy.stats import rankdata
+
+    from r360gpu.aggregate.ranks import average_ranks
+
+    rng = np.random.default_rng(seed)
+    for n in (1, 2, 7, 50):
+        # few distinct values: long runs of ties, at the ends too
+        x = rng.integers(0, max(1, n // 3), n).astype(np.float64) * 0.25 - 1.0
+        np.testing.assert_array_equal(average_ranks(x), rankdata(x, method="average"))
+        y = rng.normal(size=n)
+        np.testing.assert_array_equal(average_ranks(y), rankdata(y, method="average"))
+    assert average_ranks(np.array([])).shape == (0,)

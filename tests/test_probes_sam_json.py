@@ -125,3 +125,52 @@ def test_parse_grid_rejects_non_grids():
     np.testing.assert_array_equal(sam_json.parse_grid(b"[[true, false], [false, true]]"), [[True, False], [False, True]])
     np.testing.assert_array_equal(sam_json.parse_grid(b"[[true]]"), [[True]])
     np.testing.assert_array_equal(sam_json.parse_grid(b"[[0],[1],[1]]"), [[False], [True], [True]])
+
+
+def _canonical_bool_grid(text: bytes):
+    """The grid when ``text`` is exactly json.dumps of a rectangular bool list (either separator), else None."""
+    try:
+        obj = json.loads(text)
+    except ValueError:
+        return None
+    if not (isinstance(obj, list) and obj and all(isinstance(r, list) and r for r in obj)):
+        return None
+    if len({len(r) for r in obj}) != 1 or not all(type(v) is bool for r in obj for v in r):
+        return None
+    if text.decode() not in (json.dumps(obj), json.dumps(obj, separators=(",", ":"))):
+        return None
+    return np.array(obj, bool)
+
+
+@pytest.mark.parametrize("sep", [", ", ","])
+@pytest.mark.parametrize("shape", [(1, 1), (1, 3), (3, 1), (2, 3)])
+def test_parse_bool_grid_takes_exactly_json_dumps_text(sep, shape):
+    """Every single-byte change, deletion and insertion of a canonical text is either decoded as the grid it
+    spells (when it still is json.dump's text of one) or refused (None: the standard reader takes over)."""
+    rng = np.random.default_rng(len(sep) * 10 + shape[0] * 3 + shape[1])
+    grid = rng.random(shape) < 0.5
+    text = json.dumps(grid.tolist(), separators=(sep, ": ")).encode()
+    pad = b'{"a": ' + text + b"}"  # the grid inside a file, as _fast sees it
+    lo = 6
+    np.testing.assert_array_equal(sam_json.parse_bool_grid(pad, lo, lo + len(text)), grid)
+    variants = set()
+    for i in range(len(text)):
+        for c in b"tfrueals, []01e":
+            variants.add(text[:i] + bytes([c]) + text[i + 1 :])
+            variants.add(text[:i] + bytes([c]) + text[i:])
+        variants.add(text[:i] + text[i + 1 :])
+    for v in variants:
+        want = _canonical_bool_grid(v)
+        got = sam_json.parse_bool_grid(b"xx" + v + b"yy", 2, 2 + len(v))
+        if want is None:
+            assert got is None, v
+        else:
+            assert got is not None, v
+            np.testing.assert_array_equal(got, want, err_msg=str(v))
+
+
+def test_grid_end_finds_the_first_double_bracket():
+    raw = b'{"segmentation": [[true, false], [false, true]], "b": [[1]]}'
+    start = raw.index(b"[[")
+    assert raw[start : sam_json._grid_end(raw, start)] == b"[[true, false], [false, true]]"
+    assert sam_json._grid_end(b"[[true], [false] ]", 0) == -1

@@ -30,9 +30,9 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import ConstantInputWarning, kendalltau, rankdata, spearmanr
 
 from .cells import AxisCells
+from .ranks import average_ranks
 
 #: Axis pairs reported by :func:`axis_association`, in the paper's order.
 AXIS_PAIRS: dict[str, tuple[str, str]] = {
@@ -77,6 +77,8 @@ class Association:
 
 
 def _spearman(x: np.ndarray, y: np.ndarray) -> float:
+    from scipy.stats import spearmanr  # here: importing scipy.stats costs every command ~0.6 s
+
     if x.size < 2 or np.all(x == x[0]) or np.all(y == y[0]):
         return float("nan")
     return float(spearmanr(x, y).statistic)
@@ -95,8 +97,8 @@ def _permutation_p(a_c: np.ndarray, b_c: np.ndarray, rho_obs: float, n_perm: int
     permutation costs one dot product.
     """
     n_scenes, n_methods = a_c.shape
-    ra = rankdata(a_c.ravel()).reshape(a_c.shape)
-    rb = rankdata(b_c.ravel()).reshape(b_c.shape)
+    ra = average_ranks(a_c.ravel()).reshape(a_c.shape)
+    rb = average_ranks(b_c.ravel()).reshape(b_c.shape)
     ra -= ra.mean()
     rb -= rb.mean()
     denom = np.sqrt((ra * ra).sum() * (rb * rb).sum())
@@ -115,6 +117,8 @@ def _permutation_p(a_c: np.ndarray, b_c: np.ndarray, rho_obs: float, n_perm: int
 
 
 def _kendall_within_scenes(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    from scipy.stats import kendalltau
+
     taus = []
     for x, y in zip(a, b):
         if x.size < 2 or np.all(x == x[0]) or np.all(y == y[0]):
@@ -148,6 +152,8 @@ def spearman_association(a, b, n_perm: int = 5000, seed: int = 0) -> Association
     with warnings.catch_warnings():
         # Constant inputs are detected and reported as NaN above; scipy's
         # warning for them would only be noise.
+        from scipy.stats import ConstantInputWarning
+
         warnings.simplefilter("ignore", ConstantInputWarning)
         rho = _spearman(x.ravel(), y.ravel())
         xc, yc = _centre(x), _centre(y)

@@ -52,7 +52,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from ..errors import InputError
 from ..kernels import mask_iou as K
@@ -156,6 +155,8 @@ def match(iou: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     iou = np.asarray(iou, np.float64)
     if iou.size == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), 0.0
+    from scipy.optimize import linear_sum_assignment  # here: the import costs every command ~0.4 s
+
     rows, cols = linear_sum_assignment(iou, maximize=True)
     return rows, cols, float(iou[rows, cols].sum())
 
