@@ -12,6 +12,31 @@ from r360gpu.kernels import mask_iou as K
 from oracles import mask_iou_oracle
 
 
+@pytest.fixture(autouse=True, params=["gpu", "cpu"])
+def backend(request, monkeypatch):
+    """Every test runs the WGSL kernel and the host path (which CPU adapters take by default)."""
+    monkeypatch.setenv("R360GPU_MASK_IOU", request.param)
+    return request.param
+
+
+def test_backend_default_follows_the_adapter(ctx, monkeypatch):
+    monkeypatch.delenv("R360GPU_MASK_IOU")
+    assert ctx.kernel_backend("mask_iou") == ("cpu" if ctx.adapter_info["adapter_type"] == "CPU" else "gpu")
+
+
+def test_host_path_uploads_nothing_until_a_kernel_needs_it(ctx, backend):
+    rng = np.random.default_rng(5)
+    a, b = rng.random((3, 9, 40)) < 0.4, rng.random((2, 9, 40)) < 0.4
+    pa = K.pack(a, ctx=ctx)
+    assert (not pa.chunks) == (backend == "cpu")
+    np.testing.assert_array_equal(K.mask_iou(pa, b, ctx=ctx).intersection, mask_iou_oracle(a, b)[0])
+    assert (not pa.chunks) == (backend == "cpu")
+    np.testing.assert_array_equal(K.union(pa, ctx=ctx), a.any(axis=0))
+    np.testing.assert_array_equal(K.to_host(pa, ctx=ctx), K.pack_bits(a))
+    # a GPU consumer still gets device chunks from a host-packed stack
+    assert K.device_chunks(pa, ctx) and K.to_host(pa, ctx=ctx).shape == (3, 9, 2)
+
+
 def _check(a, b, ctx):
     r = K.mask_iou(a, b, ctx=ctx)
     inter, aa, ab, iou = mask_iou_oracle(a, b)
@@ -93,7 +118,8 @@ def test_chunking_over_bindings_and_dispatch_limits(small_ctx):
     b[4, :, :] = False
     b[4, 69, 299] = True
     p = K.pack(a, ctx=small_ctx)
-    assert len(p.chunks) > 1 and all(c.words.size <= 4096 for c in p.chunks)
+    chunks = K.device_chunks(p, small_ctx)  # uploaded at packing on the gpu path, on first use on the cpu path
+    assert len(chunks) > 1 and all(c.words.size <= 4096 for c in chunks)
     _check(a, b, small_ctx)
     np.testing.assert_array_equal(K.union(a, ctx=small_ctx), a.any(0))
     big_rows = rng.random((2, 40, 1100)) < 0.05  # one row = 35 words; 40 rows > 4 KiB
@@ -181,7 +207,7 @@ def test_stack_over_one_real_binding(ctx):
     a[n - 1, h - 1, w - 1] = True
     b = a[[n - 1, 0, 45]]
     p = K.pack(a, ctx=ctx)
-    assert len(p.chunks) >= 2
+    assert len(K.device_chunks(p, ctx)) >= 2
     r = K.mask_iou(p, b, ctx=ctx)
     inter = np.array([[np.count_nonzero(x & y) for y in b] for x in a])
     np.testing.assert_array_equal(r.intersection, inter)

@@ -1,6 +1,7 @@
 """``r360gpu doctor``: which adapter, its limits, and every kernel against its oracle."""
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -81,10 +82,26 @@ def _checks(ctx, rng):
         rs, rm = ssim_reference(x / 255.0, y / 255.0)
         return abs(s - rs) <= SSIM_TOL["gpu"] and abs(m - rm) <= 1e-12, "23x37 RGB against the window definition"
 
+    def on(backend, fn):
+        """fn with the mask kernels forced onto ``backend``: doctor checks the WGSL kernel on every
+        adapter, and the host path scoring takes on CPU adapters."""
+        def check():
+            old = os.environ.get("R360GPU_MASK_IOU")
+            os.environ["R360GPU_MASK_IOU"] = backend
+            try:
+                return fn()
+            finally:
+                if old is None:
+                    del os.environ["R360GPU_MASK_IOU"]
+                else:
+                    os.environ["R360GPU_MASK_IOU"] = old
+        return check
+
     checks = [
-        ("mask_iou (random)", iou_random),
-        ("mask_iou (blobs, 1080p)", iou_blobs_1080p),
-        ("mask union", union),
+        ("mask_iou (random)", on("gpu", iou_random)),
+        ("mask_iou (blobs, 1080p)", on("gpu", iou_blobs_1080p)),
+        ("mask union", on("gpu", union)),
+        ("mask_iou (host path)", on("cpu", iou_random)),
         ("mask pack (device buffer)", device_pack),
         ("depth_change", depth),
         ("ssim (GPU kernel)", ssim_kernel),

@@ -119,6 +119,23 @@ class GpuContext:
         """Wrap a caller's existing ``wgpu.GPUDevice`` (shares its queue)."""
         return cls(device, **kwargs)
 
+    def kernel_backend(self, kernel: str) -> str:
+        """"gpu" or "cpu": where a kernel with a host implementation runs on this adapter.
+
+        On a CPU adapter (lavapipe) a compute shader is a slower way to run the
+        same CPU: each submission waits on the queue, and per-invocation storage
+        loads defeat vectorisation (bench/bench_measure.py measures both), so
+        kernels that have an exact host path (``ssim``, ``mask_iou``) take it
+        there.  The environment variable ``R360GPU_<KERNEL>`` (``gpu`` or
+        ``cpu``) overrides, which is how the tests run both paths on lavapipe.
+        """
+        import os
+
+        forced = os.environ.get(f"R360GPU_{kernel.upper()}")
+        if forced in ("gpu", "cpu"):
+            return forced
+        return "cpu" if self.adapter_info.get("adapter_type") == "CPU" else "gpu"
+
     def describe(self) -> dict:
         """Adapter name, backend and the limits that matter; goes into every result."""
         return {

@@ -12,6 +12,12 @@ see ``bench/bench_mask_iou.py``); masks that already live on the device
 Intersections and areas are computed on the GPU; IoU is ``inter / union``
 with ``IoU = 0`` where the union is empty.  Every stack is split into chunks
 whose buffers fit one storage binding, so any number and size of masks works.
+
+On CPU adapters (``ctx.kernel_backend("mask_iou") == "cpu"``, lavapipe) a
+stack packed on the host is never uploaded: intersections and unions are
+counted on the packed words with numpy (``np.bitwise_count`` over the box of
+each mask of A), the same integers the kernel counts (tests run both paths
+against the numpy oracle).  Uploads happen on first use by a GPU kernel.
 """
 from __future__ import annotations
 
@@ -24,6 +30,7 @@ from ..errors import InputError
 from ..gpu.context import BufferRange, GpuContext, get_context
 
 SHADER = "mask_iou"
+_HOST_COUNTS = hasattr(np, "bitwise_count")  # numpy >= 2; else intersections always run the kernel
 WG = 64  # workgroup size of every entry point in mask_iou.wgsl
 _RANGES_EMPTY = (0, 0)
 
@@ -72,8 +79,10 @@ class PackedMasks:
     n: int
     height: int
     width: int
-    chunks: list[PackedChunk] = field(default_factory=list)
+    chunks: list[PackedChunk] = field(default_factory=list)  # uploaded on first GPU use (see device_chunks)
     areas_host: np.ndarray | None = None  # (n,) int64 when counted at packing (saves a GPU round trip)
+    words_host: np.ndarray | None = None  # (n, H, row_words) uint32 when packed on the host
+    boxes_host: np.ndarray | None = None  # (n, 4) uint32 whole-frame boxes, with words_host
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -210,20 +219,29 @@ def pack(masks, *, ctx: GpuContext | None = None) -> PackedMasks:
     else:
         packed = pack_bits(masks)
         w = np.shape(masks)[-1]
-    n, h, rw = packed.shape
-    boxes = _boxes(packed)
-    out = PackedMasks(n, int(h), int(w), areas_host=_popcount(packed))
-    kchunk, rchunk = _layout(ctx, n, h, rw)
+    n, h, _ = packed.shape
+    out = PackedMasks(n, int(h), int(w), areas_host=_popcount(packed), words_host=packed, boxes_host=_boxes(packed))
+    if ctx.kernel_backend(SHADER) == "gpu":
+        device_chunks(out, ctx)
+    return out
+
+
+def device_chunks(p: PackedMasks, ctx: GpuContext) -> list[PackedChunk]:
+    """The stack's binding-sized chunks on the device, uploaded from the host words on first use."""
+    if p.chunks or p.words_host is None or p.n == 0:
+        return p.chunks
+    packed, boxes, n, h = p.words_host, p.boxes_host, p.n, p.height
+    kchunk, rchunk = _layout(ctx, n, h, p.row_words)
     for k0 in range(0, n, kchunk):
         k1 = min(n, k0 + kchunk)
         for r0 in range(0, h, rchunk):
             r1 = min(h, r0 + rchunk)
             bx = _clip_boxes(boxes[k0:k1], r0, r1)
             words = packed[k0:k1] if (r0, r1) == (0, h) else np.ascontiguousarray(packed[k0:k1, r0:r1])
-            out.chunks.append(
+            p.chunks.append(
                 PackedChunk(k0, k1, r0, r1, ctx.buffer(words, label="mask_words"), ctx.buffer(bx, label="mask_boxes"), bx)
             )
-    return out
+    return p.chunks
 
 
 def _pack_device(dm: DeviceMasks, ctx: GpuContext) -> PackedMasks:
@@ -285,7 +303,7 @@ def areas(masks, *, ctx: GpuContext | None = None) -> np.ndarray:
         return p.areas_host.copy()
     out = np.zeros(p.n, np.int64)
     pipe = ctx.pipeline(SHADER, "area")
-    for c in p.chunks:
+    for c in device_chunks(p, ctx):
         nk = c.k1 - c.k0
         buf = ctx.buffer(nk * 4)
         params = ctx.uniform(nk, 0, c.r1 - c.r0, p.row_words, 0, 0, 0, 0)
@@ -302,6 +320,10 @@ def intersections(a, b, *, ctx: GpuContext | None = None) -> np.ndarray:
     inter = np.zeros((pa.n, pb.n), np.int64)
     if pa.n == 0 or pb.n == 0:
         return inter
+    if _HOST_COUNTS and ctx.kernel_backend(SHADER) == "cpu" and pa.words_host is not None \
+            and pb.words_host is not None:
+        return _intersections_host(pa, pb, inter)
+    device_chunks(pa, ctx), device_chunks(pb, ctx)
     pipe = ctx.pipeline(SHADER, "intersect")
     max_out = ctx.max_binding_bytes // 4
     pending = []
@@ -331,6 +353,24 @@ def intersections(a, b, *, ctx: GpuContext | None = None) -> np.ndarray:
                     enc, queued = ctx.encoder(), 0
     ctx.submit(enc)
     _collect(ctx, pending, inter)
+    return inter
+
+
+def _intersections_host(pa: PackedMasks, pb: PackedMasks, inter: np.ndarray) -> np.ndarray:
+    """The kernel's counts from the host words: per mask of A, over its box, with every
+    mask of B whose box meets it."""
+    a, b = pa.words_host, pb.words_host
+    ba, bb = pa.boxes_host.astype(np.int64), pb.boxes_host.astype(np.int64)
+    b_has = (bb[:, 1] > bb[:, 0]) & (bb[:, 3] > bb[:, 2])
+    for i in range(pa.n):
+        r0, r1, c0, c1 = ba[i]
+        if r1 <= r0 or c1 <= c0:
+            continue
+        js = np.flatnonzero(b_has & (bb[:, 0] < r1) & (bb[:, 1] > r0) & (bb[:, 2] < c1) & (bb[:, 3] > c0))
+        if js.size == 0:
+            continue
+        both = a[i, r0:r1, c0:c1] & (b[js, r0:r1, c0:c1] if js.size < pb.n else b[:, r0:r1, c0:c1])
+        inter[i, js] = np.bitwise_count(both).sum(axis=(1, 2), dtype=np.int64)
     return inter
 
 
@@ -387,9 +427,12 @@ def union(masks, *, ctx: GpuContext | None = None) -> np.ndarray:
     ctx = ctx or get_context()
     p = pack(masks, ctx=ctx)
     rw = p.row_words
+    if ctx.kernel_backend(SHADER) == "cpu" and p.words_host is not None:
+        words = np.bitwise_or.reduce(p.words_host, axis=0) if p.n else np.zeros((p.height, rw), np.uint32)
+        return unpack_bits(words[None], p.width)[0]
     words = np.zeros((p.height, rw), np.uint32)
     pipe = ctx.pipeline(SHADER, "union_or")
-    for c in p.chunks:
+    for c in device_chunks(p, ctx):
         nk, nr = c.k1 - c.k0, c.r1 - c.r0
         buf = ctx.buffer(nr * rw * 4)
         params = ctx.uniform(nk, 0, nr, rw, 0, 0, 0, 0)
@@ -400,6 +443,8 @@ def union(masks, *, ctx: GpuContext | None = None) -> np.ndarray:
 
 def to_host(packed: PackedMasks, *, ctx: GpuContext | None = None) -> np.ndarray:
     """Download a packed stack: (N, H, row_words) uint32 (see :func:`unpack_bits`)."""
+    if packed.words_host is not None:
+        return packed.words_host.copy()
     ctx = ctx or get_context()
     out = np.zeros((packed.n, packed.height, packed.row_words), np.uint32)
     for c in packed.chunks:

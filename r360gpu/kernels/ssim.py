@@ -61,14 +61,9 @@ MSE_RTOL = 1e-6  # relative error of the float MSE (uint8: exact)
 
 
 def ssim_backend(ctx: GpuContext) -> str:
-    """"gpu" or "cpu" for this adapter (see the module docstring); the
-    environment variable ``R360GPU_SSIM`` (``gpu`` or ``cpu``) overrides."""
-    import os
-
-    forced = os.environ.get("R360GPU_SSIM")
-    if forced in ("gpu", "cpu"):
-        return forced
-    return "cpu" if ctx.adapter_info.get("adapter_type") == "CPU" else "gpu"
+    """"gpu" or "cpu" for this adapter (see the module docstring and
+    :meth:`GpuContext.kernel_backend`); ``R360GPU_SSIM`` overrides."""
+    return ctx.kernel_backend("ssim")
 
 
 def gaussian_taps() -> np.ndarray:
