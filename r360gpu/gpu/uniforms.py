@@ -42,21 +42,30 @@ def struct_fields(shader: str, struct: str = "Params") -> tuple[tuple[str, str],
     return _fields_of(load_shader_source(shader), struct)
 
 
-def pack_words(shader: str, values: dict, struct: str = "Params") -> list:
-    """The values of ``struct``'s fields in declaration order, typed for :meth:`GpuContext.uniform`."""
-    fields = struct_fields(shader, struct)
-    names = [n for n, _ in fields]
-    missing = [n for n in names if n not in values]
-    unknown = [k for k in values if k not in names]
-    if missing or unknown:
-        raise ValueError(f"{shader}.wgsl {struct}: missing fields {missing}, unknown fields {unknown}")
+@lru_cache(maxsize=None)
+def _layout(shader: str, struct: str, shader_dir: str | None) -> tuple[tuple[str, bool], ...]:
+    """(name, is f32) per field, read once per process like the GpuContext's shader modules (a
+    uniform is packed for every dispatch: reading and expanding the WGSL each time cost the
+    demo ~7 s); ``shader_dir`` (R360GPU_SHADER_DIR) is part of the key."""
     out = []
-    for name, typ in fields:
+    for name, typ in struct_fields(shader, struct):
         if typ not in SCALARS:
             raise ValueError(f"{shader}.wgsl {struct}.{name}: type {typ} is not a 32-bit scalar")
-        v = values[name]
-        out.append(float(v) if typ == "f32" else int(v))
-    return out
+        out.append((name, typ == "f32"))
+    return tuple(out)
+
+
+def pack_words(shader: str, values: dict, struct: str = "Params") -> list:
+    """The values of ``struct``'s fields in declaration order, typed for :meth:`GpuContext.uniform`."""
+    import os
+
+    fields = _layout(shader, struct, os.environ.get("R360GPU_SHADER_DIR"))
+    if len(values) != len(fields) or any(n not in values for n, _ in fields):
+        names = [n for n, _ in fields]
+        missing = [n for n in names if n not in values]
+        unknown = [k for k in values if k not in names]
+        raise ValueError(f"{shader}.wgsl {struct}: missing fields {missing}, unknown fields {unknown}")
+    return [float(values[n]) if f32 else int(values[n]) for n, f32 in fields]
 
 
 def uniform(ctx, shader: str, struct: str = "Params", **values):

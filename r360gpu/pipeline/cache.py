@@ -121,7 +121,7 @@ class ViewCache:
     def store(self, method: str, view: str, cell: dict) -> None:
         from ..util.atomic import write_json
 
-        write_json(self._path(method, view), cell, allow_nan=False)
+        write_json(self._path(method, view), cell, allow_nan=False, sync=False)  # a damaged cell is recomputed
 
 
 def fingerprint(bundle, sources) -> str:

@@ -160,7 +160,7 @@ class ProbeCache:
         buf = io.BytesIO()
         np.savez_compressed(buf, **arrays)
         path = self.path_for(probe_name, key)
-        write_bytes(path, buf.getvalue())
+        write_bytes(path, buf.getvalue(), sync=False)  # an undecodable entry is a miss
         return path
 
     def load(self, probe_name: str, key: str, kind: str) -> SemanticPrediction | MaskSet | None:

@@ -262,9 +262,13 @@ def mask_overlay(rgb, masks, width: int = PANEL_WIDTH, *, color: tuple[int, int,
 # -- sheets ----------------------------------------------------------------------
 
 def encode_png(image) -> bytes:
-    """PNG bytes of an RGB (or gray) image (compression level 6; no metadata)."""
+    """PNG bytes of an RGB (or gray) image (compression level 1; no metadata).
+
+    Level 1: a 1300 x 706 contact sheet encodes in 25 ms instead of 64 ms at
+    level 6, for a file 10% larger (392 vs 355 KB); pictures are written for
+    every method and view, so this is most of their cost."""
     rgb = as_rgb8(image, "PNG image")
-    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 6])
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1])
     if not ok:
         raise RuntimeError("OpenCV could not encode a PNG")
     return buf.tobytes()
@@ -384,7 +388,7 @@ def contact_sheet(path: str | os.PathLike, panels: Sequence[tuple[str, np.ndarra
     """Write :func:`sheet_image` of ``panels`` as a PNG (atomically); returns the path."""
     path = Path(path)
     write_bytes(path, encode_png(sheet_image(panels, columns=columns, panel_width=panel_width, title=title,
-                                             lines=lines, legend=legend)))
+                                             lines=lines, legend=legend)), sync=False)  # regenerated if damaged
     return path
 
 

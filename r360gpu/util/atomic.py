@@ -8,6 +8,12 @@ calls it once it holds the output folder's lock).  Inside an
 temporaries and renamed into place only when the block ends without error,
 so a run that cannot write every output (disk full, read-only file system)
 leaves the previous set, or none, instead of half of each.
+
+Results are also flushed to disk (fsync) before the rename, so they survive
+a power loss.  Files that are regenerated when damaged -- pictures, cache
+entries -- are written with ``sync=False``: the rename still keeps a crashed
+or interrupted process from leaving half of one, and the demo's ~300 of them
+no longer wait for the disk one by one (fsync was ~5 s of its run).
 """
 from __future__ import annotations
 
@@ -34,8 +40,9 @@ def _umask() -> int:
 
 
 @contextmanager
-def atomic_open(path: str | os.PathLike, mode: str = "w", **kwargs) -> Iterator[IO]:
-    """Open a temporary file for writing; on success it replaces ``path``."""
+def atomic_open(path: str | os.PathLike, mode: str = "w", *, sync: bool = True, **kwargs) -> Iterator[IO]:
+    """Open a temporary file for writing; on success it replaces ``path`` (after an fsync unless
+    ``sync`` is False: see the module docstring)."""
     if not any(c in mode for c in "wx"):
         raise ValueError("atomic_open is for writing")
     path = Path(path)
@@ -49,8 +56,9 @@ def atomic_open(path: str | os.PathLike, mode: str = "w", **kwargs) -> Iterator[
     try:
         with os.fdopen(fd, mode, **kwargs) as f:
             yield f
-            f.flush()
-            os.fsync(f.fileno())
+            if sync:
+                f.flush()
+                os.fsync(f.fileno())
         staged = _staged.get()
         if staged is not None and path.resolve() in staged[0]:
             staged[1].append((tmp, path))
@@ -71,19 +79,19 @@ def _naming(e: OSError, path: Path) -> OSError:
     return OSError(e.errno, e.strerror or str(e), os.fspath(path))
 
 
-def write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    with atomic_open(path, "wb") as f:
+def write_bytes(path: str | os.PathLike, data: bytes, *, sync: bool = True) -> None:
+    with atomic_open(path, "wb", sync=sync) as f:
         f.write(data)
 
 
-def write_text(path: str | os.PathLike, text: str) -> None:
-    with atomic_open(path, "w", encoding="utf-8") as f:
+def write_text(path: str | os.PathLike, text: str, *, sync: bool = True) -> None:
+    with atomic_open(path, "w", sync=sync, encoding="utf-8") as f:
         f.write(text)
 
 
-def write_json(path: str | os.PathLike, obj, **kwargs) -> None:
+def write_json(path: str | os.PathLike, obj, *, sync: bool = True, **kwargs) -> None:
     kwargs.setdefault("indent", 2)
-    with atomic_open(path, "w", encoding="utf-8") as f:
+    with atomic_open(path, "w", sync=sync, encoding="utf-8") as f:
         json.dump(obj, f, **kwargs)
         f.write("\n")
 
