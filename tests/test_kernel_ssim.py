@@ -106,3 +106,19 @@ def test_bad_inputs(ctx, backend):
     with pytest.raises(InputError, match="uint8 or both to float"):
         ssim_mse_many([np.zeros((12, 12), np.uint8)], np.zeros((12, 12), np.float32), ctx=ctx, backend=backend)
     assert ssim_mse_many([], good, ctx=ctx, backend=backend) == []
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.float32])
+def test_cpu_backend_is_the_same_for_any_thread_count(monkeypatch, dtype):
+    from r360gpu.kernels import ssim as S
+
+    rng = np.random.default_rng(11)
+    y = rng.integers(0, 256, (300, 97, 3)).astype(np.uint8)  # 290 output rows: 5 strips, the last short
+    xs = [np.clip(y.astype(np.int16) + rng.integers(-30, 31, y.shape), 0, 255).astype(np.uint8) for _ in range(3)]
+    if dtype == np.float32:
+        y, xs = y.astype(np.float32) / 255, [x.astype(np.float32) / 255 for x in xs]
+    got = {}
+    for n in (1, 2, 3):
+        monkeypatch.setattr(S, "CPU_THREADS", n)
+        got[n] = S._ssim_mse_cpu(xs, y)
+    assert got[1] == got[2] == got[3]

@@ -37,6 +37,8 @@ Images larger than a storage binding are processed in bands of rows
 from __future__ import annotations
 
 import math
+import os
+import threading
 from collections.abc import Sequence
 
 import cv2
@@ -218,62 +220,98 @@ def _filter(img: np.ndarray, g: np.ndarray, out: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Threads the cpu backend filters strips in (the machine's cores, at most 4).
+CPU_THREADS = max(1, min(4, os.cpu_count() or 1))
+
+
+def _strip_buffers(rows: int, w: int, c: int) -> tuple:
+    f32 = lambda shape: np.empty(shape, np.float32)  # noqa: E731
+    vw = w - (WIN - 1)
+    big = tuple(f32((rows + WIN - 1, w, c)) for _ in range(3))
+    return big + tuple(f32((rows, vw, c)) for _ in range(8))
+
+
+def _strip_sums(xs, y, shift, strip, bufs, g, c1, c2) -> np.ndarray:
+    """Summed SSIM map of every method over output rows ``strip`` (o0, o1): float64 (len(xs),)."""
+    o0, o1 = strip
+    ys, xc, t, my, vy_c2, my2, my_sq_c1, mx, sxx, sxy, tmp = bufs
+    n_in, n_out = o1 - o0 + WIN - 1, o1 - o0
+    yc, xcs, ts = ys[:n_in], xc[:n_in], t[:n_in]
+    m_y, v_y, m_y2, m_yc = my[:n_out], vy_c2[:n_out], my2[:n_out], my_sq_c1[:n_out]
+    m_x, s_xx, s_xy, q = mx[:n_out], sxx[:n_out], sxy[:n_out], tmp[:n_out]
+    sums = np.zeros(len(xs), np.float64)
+    # I_ref's share, once per strip for all methods (values shifted by its channel means).
+    np.subtract(y[o0 : o0 + n_in], shift, out=yc, dtype=np.float32)
+    _filter(yc, g, m_y)
+    np.multiply(yc, yc, out=ts)
+    _filter(ts, g, v_y)
+    np.multiply(m_y, m_y, out=q)
+    v_y -= q
+    v_y += c2  # syy + C2
+    np.add(m_y, shift, out=m_y2)
+    np.multiply(m_y2, m_y2, out=m_yc)
+    m_yc += c1  # my^2 + C1
+    m_y2 *= np.float32(2.0)  # 2 my
+    for k, x in enumerate(xs):
+        np.subtract(x[o0 : o0 + n_in], shift, out=xcs, dtype=np.float32)
+        _filter(xcs, g, m_x)
+        np.multiply(xcs, xcs, out=ts)
+        _filter(ts, g, s_xx)
+        np.multiply(xcs, yc, out=ts)
+        _filter(ts, g, s_xy)
+        np.multiply(m_x, m_x, out=q)
+        s_xx -= q
+        s_xx += v_y  # sxx + syy + C2
+        np.multiply(m_x, m_y, out=q)
+        s_xy -= q
+        s_xy *= np.float32(2.0)
+        s_xy += c2  # 2 sxy + C2
+        m_x += shift
+        np.multiply(m_x, m_x, out=q)
+        q += m_yc
+        q *= s_xx  # (mx^2 + my^2 + C1)(sxx + syy + C2)
+        m_x *= m_y2
+        m_x += c1
+        m_x *= s_xy  # (2 mx my + C1)(2 sxy + C2)
+        m_x /= q
+        sums[k] = m_x.sum(dtype=np.float64)
+    return sums
+
+
 def _ssim_mse_cpu(xs: list[np.ndarray], y: np.ndarray) -> list[tuple[float, float]]:
     """SSIM by strips of rows (each strip's I_ref statistics shared by every
-    method), MSE over the whole images."""
+    method), MSE over the whole images.
+
+    Strips are filtered in up to ``CPU_THREADS`` threads (OpenCV and numpy
+    release the GIL on arrays this size); each strip's sums are kept and
+    added in strip order, so the result does not depend on the thread count.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
     u8 = y.dtype == np.uint8
     scale = np.float32(255.0 if u8 else 1.0)
-    g = gaussian_taps().astype(np.float32)
-    c1, c2 = np.float32((K1 * scale) ** 2), np.float32((K2 * scale) ** 2)
     h, w, c = y.shape
     vh, vw = h - (WIN - 1), w - (WIN - 1)
     shift = y.reshape(-1, c).mean(axis=0, dtype=np.float64).astype(np.float32)
-    sums = np.zeros(len(xs), np.float64)
     rows = min(STRIP, vh)
-    f32 = lambda shape: np.empty(shape, np.float32)  # noqa: E731
-    ys, xc, t = f32((rows + WIN - 1, w, c)), f32((rows + WIN - 1, w, c)), f32((rows + WIN - 1, w, c))
-    my, vy_c2, my2, my_sq_c1, mx, sxx, sxy, tmp = (f32((rows, vw, c)) for _ in range(8))
-    for o0 in range(0, vh, rows):
-        o1 = min(vh, o0 + rows)
-        n_in, n_out = o1 - o0 + WIN - 1, o1 - o0
-        yc, xcs, ts = ys[:n_in], xc[:n_in], t[:n_in]
-        m_y, v_y, m_y2, m_yc = my[:n_out], vy_c2[:n_out], my2[:n_out], my_sq_c1[:n_out]
-        m_x, s_xx, s_xy, q = mx[:n_out], sxx[:n_out], sxy[:n_out], tmp[:n_out]
-        # I_ref's share, once per strip for all methods (values shifted by its channel means).
-        np.subtract(y[o0 : o0 + n_in], shift, out=yc, dtype=np.float32)
-        _filter(yc, g, m_y)
-        np.multiply(yc, yc, out=ts)
-        _filter(ts, g, v_y)
-        np.multiply(m_y, m_y, out=q)
-        v_y -= q
-        v_y += c2  # syy + C2
-        np.add(m_y, shift, out=m_y2)
-        np.multiply(m_y2, m_y2, out=m_yc)
-        m_yc += c1  # my^2 + C1
-        m_y2 *= np.float32(2.0)  # 2 my
-        for k, x in enumerate(xs):
-            np.subtract(x[o0 : o0 + n_in], shift, out=xcs, dtype=np.float32)
-            _filter(xcs, g, m_x)
-            np.multiply(xcs, xcs, out=ts)
-            _filter(ts, g, s_xx)
-            np.multiply(xcs, yc, out=ts)
-            _filter(ts, g, s_xy)
-            np.multiply(m_x, m_x, out=q)
-            s_xx -= q
-            s_xx += v_y  # sxx + syy + C2
-            np.multiply(m_x, m_y, out=q)
-            s_xy -= q
-            s_xy *= np.float32(2.0)
-            s_xy += c2  # 2 sxy + C2
-            m_x += shift
-            np.multiply(m_x, m_x, out=q)
-            q += m_yc
-            q *= s_xx  # (mx^2 + my^2 + C1)(sxx + syy + C2)
-            m_x *= m_y2
-            m_x += c1
-            m_x *= s_xy  # (2 mx my + C1)(2 sxy + C2)
-            m_x /= q
-            sums[k] += m_x.sum(dtype=np.float64)
+    strips = [(o0, min(vh, o0 + rows)) for o0 in range(0, vh, rows)]
+    consts = (gaussian_taps().astype(np.float32), np.float32((K1 * scale) ** 2), np.float32((K2 * scale) ** 2))
+    threads = max(1, min(CPU_THREADS, len(strips)))
+    local = threading.local()
+
+    def run(strip):
+        if not hasattr(local, "bufs"):
+            local.bufs = _strip_buffers(rows, w, c)
+        return _strip_sums(xs, y, shift, strip, local.bufs, *consts)
+
+    if threads == 1:
+        per_strip = [run(st) for st in strips]
+    else:
+        with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="r360-ssim") as pool:
+            per_strip = list(pool.map(run, strips))
+    sums = np.zeros(len(xs), np.float64)
+    for part in per_strip:  # in strip order, whatever thread computed it
+        sums += part
     out = []
     yf = None if u8 else y.reshape(-1)
     for k, x in enumerate(xs):

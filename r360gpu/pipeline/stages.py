@@ -153,47 +153,40 @@ def structural_pairs(run, data: ViewData, method: str) -> dict:
     return {p.name: (pre[p.name], str_post[p.name]) for p in run.stru}
 
 
-def measure_method(run, data: ViewData, method: str, *, boundary_sweep: bool = True):
-    """The three axes, fidelity and the boundary sweep (unless ``boundary_sweep`` is False) of one
-    method (or control) at one view.
+def measure_methods(run, data: ViewData, methods: list, *, boundary_sweep: bool = True) -> dict:
+    """The three axes, fidelity and the boundary sweep (unless ``boundary_sweep`` is False) of
+    ``methods`` (methods or controls) at one view: {method: MethodMeasures}.
 
-    Returns (ViewRecord, boundary table or None, GeometricView or None).
+    The methods that share a pre source are measured in one batch
+    (:func:`r360gpu.metrics.measure.measure_view_methods`: I_ref, D_pre and
+    the perturbed targets are prepared once), with the same values as one
+    method at a time.
     """
-    from ..metrics.fidelity import fidelity_view
-    from ..metrics.geometric import acc_depth_view
-    from ..metrics.record import ViewRecord
-    from ..metrics.semantic import semantic_view
-    from ..metrics.sensitivity import NOT_GIVEN, BoundaryInput, boundary_sensitivity
-    from ..metrics.structural import structural_view
+    from ..metrics.measure import MethodOutputs, measure_view_methods
 
-    opts, ctx, view, mask = run.opts, run.ctx, data.view, data.mask
-    pre_name = run.pre_of[method]
-    pre, post, ref = data.pres[pre_name], data.posts[method], data.ref
-    sem_pre, sem_post = data.sem_pre[pre_name], data.sem_post[method]
-    pairs = structural_pairs(run, data, method)
-    sem_views = [semantic_view(sem_pre[p.name], sem_post[p.name], mask, view=view, ctx=ctx) for p in run.sem]
-    str_views = [structural_view(a, b, mask, mode=run.mode, view=view, ctx=ctx) for a, b in pairs.values()]
-    geo = None
-    if pre.depth is not None and post.depth is not None:
-        geo = acc_depth_view(pre.depth, post.depth, mask, compat=opts.compat, ght_params=opts.ght, ctx=ctx)
-    fid = fidelity_view(post.rgb, ref.rgb, run.lpips) if ref is not None else None
-    record = ViewRecord.build(view, run.bundle.name, method,
-                              probes=run.probes_desc["semantic"] + run.probes_desc["structural"],
-                              semantic=sem_views, structural=str_views, geometric=geo, fidelity=fid)
-    if geo is not None:
-        _check_depth(run, data, method, record, pre, post)
-    boundary = None
-    if boundary_sweep and opts.boundary and run.sem and run.stru:
-        p0s, p0t = run.sem[0].name, run.stru[0].name
-        a, b = pairs[p0t]
-        table = boundary_sensitivity(
-            [BoundaryInput(mask, pred_pre=sem_pre[p0s], pred_post=sem_post[p0s], masks_a=a, masks_b=b,
-                           geometric=geo if geo is not None else NOT_GIVEN, view=view)],
-            geometric=geo is not None, structural_mode=run.mode, xis=opts.xis, compat=opts.compat,
-            ght_params=opts.ght, ctx=ctx,
-        )
-        boundary = {row: table.row(row) for row in table.rows}
-    return record, boundary, geo
+    opts = run.opts
+    groups: dict = {}
+    for m in methods:
+        groups.setdefault(run.pre_of[m], []).append(m)
+    out = {}
+    for pre_name, group in groups.items():
+        pre, ref = data.pres[pre_name], data.ref
+        first = data.str_ref if run.mode == "reference" else data.str_pre[pre_name]
+        outs = {m: MethodOutputs(rgb=data.posts[m].rgb, depth=data.posts[m].depth, semantic=data.sem_post[m],
+                                 structural=data.str_post[m]) for m in group}
+        measured = measure_view_methods(
+            view=data.view, scene=run.bundle.name, target=data.mask, methods=outs,
+            semantic_pre={p.name: data.sem_pre[pre_name][p.name] for p in run.sem},
+            structural_first={p.name: first[p.name] for p in run.stru}, mode=run.mode,
+            pre_depth=pre.depth, ref_rgb=None if ref is None else ref.rgb,
+            probes=run.probes_desc["semantic"] + run.probes_desc["structural"],
+            boundary=boundary_sweep and opts.boundary, xis=opts.xis, compat=opts.compat, ght_params=opts.ght,
+            lpips_model=run.lpips, ctx=run.ctx)
+        for m, res in measured.items():
+            if res.geometric is not None:
+                _check_depth(run, data, m, res.record, pre, data.posts[m])
+            out[m] = res
+    return out
 
 
 def _check_depth(run, data: ViewData, method: str, record, pre, post) -> None:
@@ -217,13 +210,13 @@ def measure(run, data: ViewData, sink) -> tuple[dict, dict]:
     """
     t = time.perf_counter()
     cells, geos = {}, {}
-    for m in run.methods:
-        record, boundary, geos[m] = measure_method(run, data, m)
-        cells[m] = {"record": record.to_dict(), "boundary": boundary,
+    for m, res in measure_methods(run, data, list(run.methods)).items():
+        geos[m] = res.geometric
+        cells[m] = {"record": res.record.to_dict(), "boundary": res.boundary,
                     "picture": sink.path_for(run.bundle.name, m, data.view)}
-    for src in run.controls.values():  # no boundary sweep, no picture
-        record, _, _ = measure_method(run, data, src, boundary_sweep=False)
-        cells[src] = {"record": record.to_dict(), "boundary": None, "picture": None}
+    controls = list(run.controls.values())
+    for src, res in measure_methods(run, data, controls, boundary_sweep=False).items():  # no sweep, no picture
+        cells[src] = {"record": res.record.to_dict(), "boundary": None, "picture": None}
     run.timer.add("measure", t)
     return cells, geos
 
