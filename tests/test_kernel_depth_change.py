@@ -13,11 +13,23 @@ from r360gpu.kernels import depth_change as K
 from oracles import depth_change_oracle
 
 
-@pytest.fixture(autouse=True, params=["histo", "histo_private"])
+@pytest.fixture(autouse=True, params=["gpu-histo", "gpu-histo_private", "cpu"])
 def histogram_flavour(request, monkeypatch):
-    """Every test runs with both histogram entry points (GPU and CPU flavour)."""
-    monkeypatch.setenv("R360GPU_HISTOGRAM", request.param)
+    """Every test runs the kernel with both histogram entry points (GPU and CPU flavour), and the
+    host path that CPU adapters take for numpy inputs."""
+    backend, _, entry = request.param.partition("-")
+    monkeypatch.setenv("R360GPU_DEPTH_CHANGE", backend)
+    monkeypatch.setenv("R360GPU_HISTOGRAM", entry or "histo")
     return request.param
+
+
+def test_backend_default_follows_the_adapter(ctx, monkeypatch):
+    monkeypatch.delenv("R360GPU_DEPTH_CHANGE")
+    cpu = ctx.adapter_info["adapter_type"] == "CPU"
+    assert ctx.kernel_backend("depth_change") == ("cpu" if cpu else "gpu")
+    pre, post = np.ones((3, 4), np.float32), np.full((3, 4), 2, np.float32)
+    stage = K.delta_histogram(pre, post, ctx=ctx)
+    assert (stage.delta_host is not None) == cpu and (not stage.chunks) == cpu
 
 
 def test_flavour_is_chosen_by_adapter_type(ctx, monkeypatch):
@@ -91,13 +103,13 @@ def test_shape_errors(ctx):
         K.delta_histogram(np.ones((2, 4, 5)), np.ones((2, 4, 5)), ctx=ctx)
 
 
-def test_row_chunking(small_ctx):
-    """4 KiB bindings hold 1024 floats: a 70 x 50 view is split into 4 chunks."""
+def test_row_chunking(small_ctx, histogram_flavour):
+    """4 KiB bindings hold 1024 floats: a 70 x 50 view is split into 4 chunks (by the kernel)."""
     rng = np.random.default_rng(6)
     pre, post, mask = _scene(rng, 70, 50)
     post[69, 49] = 1e6  # the maximum sits in the last chunk
     stage, _ = _run(small_ctx, pre, post, mask, 12.25)
-    assert len(stage.chunks) == 4
+    assert len(stage.chunks) == (0 if histogram_flavour == "cpu" else 4)
 
 
 def test_device_depth_inputs(ctx, small_ctx):

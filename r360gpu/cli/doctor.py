@@ -83,18 +83,20 @@ def _checks(ctx, rng):
         return abs(s - rs) <= SSIM_TOL["gpu"] and abs(m - rm) <= 1e-12, "23x37 RGB against the window definition"
 
     def on(backend, fn):
-        """fn with the mask kernels forced onto ``backend``: doctor checks the WGSL kernel on every
-        adapter, and the host path scoring takes on CPU adapters."""
+        """fn with the mask and depth kernels forced onto ``backend``: doctor checks the WGSL
+        kernels on every adapter, and the host paths scoring takes on CPU adapters."""
         def check():
-            old = os.environ.get("R360GPU_MASK_IOU")
-            os.environ["R360GPU_MASK_IOU"] = backend
+            keys = ("R360GPU_MASK_IOU", "R360GPU_DEPTH_CHANGE")
+            old = {k: os.environ.get(k) for k in keys}
+            os.environ.update({k: backend for k in keys})
             try:
                 return fn()
             finally:
-                if old is None:
-                    del os.environ["R360GPU_MASK_IOU"]
-                else:
-                    os.environ["R360GPU_MASK_IOU"] = old
+                for k, v in old.items():
+                    if v is None:
+                        del os.environ[k]
+                    else:
+                        os.environ[k] = v
         return check
 
     checks = [
@@ -103,7 +105,8 @@ def _checks(ctx, rng):
         ("mask union", on("gpu", union)),
         ("mask_iou (host path)", on("cpu", iou_random)),
         ("mask pack (device buffer)", device_pack),
-        ("depth_change", depth),
+        ("depth_change", on("gpu", depth)),
+        ("depth_change (host path)", on("cpu", depth)),
         ("ssim (GPU kernel)", ssim_kernel),
     ]
     try:

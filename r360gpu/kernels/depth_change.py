@@ -20,6 +20,13 @@ Conventions (written once, here):
 The two GPU passes are split so the host can run GHT (``r360gpu.metrics``)
 on the 256 bins in between:
 ``delta_histogram`` -> GHT -> ``changed_in_mask``.
+
+On CPU adapters (``ctx.kernel_backend("depth_change") == "cpu"``, lavapipe)
+depth images given as numpy arrays are measured by the same float32
+arithmetic in numpy, without a queue round trip per pass (about 80 ms per
+view of small images); results are bit-identical to the kernel's (tests run
+both paths against the oracle).  Depths already on the device always take
+the kernel.
 """
 from __future__ import annotations
 
@@ -86,6 +93,7 @@ class DeltaHistogram:
     scale: np.float32
     hist: np.ndarray  # (256,) int64
     chunks: list[_Chunk] = field(default_factory=list)
+    delta_host: np.ndarray | None = None  # dD (H, W) float32 on the host path (no chunks then)
 
 
 def bin_scale(lo: float, hi: float) -> np.float32:
@@ -172,6 +180,8 @@ def delta_histograms(d_pre, d_posts, *, ctx: GpuContext | None = None) -> list[D
     res = [DeltaHistogram(h, w, 0.0, 0.0, np.float32(0), np.zeros(N_BINS, np.int64)) for _ in posts]
     if h * w == 0 or not posts:
         return res
+    if ctx.kernel_backend(SHADER) == "cpu" and not any(isinstance(d, DeviceDepth) for d in (d_pre, *posts)):
+        return [_delta_histogram_host(d_pre, d) for d in posts]
     n = len(posts)
     rows = _rows_per_chunk(ctx, w, h)
     stride = _STATS_STRIDE
@@ -217,6 +227,31 @@ def delta_histograms(d_pre, d_posts, *, ctx: GpuContext | None = None) -> list[D
     return res
 
 
+def _valid(d: np.ndarray) -> np.ndarray:
+    return (d > 0) & (d < np.float32(np.inf))  # finite and > 0 (NaN compares False)
+
+
+def _delta_histogram_host(d_pre: np.ndarray, d_post: np.ndarray) -> DeltaHistogram:
+    """The first pass in numpy, with the kernel's float32 operations."""
+    h, w = d_pre.shape
+    with np.errstate(invalid="ignore", over="ignore"):  # inf - inf: zeroed below with the other missing pixels
+        delta = np.abs(d_pre - d_post)
+    delta[~(_valid(d_pre) & _valid(d_post))] = 0
+    lo, hi = float(delta.min()), float(delta.max())
+    scale = bin_scale(lo, hi)
+    return DeltaHistogram(h, w, lo, hi, scale, np.bincount(_bins(delta, lo, scale).ravel(), minlength=N_BINS),
+                          delta_host=delta)
+
+
+def _bins(delta: np.ndarray, lo: float, scale: np.float32) -> np.ndarray:
+    """clamp(floor((dD - lo) * scale), 0, 255) as uint8, in float32 like the kernel."""
+    x = np.subtract(delta, np.float32(lo), dtype=np.float32)
+    x *= scale
+    np.floor(x, out=x)
+    np.clip(x, 0, N_BINS - 1, out=x)
+    return x.astype(np.uint8)
+
+
 @dataclass
 class ChangedResult:
     """Second pass: ``changed`` bool (H, W); counts inside the target mask."""
@@ -257,6 +292,13 @@ def changed_in_masks(stages, mask, ts, *, ctx: GpuContext | None = None) -> list
             raise InputError(f"depth images of one batch differ in size: {h}x{w} vs {s.height}x{s.width} (H x W)")
     out = [ChangedResult(np.zeros((h, w), bool), 0, 0) for _ in stages]
     if h * w == 0:
+        return out
+    if all(s.delta_host is not None for s in stages):
+        inside = m != 0
+        n_mask = int(np.count_nonzero(inside))
+        for k, (stage, t) in enumerate(zip(stages, ts)):
+            changed = _bins(stage.delta_host, stage.lo, stage.scale) > _split_f32(t)
+            out[k] = ChangedResult(changed, int(np.count_nonzero(changed & inside)), n_mask)
         return out
     n = len(stages)
     stride = _STATS_STRIDE
