@@ -261,14 +261,20 @@ def mask_overlay(rgb, masks, width: int = PANEL_WIDTH, *, color: tuple[int, int,
 
 # -- sheets ----------------------------------------------------------------------
 
-def encode_png(image) -> bytes:
-    """PNG bytes of an RGB (or gray) image (compression level 1; no metadata).
+_PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 1] + (
+    [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_UP] if hasattr(cv2, "IMWRITE_PNG_FILTER") else [])
 
-    Level 1: a 1300 x 706 contact sheet encodes in 25 ms instead of 64 ms at
-    level 6, for a file 10% larger (392 vs 355 KB); pictures are written for
-    every method and view, so this is most of their cost."""
+
+def encode_png(image) -> bytes:
+    """PNG bytes of an RGB (or gray) image (compression level 1, "up" row filter; no metadata).
+
+    Pictures are written for every method and view, and encoding is most of
+    their cost.  One 1300 x 706 contact sheet, timed in one run on the 2-core
+    CI machine: 74 ms at level 6 with libpng's adaptive filters, 49 ms at
+    level 1, 19 ms at level 1 with the "up" filter alone (OpenCV >= 4.11),
+    for a file 12% larger (399 vs 355 KB); lossless in every case."""
     rgb = as_rgb8(image, "PNG image")
-    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), _PNG_PARAMS)
     if not ok:
         raise RuntimeError("OpenCV could not encode a PNG")
     return buf.tobytes()
