@@ -59,7 +59,6 @@ the first one per probe raises one warning.
 """
 from __future__ import annotations
 
-import itertools
 import json
 import math
 import os
@@ -403,11 +402,6 @@ class SamJsonDir:
         self.directory = _check_dir(directory)
         self._merged_path = self.directory / "merged.json"
         self._merged: dict[str, list] | None = None
-        if not self._merged_path.is_file() and any(p.stat().st_size >= WORKER_MIN_BYTES
-                                                    for p in itertools.islice(self.directory.glob("*.json"), 8)):
-            from ..util import workers
-
-            workers.warm()  # big per-view files will be read in a worker: start it while the run sets up
         if self._merged_path.is_file():
             data = sam_json.load(self._merged_path)
             if not isinstance(data, dict):

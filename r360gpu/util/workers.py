@@ -97,12 +97,6 @@ def call(fn, *args, **kwargs):
     return _get_pool().submit(fn, *args, **kwargs).result()
 
 
-def warm() -> None:
-    """Start the workers now (in the background), so the first :func:`call` does not wait for them."""
-    if workers() > 0:
-        _get_pool().submit(os.getpid)
-
-
 def shutdown() -> None:
     """Stop the pool (started again on the next :func:`call`)."""
     global _pool
