@@ -21,9 +21,6 @@ class InputError(R360Error, ValueError):
         self.problem = problem
         super().__init__(f"{self.path}: {problem}" if self.path else problem)
 
-    def __reduce__(self):  # keep path and problem when raised in a worker process
-        return (type(self), (self.problem, self.path))
-
 
 class GpuUnavailableError(R360Error, RuntimeError):
     """No usable wgpu adapter (e.g. no Vulkan driver installed)."""

@@ -41,9 +41,6 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     # Everything, the heavy imports of build_parser() included, runs under the Ctrl-C handler.
     args = None
-    from ..util import workers
-
-    workers.allow()  # decoding processes (util.workers) are safe under this entry point
     try:
         parser = build_parser()
         args = parser.parse_args(argv)

@@ -319,8 +319,6 @@ def score_chunk(common: dict, views: list) -> dict:
     from .run import Timer
 
     _fail_once_hook()
-    # Ray already runs one worker per CPU: no decoding processes of our own on top (util.workers)
-    os.environ.setdefault("R360GPU_WORKERS", "0")
     node = platform.node()
     if common["version"] != __version__:
         raise InputError(f"Ray node {node} runs r360gpu {__version__} but the driver runs {common['version']}; "

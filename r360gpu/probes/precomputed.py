@@ -434,16 +434,7 @@ class SamJsonDir:
         path = self.directory / f"{name}.json"
         if not path.is_file():
             return None
-        if path.stat().st_size >= WORKER_MIN_BYTES:
-            from ..util import workers
-
-            return workers.call(read_sam_json, path, probe)
         return read_sam_json(path, probe)
-
-
-#: SAM JSON files at least this big are read in a worker process (r360gpu.util.workers): about
-#: one 1000 x 1200 mask of true/false text; smaller ones cost less than the hand-over.
-WORKER_MIN_BYTES = 4 << 20
 
 
 AMG_METADATA = "metadata.csv"
