@@ -204,7 +204,8 @@ def test_sam_embed_preprocessing_reaches_encoder(sam_pair):
     emb = models.embed(image)
     assert emb.image_size == (32, 64) and emb.model_size == (512, 1024)
     feat = emb.features["image_embeddings"]
-    expect = (colour * 255 - np.array(SAM_PIXEL_MEAN)) / np.array(SAM_PIXEL_STD)
+    # segment-anything takes uint8: 127.5 and 63.75 round to 128 and 64.
+    expect = (np.array([128.0, 64.0, 255.0]) - np.array(SAM_PIXEL_MEAN)) / np.array(SAM_PIXEL_STD)
     for c in range(3):
         np.testing.assert_allclose(feat[0, c, :32], expect[c], rtol=1e-5)  # image rows 0..511
         assert not feat[0, c, 32:].any()  # padding

@@ -25,8 +25,9 @@ on numpy + onnxruntime:
 Differences from the torch originals, all from running the exported graphs:
 the multimask outputs come from the ONNX decoder (tokens 1..3 of a SAM
 decoder's four); a decoder exported with ``--return-single-mask`` yields one
-mask per point (warned); image resizing is the same filter in float32 rather
-than on uint8 (see :mod:`r360gpu.probes.preprocess`); SAM2's optional
+mask per point (warned); SAM's image resize is PIL's on the uint8 image, bit
+for bit, and SAM2's a float32 version of torch's antialiased bilinear resize
+(see :mod:`r360gpu.probes.preprocess`); SAM2's optional
 hole / sprinkle filling of low-resolution logits (its CUDA extension, only
 active when ``min_mask_region_area`` > 0) is not reproduced -- step 5 is.
 """
