@@ -21,12 +21,14 @@ from r360gpu.probes.base import ProbeView  # noqa: E402
 from r360gpu.probes.cache import ProbeCache, cached  # noqa: E402
 from r360gpu.probes.onnx_models import (  # noqa: E402
     OnnxModel,
+    SamEmbedding,
     SamModels,
     available_providers,
     external_data_files,
     providers_for,
 )
 from r360gpu.probes.preprocess import IMAGENET_MEAN, IMAGENET_STD, SAM_PIXEL_MEAN, SAM_PIXEL_STD  # noqa: E402
+from r360gpu.probes.preprocess import resize_logits as pp_resize_logits  # noqa: E402
 from r360gpu.probes.sam_amg import AmgParams, SamAmgProbe, _remove_small_regions, generate_masks  # noqa: E402
 
 from onnx_graphs import (  # noqa: E402
@@ -279,6 +281,39 @@ def test_sam2_prompts_batched_in_square_frame(tmp_path):
     assert calls[0]["point_labels"].tolist() == [[1.0], [1.0], [1.0]]
     assert calls[0]["mask_input"].shape == (3, 1, 256, 256)
     assert decoded.logits.shape == (3, 3, 256, 256)
+
+
+def test_sam2_point_coordinates_round_as_transform_coords(tmp_path):
+    """SAM2Transforms.transform_coords(normalize=True) on SAM2's float32 points tensor:
+    float32(x) / w, then * 1024, each rounded to float32 (not one float64 product)."""
+    models = SamModels(
+        sam2_encoder(tmp_path / "e.onnx"),
+        sam2_decoder(tmp_path / "d.onnx", iou=[0.9] * 3, radius=[1] * 3, slope=[1] * 3),
+    )
+    emb = SamEmbedding({}, (301, 437), (1024, 1024))
+    xy = np.random.default_rng(0).uniform(0, 437, (2000, 2)) * [1.0, 301 / 437]
+    expect = (xy.astype(np.float32) / np.array([437, 301], np.float32)) * np.float32(1024)
+    np.testing.assert_array_equal(models.to_model_coords(emb, xy), expect)
+    one_rounding = (xy * np.array([1024 / 437, 1024 / 301])).astype(np.float32)
+    assert (one_rounding != expect).any()  # the two recipes do differ on these points
+
+
+def test_sam2_logits_reach_the_upsampling_unclamped(tmp_path):
+    """SAM2ImagePredictor._predict upsamples the decoder's logits as they are and clamps
+    only the low-res copy it returns: r360gpu must not clamp at +-32 before upsampling
+    (where a +100 / -1000 neighbourhood crosses 0 moves)."""
+    models = SamModels(
+        sam2_encoder(tmp_path / "e.onnx"),
+        sam2_decoder(tmp_path / "d.onnx", iou=[0.9] * 3, radius=[160] * 3, slope=[1.0] * 3),
+    )
+    emb = models.embed(np.zeros((600, 600, 3), np.uint8))  # upsampled 256 -> 600: uneven weights
+    decoded = models.predict_points(emb, np.array([[300.0, 300.0]]))
+    assert decoded.logits.max() > 160.0**2 * 0.99  # the disk's centre value, R^2
+    assert decoded.logits.min() < -32.0
+    up = models.logits_to_image(emb, decoded.logits[0], decoded.low_res)
+    np.testing.assert_array_equal(up, pp_resize_logits(decoded.logits[0], (600, 600)))
+    clamped = pp_resize_logits(np.clip(decoded.logits[0], -32, 32), (600, 600))
+    assert ((up > 0) != (clamped > 0)).any()
 
 
 def test_decoder_without_low_res_uses_full_size_masks(tmp_path):
