@@ -13,8 +13,9 @@ compares:
 3. whole mask sets: ``SAM2AutomaticMaskGenerator.generate`` against
    r360gpu's ``generate_masks`` (a) driven by the official
    ``SAM2ImagePredictor`` (the algorithm alone) and (b) on the exported ONNX
-   pair, with the same parameters on the same images (those of
-   bench/parity_sam.py): counts and the Hungarian matching of masks by IoU.
+   pair, with the same parameters on the same images (made by
+   bench/parity_sam.py's generator, here drawn first from the seed): counts
+   and the Hungarian matching of masks by IoU.
 
 Needs torch, hydra-core, iopath, onnx, onnxruntime, opencv, scipy and the
 fetched sources (never committed); torchvision is replaced by
@@ -22,7 +23,7 @@ bench/torchvision_standin when it does not load:
 
     git --git-dir=<mirror of IDEA-Research/Grounded-SAM-2> archive HEAD sam2 | tar -x -C /tmp/gsam2-src
     nice -n 19 python bench/parity_sam2.py --gsam2-src /tmp/gsam2-src \
-        --samexporter-src /tmp/samexporter-src [--work /tmp/probes-parity]
+        --samexporter-src /tmp/samexporter-src [--work /tmp/probes-parity] [--images shapes240x320]
 
 (the sam2 folder must include sam2/configs).  On CPU the hole / sprinkle
 filling of SAM 2's predictor is skipped (its CUDA extension does not load),
@@ -59,6 +60,8 @@ def parse_args():
     ap.add_argument("--work", default="/tmp/probes-parity", help="where the ONNX exports are written")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--points-per-side", type=int, default=16)
+    ap.add_argument("--images", default="shapes240x320,noise210x280",
+                    help="comma-separated names of parity_sam.py's images (default: one structured, one noise)")
     ap.add_argument("--explore", action="store_true", help="print logit / score distributions and stop")
     return ap.parse_args()
 
@@ -384,8 +387,10 @@ def main() -> int:
     rng = np.random.default_rng(args.seed)
     print(f"torch {torch.__version__}; {tv}; sam2 from {args.gsam2_src} ({CONFIG}); seed {args.seed}")
     model = build_sam2(args.seed)
-    imgs = P.images(rng)
-    imgs = [imgs[0], imgs[2]]  # one structured, one noise image: a CPU run takes ~30 min already
+    wanted = args.images.split(",")
+    imgs = [(n, im) for n, im in P.images(rng) if n in wanted]  # a CPU run takes ~15 min per image
+    if len(imgs) != len(wanted):
+        raise SystemExit(f"--images: choose from {[n for n, _ in P.images(np.random.default_rng(args.seed))]}")
     if args.explore:
         explore(model, imgs, args.points_per_side)
         return 0

@@ -491,6 +491,8 @@ def test_sam_amg_probe_describe_and_cache(tmp_path, sam_pair):
     assert set(desc["models"]) == {"encoder:sam.encoder.onnx", "decoder:sam.decoder.onnx"}
     assert desc["params"]["amg"]["pred_iou_thresh"] == 0.88 and desc["params"]["variant"] == "sam"
     assert desc["params"]["provider"] == "CPUExecutionProvider"
+    # the preprocessing is part of the key: masks cached under another resize must miss
+    assert desc["params"]["image_resize"].startswith("PIL bilinear on the uint8 image")
     other = SamAmgProbe(*sam_pair, params=AmgParams(points_per_side=3))
     assert other.describe() != desc  # parameters are part of the cache key
 
@@ -671,6 +673,7 @@ def test_grounded_probe_describe(grounded_files):
 
     desc = GroundedSamProbe(*grounded_files).describe()
     assert desc["kind"] == "semantic"
+    assert desc["params"]["dino_image_resize"].startswith("PIL bilinear on the uint8 image")
     assert set(desc["models"]) == {
         "dino:groundingdino.onnx",
         "tokenizer:tokenizer.json",

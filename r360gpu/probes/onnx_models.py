@@ -451,8 +451,19 @@ class SamModels:
         return out
 
     def describe_models(self) -> dict:
-        """Variant and layout facts for ``describe()``."""
-        return {"variant": self.variant, "encoder_layout": self.encoder_layout, "input_size": list(self.input_size)}
+        """Variant, layout and preprocessing facts for ``describe()`` (and so for probe-cache keys:
+        a change of preprocessing must not reuse masks cached under the old one)."""
+        resize = (
+            "PIL bilinear on the uint8 image (segment-anything)"
+            if self.variant == "sam"
+            else "float32 antialiased bilinear (SAM2Transforms)"
+        )
+        return {
+            "variant": self.variant,
+            "encoder_layout": self.encoder_layout,
+            "input_size": list(self.input_size),
+            "image_resize": resize,
+        }
 
     def embed(self, image) -> SamEmbedding:
         """Encode one RGB (H, W, 3) image, uint8 0..255 or float 0..1."""
