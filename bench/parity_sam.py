@@ -50,6 +50,8 @@ def parse_args():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--points-per-side", type=int, default=16)
     ap.add_argument("--quick", action="store_true", help="only the step checks (no models)")
+    ap.add_argument("--margins-only", action="store_true",
+                    help="of the mask-set checks, only the ONNX-vs-torch logit margins (minutes, not half an hour)")
     return ap.parse_args()
 
 
@@ -212,8 +214,9 @@ class TorchSamModels:
 
     def embed(self, image01):
         from r360gpu.probes.onnx_models import SamEmbedding
+        from r360gpu.probes.preprocess import as_rgb01, to_uint8
 
-        u8 = np.rint(np.asarray(image01) * 255).astype(np.uint8)  # exact for images that came from uint8
+        u8 = to_uint8(as_rgb01(image01))  # uint8 or float 0..1, as SamModels.embed; exact for uint8 sources
         self.predictor.set_image(u8)
         return SamEmbedding({}, tuple(u8.shape[:2]), tuple(self.predictor.input_size))
 
@@ -461,8 +464,10 @@ def logit_margin(sam, onnx_models, torch_models, img, p) -> str:
 
     h, w = img.shape[:2]
     pts = au.build_all_layer_point_grids(p.points_per_side, 0, 1)[0] * np.array([w, h], np.float64)
-    e_t = torch_models.embed(img)
-    e_o = onnx_models.embed(img)
+    from r360gpu.probes.preprocess import as_rgb01
+
+    e_t = torch_models.embed(as_rgb01(img))  # as generate_masks passes it (float 0..1)
+    e_o = onnx_models.embed(as_rgb01(img))
     d_t = torch_models.predict_points(e_t, pts)
     d_o = onnx_models.predict_points(e_o, pts)
     lo_o, iou_o = d_o.multimask()
@@ -492,7 +497,7 @@ def logit_margin(sam, onnx_models, torch_models, img, p) -> str:
             f"{len(keep_t)} masks{' (each within those diffs of its threshold)' if flip_explained else ' (NOT explained)'}")
 
 
-def check_generators(sam, enc_path, dec_path, imgs, pps) -> list[bool]:
+def check_generators(sam, enc_path, dec_path, imgs, pps, margins_only=False) -> list[bool]:
     from r360gpu.probes.onnx_models import SamModels
     from r360gpu.probes.sam_amg import generate_masks
 
@@ -512,7 +517,7 @@ def check_generators(sam, enc_path, dec_path, imgs, pps) -> list[bool]:
     print("   image        cfg | official | r360 on torch model: n, IoU==1 pairs, min IoU | "
           "r360 on ONNX: n, IoU==1 pairs, IoU>0.5, mean / min IoU")
     for name, img in imgs:
-        for k, p in enumerate(configs):
+        for k, p in enumerate([] if margins_only else configs):
             t0 = time.perf_counter()
             m_off, _ = official_generate(sam, img, p, cache)
             t1 = time.perf_counter()
@@ -567,7 +572,7 @@ def main() -> int:
         print(f"   (ONNX export {time.perf_counter() - t0:.0f} s: {enc.name}, {dec.name})")
         imgs = images(rng)
         results += check_models(sam, enc, dec, imgs, rng)
-        results += check_generators(sam, enc, dec, imgs, args.points_per_side)
+        results += check_generators(sam, enc, dec, imgs, args.points_per_side, args.margins_only)
     print(f"summary: {sum(results)} of {len(results)} checks agree")
     return 0 if all(results) else 1
 

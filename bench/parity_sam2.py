@@ -125,8 +125,9 @@ class TorchSam2Models:
 
     def embed(self, image01):
         from r360gpu.probes.onnx_models import SamEmbedding
+        from r360gpu.probes.preprocess import as_rgb01, to_uint8
 
-        u8 = np.rint(np.asarray(image01) * 255).astype(np.uint8)  # exact for images that came from uint8
+        u8 = to_uint8(as_rgb01(image01))  # uint8 or float 0..1, as SamModels.embed; exact for uint8 sources
         set_image(self.predictor, u8, self.cache)
         return SamEmbedding({}, tuple(u8.shape[:2]), (1024, 1024))
 
