@@ -402,6 +402,18 @@ def test_amg_sam2_non_square_frame(tmp_path):
     assert abs(xs.mean() - 31.5) < 0.3 and abs(ys.mean() - 23.5) < 0.3
 
 
+def test_amg_sam2_has_no_small_region_step(tmp_path):
+    """SAM2AutomaticMaskGenerator.generate never calls postprocess_small_regions (segment-anything's
+    does): min_mask_region_area only reaches SAM2's CUDA hole filling, so the masks stay as they are."""
+    dec = sam2_decoder(tmp_path / "d.onnx", iou=[0.95, 0.5, 0.5], radius=[160, 1, 1], slope=[0.01, 1.0, 1.0])
+    models = SamModels(sam2_encoder(tmp_path / "e.onnx"), dec)
+    image = np.zeros((48, 64, 3), np.uint8)
+    plain = generate_masks(models, image, AmgParams(points_per_side=1))
+    big = generate_masks(models, image, AmgParams(points_per_side=1, min_mask_region_area=10**6))
+    assert plain.count == big.count == 1 and plain.masks[0].sum() < 10**6
+    np.testing.assert_array_equal(big.masks, plain.masks)  # SAM's step 5 would have removed this island
+
+
 def test_amg_crop_layers(sam_pair):
     models = SamModels(*sam_pair)
     params = AmgParams(points_per_side=2, crop_n_layers=1)
