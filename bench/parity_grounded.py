@@ -214,17 +214,18 @@ def main() -> int:
             bad.append((h, w))
     results.append(report("output size of 300 random image sizes", not bad, f"{len(bad)} differ: {bad[:3]}" if bad else ""))
     worst = 0.0
-    for h, w in ((480, 640), (1080, 1920), (300, 200), (900, 1200)):
+    for h, w in ((480, 640), (1080, 1920), (300, 200), (900, 1200), (1, 700), (2000, 3)):
         img = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
         pil, _ = transforms_ns["resize"](Image.fromarray(img), None, 800, 1333)
-        ref = np.asarray(pil).astype(np.float32) / 255.0
-        mean = np.array([0.485, 0.456, 0.406], np.float32)
-        std = np.array([0.229, 0.224, 0.225], np.float32)
-        ref = ((ref - mean) / std).transpose(2, 0, 1)[None]
+        ref = torch.from_numpy(np.asarray(pil).copy()).permute(2, 0, 1).float().div(255)  # ToTensor
+        # torchvision's F.normalize on a float32 tensor (sub_, div_ by float32 mean / std)
+        mean = torch.as_tensor([0.485, 0.456, 0.406], dtype=torch.float32)[:, None, None]
+        std = torch.as_tensor([0.229, 0.224, 0.225], dtype=torch.float32)[:, None, None]
+        ref = ref.sub_(mean).div_(std).numpy()[None]
         r = dino_encoder_input(as_rgb01(img), dino_input_shape(h, w))
         worst = max(worst, float(np.abs(ref - r).max() * 0.229 * 255))
-    results.append(report("normalised image tensor", worst < 0.5,
-                          f"max |diff| {worst:.3f} grey levels (PIL resamples uint8 in fixed point)"))
+    results.append(report("normalised image tensor (PIL resize, ToTensor, Normalize)", worst == 0.0,
+                          f"max |diff| {worst:.3g} grey levels"))
     print(f"summary: {sum(results)} of {len(results)} checks agree")
     return 0 if all(results) else 1
 

@@ -293,7 +293,8 @@ def test_sam_encoder_input_normalises_and_pads():
     tensor, resized = pp.sam_encoder_input(image, 1024)
     assert tensor.shape == (1, 3, 1024, 1024) and tensor.dtype == np.float32
     assert resized == (512, 1024)
-    expect = (colour * 255 - np.array(pp.SAM_PIXEL_MEAN)) / np.array(pp.SAM_PIXEL_STD)
+    # segment-anything takes uint8: 0.5 * 255 = 127.5 and 0.25 * 255 = 63.75 round to 128 and 64.
+    expect = (np.array([128.0, 64.0, 255.0]) - np.array(pp.SAM_PIXEL_MEAN)) / np.array(pp.SAM_PIXEL_STD)
     for c in range(3):
         np.testing.assert_allclose(tensor[0, c, :512], expect[c], rtol=1e-5)
         assert not tensor[0, c, 512:].any()  # padding after normalisation is 0
@@ -302,8 +303,8 @@ def test_sam_encoder_input_normalises_and_pads():
 def test_sam_resized_image_is_0_255_unpadded():
     image = np.full((20, 10, 3), 0.2, np.float32)
     out = pp.sam_resized_image(image, 1024)
-    assert out.shape == (1024, 512, 3)
-    np.testing.assert_allclose(out, 51.0, rtol=1e-5)
+    assert out.shape == (1024, 512, 3) and out.dtype == np.float32
+    np.testing.assert_array_equal(out, 51.0)  # 0.2 * 255 = 51, a constant stays exact through PIL's resize
 
 
 def test_sam2_encoder_input_plain_resize_imagenet():
@@ -329,7 +330,9 @@ def test_dino_encoder_input():
     image = np.full((8, 12, 3), 0.485, np.float32)
     tensor = pp.dino_encoder_input(image, (16, 24))
     assert tensor.shape == (1, 3, 16, 24)
-    np.testing.assert_allclose(tensor[0, 0], 0.0, atol=1e-6)
+    # 0.485 * 255 = 123.675 -> uint8 124; ToTensor divides by 255 in float32.
+    expect = (np.float32(124) / np.float32(255) - np.float32(0.485)) / np.float32(0.229)
+    np.testing.assert_array_equal(tensor[0, 0], expect)
 
 
 # ---------------------------------------------------------------- logit upsampling

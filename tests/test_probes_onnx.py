@@ -21,12 +21,14 @@ from r360gpu.probes.base import ProbeView  # noqa: E402
 from r360gpu.probes.cache import ProbeCache, cached  # noqa: E402
 from r360gpu.probes.onnx_models import (  # noqa: E402
     OnnxModel,
+    SamEmbedding,
     SamModels,
     available_providers,
     external_data_files,
     providers_for,
 )
 from r360gpu.probes.preprocess import IMAGENET_MEAN, IMAGENET_STD, SAM_PIXEL_MEAN, SAM_PIXEL_STD  # noqa: E402
+from r360gpu.probes.preprocess import resize_logits as pp_resize_logits  # noqa: E402
 from r360gpu.probes.sam_amg import AmgParams, SamAmgProbe, _remove_small_regions, generate_masks  # noqa: E402
 
 from onnx_graphs import (  # noqa: E402
@@ -204,7 +206,8 @@ def test_sam_embed_preprocessing_reaches_encoder(sam_pair):
     emb = models.embed(image)
     assert emb.image_size == (32, 64) and emb.model_size == (512, 1024)
     feat = emb.features["image_embeddings"]
-    expect = (colour * 255 - np.array(SAM_PIXEL_MEAN)) / np.array(SAM_PIXEL_STD)
+    # segment-anything takes uint8: 127.5 and 63.75 round to 128 and 64.
+    expect = (np.array([128.0, 64.0, 255.0]) - np.array(SAM_PIXEL_MEAN)) / np.array(SAM_PIXEL_STD)
     for c in range(3):
         np.testing.assert_allclose(feat[0, c, :32], expect[c], rtol=1e-5)  # image rows 0..511
         assert not feat[0, c, 32:].any()  # padding
@@ -278,6 +281,39 @@ def test_sam2_prompts_batched_in_square_frame(tmp_path):
     assert calls[0]["point_labels"].tolist() == [[1.0], [1.0], [1.0]]
     assert calls[0]["mask_input"].shape == (3, 1, 256, 256)
     assert decoded.logits.shape == (3, 3, 256, 256)
+
+
+def test_sam2_point_coordinates_round_as_transform_coords(tmp_path):
+    """SAM2Transforms.transform_coords(normalize=True) on SAM2's float32 points tensor:
+    float32(x) / w, then * 1024, each rounded to float32 (not one float64 product)."""
+    models = SamModels(
+        sam2_encoder(tmp_path / "e.onnx"),
+        sam2_decoder(tmp_path / "d.onnx", iou=[0.9] * 3, radius=[1] * 3, slope=[1] * 3),
+    )
+    emb = SamEmbedding({}, (301, 437), (1024, 1024))
+    xy = np.random.default_rng(0).uniform(0, 437, (2000, 2)) * [1.0, 301 / 437]
+    expect = (xy.astype(np.float32) / np.array([437, 301], np.float32)) * np.float32(1024)
+    np.testing.assert_array_equal(models.to_model_coords(emb, xy), expect)
+    one_rounding = (xy * np.array([1024 / 437, 1024 / 301])).astype(np.float32)
+    assert (one_rounding != expect).any()  # the two recipes do differ on these points
+
+
+def test_sam2_logits_reach_the_upsampling_unclamped(tmp_path):
+    """SAM2ImagePredictor._predict upsamples the decoder's logits as they are and clamps
+    only the low-res copy it returns: r360gpu must not clamp at +-32 before upsampling
+    (where a +100 / -1000 neighbourhood crosses 0 moves)."""
+    models = SamModels(
+        sam2_encoder(tmp_path / "e.onnx"),
+        sam2_decoder(tmp_path / "d.onnx", iou=[0.9] * 3, radius=[160] * 3, slope=[1.0] * 3),
+    )
+    emb = models.embed(np.zeros((600, 600, 3), np.uint8))  # upsampled 256 -> 600: uneven weights
+    decoded = models.predict_points(emb, np.array([[300.0, 300.0]]))
+    assert decoded.logits.max() > 160.0**2 * 0.99  # the disk's centre value, R^2
+    assert decoded.logits.min() < -32.0
+    up = models.logits_to_image(emb, decoded.logits[0], decoded.low_res)
+    np.testing.assert_array_equal(up, pp_resize_logits(decoded.logits[0], (600, 600)))
+    clamped = pp_resize_logits(np.clip(decoded.logits[0], -32, 32), (600, 600))
+    assert ((up > 0) != (clamped > 0)).any()
 
 
 def test_decoder_without_low_res_uses_full_size_masks(tmp_path):
@@ -364,6 +400,18 @@ def test_amg_sam2_non_square_frame(tmp_path):
     # the disk of radius 160 in the 1024 x 1024 frame is 10 px wide (x16) and 7.5 px tall (x21.33) in the image
     assert (xs.max() - xs.min() + 1) in (20, 21) and (ys.max() - ys.min() + 1) in (15, 16)
     assert abs(xs.mean() - 31.5) < 0.3 and abs(ys.mean() - 23.5) < 0.3
+
+
+def test_amg_sam2_has_no_small_region_step(tmp_path):
+    """SAM2AutomaticMaskGenerator.generate never calls postprocess_small_regions (segment-anything's
+    does): min_mask_region_area only reaches SAM2's CUDA hole filling, so the masks stay as they are."""
+    dec = sam2_decoder(tmp_path / "d.onnx", iou=[0.95, 0.5, 0.5], radius=[160, 1, 1], slope=[0.01, 1.0, 1.0])
+    models = SamModels(sam2_encoder(tmp_path / "e.onnx"), dec)
+    image = np.zeros((48, 64, 3), np.uint8)
+    plain = generate_masks(models, image, AmgParams(points_per_side=1))
+    big = generate_masks(models, image, AmgParams(points_per_side=1, min_mask_region_area=10**6))
+    assert plain.count == big.count == 1 and plain.masks[0].sum() < 10**6
+    np.testing.assert_array_equal(big.masks, plain.masks)  # SAM's step 5 would have removed this island
 
 
 def test_amg_crop_layers(sam_pair):
@@ -455,6 +503,8 @@ def test_sam_amg_probe_describe_and_cache(tmp_path, sam_pair):
     assert set(desc["models"]) == {"encoder:sam.encoder.onnx", "decoder:sam.decoder.onnx"}
     assert desc["params"]["amg"]["pred_iou_thresh"] == 0.88 and desc["params"]["variant"] == "sam"
     assert desc["params"]["provider"] == "CPUExecutionProvider"
+    # the preprocessing is part of the key: masks cached under another resize must miss
+    assert desc["params"]["image_resize"].startswith("PIL bilinear on the uint8 image")
     other = SamAmgProbe(*sam_pair, params=AmgParams(points_per_side=3))
     assert other.describe() != desc  # parameters are part of the cache key
 
@@ -635,6 +685,7 @@ def test_grounded_probe_describe(grounded_files):
 
     desc = GroundedSamProbe(*grounded_files).describe()
     assert desc["kind"] == "semantic"
+    assert desc["params"]["dino_image_resize"].startswith("PIL bilinear on the uint8 image")
     assert set(desc["models"]) == {
         "dino:groundingdino.onnx",
         "tokenizer:tokenizer.json",

@@ -504,6 +504,7 @@ class GroundedSamProbe(SemanticProbe):
             "shorter side {1}, longer at most {2}".format(*self.grounding.resize_policy())
             if self.grounding.resize_policy()[0] == "aspect" else
             "exactly {2}x{1} (W x H)".format(*self.grounding.resize_policy()),
+            "dino_image_resize": "PIL bilinear on the uint8 image (GroundingDINO transforms)",
             "caption_rule": "lower-case, strip, append ' .' unless ending with '.'",
             "prompt_rule": PROMPT_RULE if self.grounding.phrase_match else "every detection",
             "sam": self.sam.describe_models(),

@@ -451,8 +451,19 @@ class SamModels:
         return out
 
     def describe_models(self) -> dict:
-        """Variant and layout facts for ``describe()``."""
-        return {"variant": self.variant, "encoder_layout": self.encoder_layout, "input_size": list(self.input_size)}
+        """Variant, layout and preprocessing facts for ``describe()`` (and so for probe-cache keys:
+        a change of preprocessing must not reuse masks cached under the old one)."""
+        resize = (
+            "PIL bilinear on the uint8 image (segment-anything)"
+            if self.variant == "sam"
+            else "float32 antialiased bilinear (SAM2Transforms)"
+        )
+        return {
+            "variant": self.variant,
+            "encoder_layout": self.encoder_layout,
+            "input_size": list(self.input_size),
+            "image_resize": resize,
+        }
 
     def embed(self, image) -> SamEmbedding:
         """Encode one RGB (H, W, 3) image, uint8 0..255 or float 0..1."""
@@ -475,11 +486,17 @@ class SamModels:
     def to_model_coords(self, embedding: SamEmbedding, xy: np.ndarray) -> np.ndarray:
         """float32 (..., 2): image pixel (x, y) -> the decoder's coordinate frame.
 
-        SAM: scaled by (W'/W, H'/H) into the resized image
-        (``ResizeLongestSide.apply_coords``); SAM2: x / W * S_w, y / H * S_h.
+        SAM: scaled by (W'/W, H'/H) in float64 into the resized image
+        (``ResizeLongestSide.apply_coords``), rounded once to float32 (the
+        decoder's input type).  SAM2: ``SAM2Transforms.transform_coords``
+        (normalize=True) on its float32 tensor: x / W * S_w, y / H * S_h, each
+        step rounded to float32.
         """
         h, w = embedding.image_size
         mh, mw = embedding.model_size
+        if self.variant == "sam2":
+            xy32 = np.asarray(xy, np.float64).astype(np.float32)
+            return (xy32 / np.array([w, h], np.float32)) * np.array([mw, mh], np.float32)
         scale = np.array([mw / w, mh / h], np.float64)
         return (np.asarray(xy, np.float64) * scale).astype(np.float32)
 
@@ -555,9 +572,10 @@ class SamModels:
                     f"{logits.shape[2]}x{logits.shape[3]}"
                 )
             low_res = not full
+        # Not clamped to +-32: SAM2ImagePredictor._predict upsamples the unclamped
+        # logits and clamps only the low-res copy it returns for reuse as a mask input
+        # (samexporter's SAM2 decoder clamps inside the graph; r360gpu takes what it gets).
         logits = np.asarray(logits, np.float32)
-        if self.variant == "sam2":
-            logits = np.clip(logits, -32.0, 32.0)  # as SAM2ImagePredictor._predict
         if logits.shape[0] != b or iou.reshape(-1).size != logits.shape[0] * logits.shape[1]:
             self._bad_output(f"{b} prompts gave masks of shape {logits.shape} and iou_predictions of shape {iou.shape}")
         return Decoded(logits, iou.reshape(logits.shape[:2]), low_res)

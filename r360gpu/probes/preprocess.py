@@ -8,12 +8,15 @@ Conventions:
 * Model inputs are float32 ``(1, 3, H, W)`` (NCHW).
 * Image resizing uses the *antialiased bilinear* (triangle) filter of PIL's
   ``Image.resize(..., BILINEAR)`` and of torch's
-  ``interpolate(..., mode="bilinear", antialias=True)``, which is what
-  segment-anything (``ResizeLongestSide.apply_image``, through PIL), SAM2
-  (``torchvision.transforms.Resize`` on a float tensor) and GroundingDINO
-  (``T.RandomResize`` through PIL) use.  It is computed in float32 here; PIL
-  rounds uint8 images to integers, so results may differ from PIL by up to
-  half a grey level.
+  ``interpolate(..., mode="bilinear", antialias=True)``.
+  segment-anything (``ResizeLongestSide.apply_image``) and GroundingDINO
+  (``T.RandomResize``) resize a uint8 image through PIL: the image is
+  rounded to uint8 (exact for images that came as uint8; a float render is
+  quantised as those pipelines require) and resized by
+  :func:`resize_uint8_pil`, PIL's 8-bit fixed-point arithmetic re-done in
+  numpy, bit for bit (tests/test_probes_pil_resize.py against the installed
+  Pillow).  SAM2 (``torchvision.transforms.Resize`` on a float tensor)
+  resizes in float: :func:`resize_antialias`, float32.
 * Mask-logit upsampling uses plain bilinear interpolation with half-pixel
   centres and edge clamping (torch ``F.interpolate(mode="bilinear",
   align_corners=False)``, as SAM / SAM2 ``postprocess_masks``), through
@@ -21,6 +24,8 @@ Conventions:
 """
 
 from __future__ import annotations
+
+import math
 
 import cv2
 import numpy as np
@@ -34,6 +39,8 @@ __all__ = [
     "IMAGENET_STD",
     "as_rgb01",
     "resize_antialias",
+    "to_uint8",
+    "resize_uint8_pil",
     "longest_side_shape",
     "sam_encoder_input",
     "sam_resized_image",
@@ -126,6 +133,86 @@ def resize_antialias(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return np.ascontiguousarray(img)
 
 
+def to_uint8(image01: np.ndarray) -> np.ndarray:
+    """uint8 (H, W, C) from float 0..1: ``floor(x * 255 + 0.5)``, clipped.
+
+    Inverts :func:`as_rgb01` exactly on images that came as uint8 (checked
+    for all 256 values in the tests).
+    """
+    x = np.asarray(image01, np.float32)
+    return np.clip(np.floor(x * np.float32(255.0) + np.float32(0.5)), 0, 255).astype(np.uint8)
+
+
+#: Fractional bits of PIL's 8-bit resampling coefficients (Resample.c: 32 - 8 - 2).
+_PIL_PRECISION_BITS = 22
+
+
+def _pil_bilinear_coeffs(in_size: int, out_size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Source indices and int32 fixed-point weights, each (out_size, K), of PIL's
+    ``precompute_coeffs`` + ``normalize_coeffs_8bpc`` for the bilinear filter,
+    with its float64 operations in its order (so the rounding is the same)."""
+    scale = float(in_size) / out_size
+    filterscale = max(scale, 1.0)
+    support = 1.0 * filterscale  # the bilinear filter's support is 1
+    inv = 1.0 / filterscale
+    ksize = int(math.ceil(support)) * 2 + 1
+    centers = (np.arange(out_size, dtype=np.float64) + 0.5) * scale
+    # C's (int) truncates towards zero; negatives are clamped to 0 anyway.
+    xmin = np.maximum((centers - support + 0.5).astype(np.int64), 0)
+    count = np.minimum((centers + support + 0.5).astype(np.int64), in_size) - xmin
+    taps = xmin[:, None] + np.arange(ksize, dtype=np.int64)[None, :]
+    w = np.maximum(0.0, 1.0 - np.abs(((taps.astype(np.float64) - centers[:, None]) + 0.5) * inv))
+    w[np.arange(ksize)[None, :] >= count[:, None]] = 0.0
+    total = np.zeros(out_size, np.float64)
+    for k in range(ksize):  # summed left to right, as the C loop
+        total = total + w[:, k]
+    w = w / np.where(total != 0.0, total, 1.0)[:, None]
+    fixed = np.trunc(0.5 + w * float(1 << _PIL_PRECISION_BITS)).astype(np.int32)
+    return np.minimum(taps, in_size - 1), fixed
+
+
+def _pil_pass(image: np.ndarray, axis: int, out_size: int) -> np.ndarray:
+    """One 8-bit resampling pass of PIL along ``axis`` (1: horizontal, 0: vertical),
+    rounding to uint8 as PIL's ``clip8`` does."""
+    idx, coef = _pil_bilinear_coeffs(image.shape[axis], out_size)
+    shape = [1] * image.ndim
+    shape[axis] = out_size
+    out_shape = image.shape[:axis] + (out_size,) + image.shape[axis + 1 :]
+    # At most 255 * (2**22 + K) + 2**21 < 2**31: int32 cannot overflow.
+    acc = np.full(out_shape, 1 << (_PIL_PRECISION_BITS - 1), np.int32)
+    for k in range(idx.shape[1]):
+        acc += np.take(image, idx[:, k], axis=axis).astype(np.int32) * coef[:, k].reshape(shape)
+    return np.clip(acc >> _PIL_PRECISION_BITS, 0, 255).astype(np.uint8)
+
+
+def resize_uint8_pil(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """PIL's ``Image.resize((W', H'), BILINEAR)`` of a uint8 (H, W) or (H, W, C) image.
+
+    Pillow's 8-bit path: float64 triangle-filter weights rounded to 22-bit
+    fixed point, one pass per axis, each rounded and clipped to uint8 (a pass
+    is skipped when that side keeps its size).  Horizontal pass first, except
+    for images over 100 times taller than wide that shrink vertically
+    (Pillow 12.2: "Resize tall images vertically first").  Bit for bit equal
+    to Pillow 12.2 / 12.3 (tests/test_probes_pil_resize.py); Pillow 13 chooses
+    the pass order by its own rule, and then its pixels are those of the
+    other order (at most 1 grey level apart), as are Pillow <= 12.1's for
+    those tall images.
+    """
+    img = np.asarray(image)
+    if img.dtype != np.uint8:
+        raise ValueError(f"resize_uint8_pil takes uint8, got {img.dtype}")
+    out_h, out_w = int(size[0]), int(size[1])
+    if out_h < 1 or out_w < 1:
+        raise ValueError(f"output size must be positive, got {size}")
+    axes = [(1, out_w), (0, out_h)]
+    if img.shape[0] > img.shape[1] * 100 and out_h < img.shape[0]:
+        axes.reverse()
+    for axis, n in axes:
+        if img.shape[axis] != n:
+            img = _pil_pass(img, axis, n)
+    return np.ascontiguousarray(img)
+
+
 def longest_side_shape(height: int, width: int, long_side: int) -> tuple[int, int]:
     """(H', W') with the longest side scaled to ``long_side``, rounded half up.
 
@@ -142,15 +229,17 @@ def _normalise_chw(image: np.ndarray, mean, std) -> np.ndarray:
 
 
 def sam_resized_image(image01: np.ndarray, long_side: int = 1024) -> np.ndarray:
-    """float32 (H', W', 3) on the 0..255 scale, longest side resized to ``long_side``.
+    """float32 (H', W', 3) on the 0..255 scale (integers), longest side resized to ``long_side``.
 
-    The input of encoders exported with their preprocessing inside
-    (samexporter ``--use-preprocess``: input ``input_image`` of shape
-    (H, W, 3)); they normalise and pad themselves.
+    segment-anything's ``ResizeLongestSide.apply_image``: the uint8 image
+    resized by PIL (:func:`resize_uint8_pil`).  Also the input of encoders
+    exported with their preprocessing inside (samexporter
+    ``--use-preprocess``: input ``input_image`` of shape (H, W, 3)); they
+    normalise and pad themselves.
     """
     h, w = image01.shape[:2]
-    resized = resize_antialias(image01, longest_side_shape(h, w, long_side))
-    return resized * np.float32(255.0)
+    resized = resize_uint8_pil(to_uint8(image01), longest_side_shape(h, w, long_side))
+    return resized.astype(np.float32)
 
 
 def sam_encoder_input(image01: np.ndarray, long_side: int = 1024) -> tuple[np.ndarray, tuple[int, int]]:
@@ -199,8 +288,13 @@ def dino_input_shape(height: int, width: int, size: int = 800, max_size: int | N
 
 def dino_encoder_input(image01: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """GroundingDINO image input: float32 (1, 3, H', W'), resized to ``shape``
-    and normalised with the ImageNet mean / std on the 0..1 scale."""
-    resized = resize_antialias(image01, shape)
+    and normalised with the ImageNet mean / std on the 0..1 scale.
+
+    As GroundingDINO's transforms: the uint8 image resized by PIL
+    (:func:`resize_uint8_pil`), ``ToTensor`` (float32 division by 255), then
+    ``Normalize``.
+    """
+    resized = resize_uint8_pil(to_uint8(image01), shape).astype(np.float32) / np.float32(255.0)
     return _normalise_chw(resized, IMAGENET_MEAN, IMAGENET_STD)[None].astype(np.float32)
 
 

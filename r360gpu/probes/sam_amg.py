@@ -18,17 +18,21 @@ on numpy + onnxruntime:
 4. Box NMS (IoU > ``box_nms_thresh``, score = predicted IoU) per crop; with
    several crops, NMS across crops (``crop_nms_thresh``) preferring smaller
    crops.
-5. With ``min_mask_region_area`` > 0: fill holes and remove islands smaller
-   than that (8-connectivity), then NMS again (threshold
-   max(box_nms_thresh, crop_nms_thresh)) preferring unchanged masks.
+5. SAM only, with ``min_mask_region_area`` > 0: fill holes and remove
+   islands smaller than that (8-connectivity), then NMS again (threshold
+   max(box_nms_thresh, crop_nms_thresh)) preferring unchanged masks.  SAM2's
+   generator has no such step (there the parameter drives the predictor's
+   low-resolution hole / sprinkle filling, below).
 
 Differences from the torch originals, all from running the exported graphs:
 the multimask outputs come from the ONNX decoder (tokens 1..3 of a SAM
 decoder's four); a decoder exported with ``--return-single-mask`` yields one
-mask per point (warned); image resizing is the same filter in float32 rather
-than on uint8 (see :mod:`r360gpu.probes.preprocess`); SAM2's optional
+mask per point (warned); SAM's image resize is PIL's on the uint8 image, bit
+for bit, and SAM2's a float32 version of torch's antialiased bilinear resize
+(see :mod:`r360gpu.probes.preprocess`); SAM2's optional
 hole / sprinkle filling of low-resolution logits (its CUDA extension, only
-active when ``min_mask_region_area`` > 0) is not reproduced -- step 5 is.
+active when ``min_mask_region_area`` > 0; skipped by SAM2 itself where the
+extension does not load, e.g. on CPU) is not reproduced.
 """
 
 from __future__ import annotations
@@ -206,7 +210,9 @@ def generate_masks(models: SamModels, image, params: AmgParams | None = None) ->
     masks = _paste(found, h, w)
     iou = np.asarray(found.iou, np.float32)
     boxes = found.box_array()
-    if params.min_mask_region_area > 0 and len(found):
+    # SAM only: SAM2AutomaticMaskGenerator.generate has no postprocess_small_regions step; its
+    # min_mask_region_area only sets the predictor's low-res hole / sprinkle filling (not reproduced).
+    if params.min_mask_region_area > 0 and len(found) and models.variant == "sam":
         masks, boxes, keep = _remove_small_regions(
             masks, params.min_mask_region_area, max(params.box_nms_thresh, params.crop_nms_thresh)
         )
