@@ -130,9 +130,9 @@ def public_checkout(path: Path, tmp: Path) -> Path:
     return out
 
 
-def timed(cmd, env=None) -> tuple[float, str]:
+def timed(cmd, env=None, cwd=None) -> tuple[float, str]:
     t = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=cwd)
     dt = time.perf_counter() - t
     if p.returncode != 0:
         sys.exit(f"failed ({p.returncode}): {' '.join(map(str, cmd))}\n{p.stdout[-2000:]}\n{p.stderr[-4000:]}")
@@ -152,7 +152,7 @@ def main() -> int:
     args = ap.parse_args()
 
     _check_sam_json_text()
-    tmp = Path(tempfile.mkdtemp(prefix="r360-vs-public-")) if args.keep is None else args.keep
+    tmp = Path(tempfile.mkdtemp(prefix="r360-vs-public-")) if args.keep is None else args.keep.resolve()
     tmp.mkdir(parents=True, exist_ok=True)
     try:
         public = public_checkout(args.public.resolve(), tmp)
@@ -179,7 +179,9 @@ def main() -> int:
             cmd = [sys.executable, "-m", "r360gpu", "score", str(s), "--out", str(run / "r360"), "--quiet",
                    "--semantic-probe", f"png:{s}/gsam2",
                    "--structural-probe", f"sam-json:pre={s}/masks,post={s}/sam/after", *args.r360_args.split()]
-            dt, _ = timed(cmd, env)
+            # run from the timed tree: `python -m` puts the working directory first on sys.path,
+            # ahead of PYTHONPATH, so from another checkout it would import that one
+            dt, _ = timed(cmd, env, cwd=args.r360_root.resolve())
             ours.append(dt)
             res = json.loads((run / "r360" / "results.json").read_text())
             ax = next(iter(res["scenes"].values()))["methods"]["after"]["axes"]
