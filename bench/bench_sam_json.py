@@ -1,7 +1,8 @@
 """Reading SAM JSON mask files as the public scripts write them (``json.dump`` of
 ``{"segmentation": bool_mask.tolist(), "area", "bbox"}`` records): the fast
 reader (r360gpu.probes.sam_json) vs the standard way it replaced (json.loads +
-np.array of the nested lists, as read_sam_records does on plain lists).
+np.array of the nested lists, as read_sam_records does on plain lists), and vs
+the same reader with its true/false fast path (parse_bool_grid) turned off.
 
     python bench/bench_sam_json.py [--views 5] [--masks 4] [--width 1200] [--height 1000] [--repeat 3]
 """
@@ -50,9 +51,19 @@ def main() -> int:
         def fast():
             return [read_sam_json(p) for p in paths]
 
-        best = {"standard": np.inf, "fast": np.inf}
+        def generic():  # the reader with its true/false fast path off: every grid through parse_grid
+            from r360gpu.probes import sam_json
+
+            keep = sam_json.parse_bool_grid
+            sam_json.parse_bool_grid = lambda *a: None
+            try:
+                return fast()
+            finally:
+                sam_json.parse_bool_grid = keep
+
+        best = {"standard": np.inf, "generic": np.inf, "fast": np.inf}
         for _ in range(args.repeat):
-            for name, fn in (("standard", standard), ("fast", fast)):
+            for name, fn in (("standard", standard), ("generic", generic), ("fast", fast)):
                 t = time.perf_counter()
                 out = fn()
                 best[name] = min(best[name], time.perf_counter() - t)
@@ -65,7 +76,8 @@ def main() -> int:
           f"({mb:.0f} MB); best of {args.repeat}, CPU cores: {os.cpu_count()}")
     print(f"{'reader':<46}{'time (s)':>10}{'per mask (ms)':>16}{'speed-up':>10}")
     n = args.views * args.masks
-    for name, label in (("standard", "standard (json.loads + np.array of lists)"), ("fast", "r360gpu.probes.sam_json")):
+    for name, label in (("standard", "standard (json.loads + np.array of lists)"),
+                        ("generic", "sam_json, generic path only (parse_grid)"), ("fast", "r360gpu.probes.sam_json")):
         print(f"{label:<46}{best[name]:>10.2f}{best[name] / n * 1e3:>16.1f}{best['standard'] / best[name]:>9.1f}x")
     return 0
 

@@ -45,8 +45,8 @@ def struct_fields(shader: str, struct: str = "Params") -> tuple[tuple[str, str],
 @lru_cache(maxsize=None)
 def _layout(shader: str, struct: str, shader_dir: str | None) -> tuple[tuple[str, bool], ...]:
     """(name, is f32) per field, read once per process like the GpuContext's shader modules (a
-    uniform is packed for every dispatch: reading and expanding the WGSL each time cost the
-    demo ~7 s); ``shader_dir`` (R360GPU_SHADER_DIR) is part of the key."""
+    uniform is packed for every dispatch, and reading and expanding the WGSL each time was most
+    of the renderer's host time); ``shader_dir`` (R360GPU_SHADER_DIR) is part of the key."""
     out = []
     for name, typ in struct_fields(shader, struct):
         if typ not in SCALARS:

@@ -246,7 +246,7 @@ def _jpeg_uri(png: bytes) -> str | None:
 
 def _embed_many(out_dir: Path, rels: list) -> list[tuple[str | None, str | None]]:
     """:func:`_embed` of many contact sheets as photos, in threads (OpenCV's decode, resize
-    and encode release the GIL: ~20 ms a sheet, which added up to seconds for 100 views)."""
+    and encode release the GIL, and a run has one sheet per method and view)."""
     from concurrent.futures import ThreadPoolExecutor
 
     if len(rels) < 2:

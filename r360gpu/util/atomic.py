@@ -12,8 +12,8 @@ leaves the previous set, or none, instead of half of each.
 Results are also flushed to disk (fsync) before the rename, so they survive
 a power loss.  Files that are regenerated when damaged -- pictures, cache
 entries -- are written with ``sync=False``: the rename still keeps a crashed
-or interrupted process from leaving half of one, and the demo's ~300 of them
-no longer wait for the disk one by one (fsync was ~5 s of its run).
+or interrupted process from leaving half of one, and a run's hundreds of
+them do not wait for the disk one by one.
 """
 from __future__ import annotations
 
