@@ -86,17 +86,10 @@ def _checks(ctx, rng):
         """fn with the mask and depth kernels forced onto ``backend``: doctor checks the WGSL
         kernels on every adapter, and the host paths scoring takes on CPU adapters."""
         def check():
-            keys = ("R360GPU_MASK_IOU", "R360GPU_DEPTH_CHANGE")
-            old = {k: os.environ.get(k) for k in keys}
-            os.environ.update({k: backend for k in keys})
-            try:
+            from unittest import mock  # here: doctor's module is imported by every command
+
+            with mock.patch.dict(os.environ, {"R360GPU_MASK_IOU": backend, "R360GPU_DEPTH_CHANGE": backend}):
                 return fn()
-            finally:
-                for k, v in old.items():
-                    if v is None:
-                        del os.environ[k]
-                    else:
-                        os.environ[k] = v
         return check
 
     checks = [
