@@ -7,7 +7,7 @@ import pytest
 from r360gpu.gpu import GpuContext
 from r360gpu.render.scan import exclusive_scan
 from r360gpu.render.scratch import Scratch
-from r360gpu.render.sort import BLOCK, sort_pairs
+from r360gpu.render.sort import BLOCK, host_argsort, sort_pairs
 
 
 def _check(ctx, keys, bits=32):
@@ -18,6 +18,8 @@ def _check(ctx, keys, bits=32):
     order = np.argsort(masked, kind="stable")
     np.testing.assert_array_equal(vs, vals[order])
     np.testing.assert_array_equal(ks, keys[order])
+    # the renderer's host path (CPU adapters) applies the same permutation
+    np.testing.assert_array_equal(vals[host_argsort(keys, bits)], vs)
 
 
 @pytest.mark.parametrize("n", [0, 1, 2, 255, 256, 257, BLOCK - 1, BLOCK, BLOCK + 1, 3 * BLOCK + 77])
@@ -86,3 +88,21 @@ def test_exclusive_scan_three_levels(ctx):
     got = ctx.read(buf, np.uint32, n)
     np.testing.assert_array_equal(got[1:], np.cumsum(data)[:-1].astype(np.uint32))
     assert int(ctx.read(total.buffer, np.uint32, 1, total.offset)[0]) == int(data.sum())
+
+
+@pytest.mark.parametrize("bits", [0, 1, 3, 4, 5, 10, 16, 17, 31, 32])
+def test_host_argsort_is_the_radix_permutation(ctx, bits):
+    """host_argsort = sort_pairs's permutation for every bit count, keys with bits above the
+    sorted ones (radix passes sort 4 * ceil(bits / 4) bits), ties, and the 16-bit halves' edges."""
+    rng = np.random.default_rng(bits)
+    keys = rng.integers(0, 2**32, 6000, dtype=np.uint64).astype(np.uint32)
+    keys[::4] = rng.choice(np.array([0, 0xFFFF, 0x10000, 0xFFFF0000, 0xFFFFFFFF], np.uint32), keys[::4].size)
+    keys[1::7] = keys[2]
+    _, vs = sort_pairs(ctx, keys, bits=bits)
+    np.testing.assert_array_equal(host_argsort(keys, bits), vs)
+
+
+def test_host_argsort_small():
+    assert host_argsort(np.zeros(0, np.uint32), 32).size == 0
+    np.testing.assert_array_equal(host_argsort(np.array([5], np.uint32), 32), [0])
+    np.testing.assert_array_equal(host_argsort(np.array([3, 1, 2, 1], np.uint32), 0), [0, 1, 2, 3])

@@ -125,8 +125,8 @@ class GpuContext:
         On a CPU adapter (lavapipe) a compute shader is a slower way to run the
         same CPU: each submission waits on the queue, and per-invocation storage
         loads defeat vectorisation (bench/bench_measure.py measures both), so
-        kernels that have an exact host path (``ssim``, ``mask_iou``) take it
-        there.  The environment variable ``R360GPU_<KERNEL>`` (``gpu`` or
+        kernels that have an exact host path (``ssim``, ``mask_iou``,
+        ``depth_change``, the renderer's ``sort``) take it there.  The environment variable ``R360GPU_<KERNEL>`` (``gpu`` or
         ``cpu``) overrides, which is how the tests run both paths on lavapipe.
         """
         import os

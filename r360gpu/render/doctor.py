@@ -11,7 +11,7 @@ import numpy as np
 
 from ..gpu.context import GpuContext
 from .pipeline import Renderer
-from .sort import sort_pairs
+from .sort import host_argsort, sort_pairs
 
 _SH_C0 = 0.28209479177387814
 
@@ -29,8 +29,8 @@ def doctor_checks(ctx: GpuContext, rng: np.random.Generator) -> list:
     def sort():
         keys = rng.integers(0, 5000, 100_003).astype(np.uint32)
         _, order = sort_pairs(ctx, keys)
-        ok = np.array_equal(order, np.argsort(keys, kind="stable"))
-        return ok, "100,003 keys with duplicates vs numpy stable argsort"
+        ok = np.array_equal(order, np.argsort(keys, kind="stable")) and np.array_equal(host_argsort(keys, 32), order)
+        return ok, "100,003 keys with duplicates vs numpy stable argsort, and the host path (CPU adapters)"
 
     def one_gaussian():
         # An isotropic Gaussian on the optical axis at depth z: its footprint is

@@ -21,7 +21,7 @@ from .project import Projected, camera_arrays, project, tile_grid
 from .rasterize import PLANES, plane_stride, planes_to_numpy, record_rasterize
 from .scene import DeviceScene
 from .scratch import Scratch
-from .sort import radix_sort
+from .sort import host_argsort, radix_sort
 
 #: Bits of the depth sort key (the float bits of the camera depth).
 DEPTH_BITS = 32
@@ -112,6 +112,8 @@ class Renderer:
         self.timed = timed
         self.count_work = count_work
         self.scene = DeviceScene(self.ctx, scene)
+        # Depth and tile sorts in numpy on CPU adapters: the same permutation for less CPU (sort.host_argsort).
+        self._host_sort = self.ctx.kernel_backend("sort") == "cpu"
         self.scratch = Scratch(self.ctx)
         self.stats = RenderStats()
         limit = self.ctx.max_binding_bytes
@@ -186,9 +188,14 @@ class Renderer:
         ctx.submit(enc)
         t0 = self._mark("project", t0, proj.row_counts)
 
-        enc = ctx.encoder()
-        _, order = radix_sort(ctx, enc, proj.depth_key, proj.idx, n, DEPTH_BITS, scratch, "depth")
-        ctx.submit(enc)
+        if n > 1 and self._host_sort:
+            # idx is 0..n-1, so the sorted values are the permutation itself
+            order = scratch.get("depth.order", n * 4)
+            ctx.write(order, host_argsort(ctx.read(proj.depth_key, np.uint32, n), DEPTH_BITS).astype(np.uint32))
+        else:
+            enc = ctx.encoder()
+            _, order = radix_sort(ctx, enc, proj.depth_key, proj.idx, n, DEPTH_BITS, scratch, "depth")
+            ctx.submit(enc)
         row_counts = ctx.read(proj.row_counts, np.uint32, gy).astype(np.int64)
         t0 = self._mark("sort", t0, proj.row_counts)
         return proj, order, row_counts, gx, t0
@@ -242,8 +249,16 @@ class Renderer:
         keys = vals = scratch.get("bin.keys", 4)
         if k > 0:
             keys, vals = record_emit(ctx, enc, proj, order, offsets, n, gx, window, scratch)
-            bits = max(1, (num_tiles - 1).bit_length())
-            keys, vals = radix_sort(ctx, enc, keys, vals, k, bits if num_tiles > 1 else 0, scratch, "tiles")
+            bits = (num_tiles - 1).bit_length()  # 0 for one tile: already in order
+            if bits and self._host_sort:
+                ctx.submit(enc)
+                host_keys, host_vals = ctx.read(keys, np.uint32, k), ctx.read(vals, np.uint32, k)
+                perm = host_argsort(host_keys, bits)
+                ctx.write(keys, host_keys[perm])
+                ctx.write(vals, host_vals[perm])
+                enc = ctx.encoder()
+            else:
+                keys, vals = radix_sort(ctx, enc, keys, vals, k, bits, scratch, "tiles")
         ranges = record_ranges(ctx, enc, keys, k, num_tiles, scratch)
         ctx.submit(enc)
         t0 = self._mark("sort", t0, ranges.buffer)

@@ -91,6 +91,31 @@ def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scr
     return src
 
 
+def host_argsort(keys, bits: int):
+    """The permutation :func:`radix_sort` applies to ``keys`` (host uint32 array), computed in numpy.
+
+    :func:`radix_sort` makes ceil(bits / 4) stable 4-bit passes, i.e. a stable
+    sort by the low ``4 * ceil(bits / 4)`` key bits; so is this (numpy's
+    stable sort, a radix sort for keys of 16 bits or fewer).  The renderer
+    takes this path on CPU adapters, where one host sort costs less CPU than
+    the shader's passes (:meth:`GpuContext.kernel_backend` "sort"); the
+    results are identical (tests/test_render_sort.py, tests/test_render_pipeline.py).
+    """
+    import numpy as np
+
+    keys = np.asarray(keys, dtype=np.uint32)
+    kept = min(32, DIGIT_BITS * math.ceil(bits / DIGIT_BITS))
+    if kept <= 0 or keys.size <= 1:
+        return np.arange(keys.size, dtype=np.intp)
+    if kept < 32:
+        keys = keys & np.uint32((1 << kept) - 1)
+    # LSD in 16-bit halves: numpy's stable sort of uint16 is a radix sort (~5x its uint32 sort)
+    perm = np.argsort((keys & np.uint32(0xFFFF)).astype(np.uint16), kind="stable")
+    if kept > 16:
+        perm = perm[np.argsort((keys[perm] >> np.uint32(16)).astype(np.uint16), kind="stable")]
+    return perm
+
+
 def sort_pairs(ctx: GpuContext, keys, vals=None, bits: int = 32, scratch: Scratch | None = None):
     """Sort host arrays on the device (convenience wrapper for tests and callers).
 
