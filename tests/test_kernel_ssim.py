@@ -122,3 +122,8 @@ def test_cpu_backend_is_the_same_for_any_thread_count(monkeypatch, dtype):
         monkeypatch.setattr(S, "CPU_THREADS", n)
         got[n] = S._ssim_mse_cpu(xs, y)
     assert got[1] == got[2] == got[3]
+    # the MSE is summed strip by strip (each strip its own image rows, the last to the bottom row)
+    scale = 255.0 if dtype == np.uint8 else 1.0
+    for (_, m), x in zip(got[1], xs):
+        d = np.asarray(x, np.float64) / scale - np.asarray(y, np.float64) / scale
+        assert m == pytest.approx(float(np.mean(d * d)), rel=1e-12 if dtype == np.uint8 else MSE_RTOL, abs=0)

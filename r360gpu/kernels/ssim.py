@@ -231,15 +231,28 @@ def _strip_buffers(rows: int, w: int, c: int) -> tuple:
     return big + tuple(f32((rows, vw, c)) for _ in range(8))
 
 
-def _strip_sums(xs, y, shift, strip, bufs, g, c1, c2) -> np.ndarray:
-    """Summed SSIM map of every method over output rows ``strip`` (o0, o1): float64 (len(xs),)."""
-    o0, o1 = strip
+def _squared_error(x: np.ndarray, y: np.ndarray) -> float:
+    """Sum of squared differences of two row blocks: exact for uint8 (integers), else
+    float32 differences squared and summed (pairwise) in float64."""
+    if y.dtype == np.uint8:
+        d = (x.astype(np.int16) - y.astype(np.int16)).reshape(-1).astype(np.int64)
+        return float(np.dot(d, d))
+    # numpy's pairwise sum, not BLAS dot: BLAS splits the sum by its thread count, which
+    # differs between processes (Ray workers run single-threaded), and so would the last bits
+    return float(np.square(np.subtract(x, y, dtype=np.float32).astype(np.float64)).sum())
+
+
+def _strip_sums(xs, y, shift, strip, bufs, g, c1, c2) -> tuple[np.ndarray, np.ndarray]:
+    """Summed SSIM map of every method over output rows ``strip`` (o0, o1, e0, e1), and
+    summed squared error over image rows [e0, e1): float64 (len(xs),) each."""
+    o0, o1, e0, e1 = strip
     ys, xc, t, my, vy_c2, my2, my_sq_c1, mx, sxx, sxy, tmp = bufs
     n_in, n_out = o1 - o0 + WIN - 1, o1 - o0
     yc, xcs, ts = ys[:n_in], xc[:n_in], t[:n_in]
     m_y, v_y, m_y2, m_yc = my[:n_out], vy_c2[:n_out], my2[:n_out], my_sq_c1[:n_out]
     m_x, s_xx, s_xy, q = mx[:n_out], sxx[:n_out], sxy[:n_out], tmp[:n_out]
     sums = np.zeros(len(xs), np.float64)
+    sq = np.array([_squared_error(x[e0:e1], y[e0:e1]) for x in xs], np.float64)
     # I_ref's share, once per strip for all methods (values shifted by its channel means).
     np.subtract(y[o0 : o0 + n_in], shift, out=yc, dtype=np.float32)
     _filter(yc, g, m_y)
@@ -275,12 +288,13 @@ def _strip_sums(xs, y, shift, strip, bufs, g, c1, c2) -> np.ndarray:
         m_x *= s_xy  # (2 mx my + C1)(2 sxy + C2)
         m_x /= q
         sums[k] = m_x.sum(dtype=np.float64)
-    return sums
+    return sums, sq
 
 
 def _ssim_mse_cpu(xs: list[np.ndarray], y: np.ndarray) -> list[tuple[float, float]]:
-    """SSIM by strips of rows (each strip's I_ref statistics shared by every
-    method), MSE over the whole images.
+    """SSIM and MSE by strips of rows (each strip's I_ref statistics shared by
+    every method; each strip's squared errors summed over its own image rows,
+    so no whole-image temporary is made).
 
     Strips are filtered in up to ``CPU_THREADS`` threads (OpenCV and numpy
     release the GIL on arrays this size); each strip's sums are kept and
@@ -294,7 +308,8 @@ def _ssim_mse_cpu(xs: list[np.ndarray], y: np.ndarray) -> list[tuple[float, floa
     vh, vw = h - (WIN - 1), w - (WIN - 1)
     shift = y.reshape(-1, c).mean(axis=0, dtype=np.float64).astype(np.float32)
     rows = min(STRIP, vh)
-    strips = [(o0, min(vh, o0 + rows)) for o0 in range(0, vh, rows)]
+    # output rows [o0, o1); squared errors over image rows [o0, o1), the last strip to the bottom
+    strips = [(o0, min(vh, o0 + rows), o0, min(vh, o0 + rows) if o0 + rows < vh else h) for o0 in range(0, vh, rows)]
     consts = (gaussian_taps().astype(np.float32), np.float32((K1 * scale) ** 2), np.float32((K2 * scale) ** 2))
     threads = max(1, min(CPU_THREADS, len(strips)))
     local = threading.local()
@@ -310,21 +325,12 @@ def _ssim_mse_cpu(xs: list[np.ndarray], y: np.ndarray) -> list[tuple[float, floa
         with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="r360-ssim") as pool:
             per_strip = list(pool.map(run, strips))
     sums = np.zeros(len(xs), np.float64)
-    for part in per_strip:  # in strip order, whatever thread computed it
+    sq = np.zeros(len(xs), np.float64)
+    for part, part_sq in per_strip:  # in strip order, whatever thread computed it
         sums += part
-    out = []
-    yf = None if u8 else y.reshape(-1)
-    for k, x in enumerate(xs):
-        if u8:
-            d = (x.astype(np.int16) - y.astype(np.int16)).reshape(-1).astype(np.int64)
-            mse = float(np.dot(d, d)) / float(scale * scale) / d.size  # exact integer sum
-        else:
-            d = (x.reshape(-1) - yf).astype(np.float64)
-            # numpy's pairwise sum, not BLAS dot: BLAS splits the sum by its thread count, which
-            # differs between processes (Ray workers run single-threaded), and so would the last bits
-            mse = float(np.square(d).sum()) / d.size
-        out.append((float(sums[k] / (vh * vw * c)), mse))
-    return out
+        sq += part_sq
+    return [(float(sums[k] / (vh * vw * c)), float(sq[k]) / float(scale * scale) / (h * w * c))
+            for k in range(len(xs))]
 
 
 def ssim_mse(post, ref, *, ctx: GpuContext | None = None) -> tuple[float, float]:
