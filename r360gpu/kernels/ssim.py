@@ -306,7 +306,9 @@ def _ssim_mse_cpu(xs: list[np.ndarray], y: np.ndarray) -> list[tuple[float, floa
     scale = np.float32(255.0 if u8 else 1.0)
     h, w, c = y.shape
     vh, vw = h - (WIN - 1), w - (WIN - 1)
-    shift = y.reshape(-1, c).mean(axis=0, dtype=np.float64).astype(np.float32)
+    # cv2.mean (float64 sums, <= 4 channels) is ~40x numpy's strided axis-0 mean at 1080p
+    mean = cv2.mean(y)[:c] if c <= 4 else y.reshape(-1, c).mean(axis=0, dtype=np.float64)
+    shift = np.asarray(mean, np.float64).astype(np.float32)
     rows = min(STRIP, vh)
     # output rows [o0, o1); squared errors over image rows [o0, o1), the last strip to the bottom
     strips = [(o0, min(vh, o0 + rows), o0, min(vh, o0 + rows) if o0 + rows < vh else h) for o0 in range(0, vh, rows)]
