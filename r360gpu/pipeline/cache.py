@@ -12,6 +12,9 @@
   deleted recomputes the view and writes it.
 * Probe cache: ``probes/``, :class:`~r360gpu.probes.cache.ProbeCache`, keyed
   by image content, so re-scoring never re-runs a probe on an unchanged image.
+* Embedding JPEGs: ``embed/``, the JPEG report.html embeds each contact
+  sheet as, made by the picture writer from the sheet in memory and keyed by
+  the PNG's bytes (:mod:`r360gpu.report.embed`).
 * Fit records: ``fits/<key>.json``, the descriptions of probes that learn
   from the scene (the appearance probe) after fitting, keyed by what the
   fit reads.  They complete the view cache key without fitting, so a run
@@ -45,6 +48,7 @@ class RunCache:
         if force and self.root is not None and self.root.exists():
             shutil.rmtree(self.root)
         self.probes = None
+        self.embed = self.root / "embed" if self.root is not None else None
         if self.root is not None:
             from ..probes.cache import ProbeCache
 

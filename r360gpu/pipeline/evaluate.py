@@ -81,7 +81,7 @@ def evaluate(
         log(f"note: {line}")
     out = Path(out) if out is not None else None
     cache = RunCache(out, force=force)
-    sink = PictureSink(out, opts.pictures)
+    sink = PictureSink(out, opts.pictures, embed_cache=cache.embed)
     with warning_log.collecting():
         return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,
                          executor)
@@ -130,7 +130,7 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
     if out is not None:
         from ..report.outputs import write_run_outputs
 
-        write_run_outputs(results, out)
+        write_run_outputs(results, out, embed_cache=cache.embed)
     return results
 
 

@@ -1,7 +1,9 @@
 """Pictures as a report sink: the stages hand each (method, view) over, the sink writes its contact sheet.
 
 The sheet's path (relative to ``out``) goes into the view's cache cell, so
-the view cache knows which pictures a run has written.
+the view cache knows which pictures a run has written.  With an
+``embed_cache`` folder the sink also makes the JPEG report.html will embed
+the sheet as, here in the writer thread rather than at the end of the run.
 """
 from __future__ import annotations
 
@@ -11,9 +13,10 @@ from pathlib import Path
 class PictureSink:
     """Writes per-(method, view) contact sheets under ``out/pictures`` (does nothing when disabled)."""
 
-    def __init__(self, out: Path | None, enabled: bool):
+    def __init__(self, out: Path | None, enabled: bool, embed_cache: Path | None = None):
         self.out = out
         self.enabled = out is not None and enabled
+        self.embed_cache = embed_cache
 
     def path_for(self, scene: str, method: str, view: str) -> str | None:
         """Where the sheet of (scene, method, view) goes, relative to ``out`` (None without pictures)."""
@@ -49,7 +52,7 @@ class PictureSink:
             semantic_pre=None if semantic is None else small.union(semantic[0]),
             semantic_post=None if semantic is None else small.union(semantic[1]),
             structural=[(t, small.rgb(rgb), small.masks(ms.masks)) for t, rgb, ms in structural],
-            width=PANEL_WIDTH, record=record,
+            width=PANEL_WIDTH, record=record, embed_cache=self.embed_cache,
         )
         return rel
 

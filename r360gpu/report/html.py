@@ -42,6 +42,7 @@ from ..metrics.structural import StructuralView, structural_summary
 from ..util.atomic import write_text
 from ..util.warning_log import format_record
 from . import findings
+from .embed import JPEG_QUALITY, sheet_jpeg
 from .findings import LOW_AXIS
 from .pictures import sheet_panel, view_numbers
 from .plots import axes_overview_png, view_series
@@ -222,43 +223,31 @@ def _png_uri(data: bytes) -> str:
     return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
 
 
-#: Contact sheets (photographic renders) are embedded as JPEG of this quality,
-#: at most EMBED_WIDTH pixels wide: a few per cent of the PNG's size, which
-#: keeps a report with dozens of views in the low megabytes.  The lossless
-#: full-size PNGs stay beside the report.
-JPEG_QUALITY = 80
-EMBED_WIDTH = 960
+def _jpeg_uri(png: bytes, embed_cache: Path | None = None) -> str | None:
+    jpeg = sheet_jpeg(png, embed_cache)
+    return None if jpeg is None else "data:image/jpeg;base64," + base64.b64encode(jpeg).decode("ascii")
 
 
-def _jpeg_uri(png: bytes) -> str | None:
-    import cv2
-    import numpy as np
-
-    img = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
-    if img is None:
-        return None
-    if img.shape[1] > EMBED_WIDTH:
-        h = max(1, round(img.shape[0] * EMBED_WIDTH / img.shape[1]))
-        img = cv2.resize(img, (EMBED_WIDTH, h), interpolation=cv2.INTER_AREA)
-    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
-    return "data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii") if ok else None
-
-
-def _embed_many(out_dir: Path, rels: list) -> list[tuple[str | None, str | None]]:
+def _embed_many(out_dir: Path, rels: list, embed_cache: Path | None = None) -> list[tuple[str | None, str | None]]:
     """:func:`_embed` of many contact sheets as photos, in threads (OpenCV's decode, resize
     and encode release the GIL, and a run has one sheet per method and view)."""
     from concurrent.futures import ThreadPoolExecutor
 
+    def one(r):
+        return _embed(out_dir, r, photo=True, embed_cache=embed_cache)
+
     if len(rels) < 2:
-        return [_embed(out_dir, r, photo=True) for r in rels]
+        return [one(r) for r in rels]
     with ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1), thread_name_prefix="r360-embed") as pool:
-        return list(pool.map(lambda r: _embed(out_dir, r, photo=True), rels))
+        return list(pool.map(one, rels))
 
 
-def _embed(out_dir: Path, rel, *, photo: bool = False) -> tuple[str | None, str | None]:
+def _embed(out_dir: Path, rel, *, photo: bool = False, embed_cache: Path | None = None
+           ) -> tuple[str | None, str | None]:
     """(data URI, None) for a PNG inside ``out_dir``, else (None, reason).
 
-    photo: embed as JPEG (contact sheets of renders); plots stay PNG."""
+    photo: embed as JPEG (contact sheets of renders; from ``embed_cache`` when
+    it holds the sheet's JPEG, see :mod:`.embed`); plots stay PNG."""
     if not isinstance(rel, str) or not rel:
         return None, "no picture path"
     root = out_dir.resolve()
@@ -274,7 +263,7 @@ def _embed(out_dir: Path, rel, *, photo: bool = False) -> tuple[str | None, str 
     if not data.startswith(_PNG_SIGNATURE):
         return None, f"picture {rel!r} is not a PNG; not embedded"
     if photo:
-        uri = _jpeg_uri(data)
+        uri = _jpeg_uri(data, embed_cache)
         if uri is None:
             return None, f"picture {rel!r} could not be decoded; not embedded"
         return uri, None
@@ -618,7 +607,7 @@ def per_view_table_html(results: dict, scene: str, rows: list[dict]) -> str:
 
 
 def _method_section(results: dict, out_dir: Path, scene: str, method: str, problems: list[str],
-                    max_views: int | None) -> str:
+                    max_views: int | None, embed_cache: Path | None = None) -> str:
     entry = method_entry(results, scene, method) or {}
     axes = entry.get("axes") or {}
     rqs = number(axes.get("rqs"))
@@ -669,7 +658,7 @@ def _method_section(results: dict, out_dir: Path, scene: str, method: str, probl
                      f'{_e(os.path.dirname(str(next(iter(pics.values())))) or ".")} folder.</p>')
         h.append('<div class="grid">')
         by_view = {str(r.get("view")): r for r in entry.get("views") or []}
-        for view, (uri, why) in zip(shown, _embed_many(out_dir, [pics[v] for v in shown])):
+        for view, (uri, why) in zip(shown, _embed_many(out_dir, [pics[v] for v in shown], embed_cache)):
             cap = f"{view}: {_view_caption(by_view.get(str(view), {}))}"
             fid = _pic_id(results, scene, method, str(view))
             back = f' <a href="#row-{fid}">(row)</a>'
@@ -721,13 +710,16 @@ def _weight_free_note(results: dict) -> str:
 
 # -- the page ------------------------------------------------------------------
 
-def report_html(results: dict, out_dir: str | os.PathLike, *,
-                max_views: int | None = MAX_VIEWS) -> tuple[str, list[str]]:
+def report_html(results: dict, out_dir: str | os.PathLike, *, max_views: int | None = MAX_VIEWS,
+                embed_cache: str | os.PathLike | None = None) -> tuple[str, list[str]]:
     """The page's HTML text and the list of pictures that could not be embedded.
 
     out_dir: the folder the picture paths in ``results`` are relative to.
     max_views: per (scene, method), embed at most this many per-view pictures
         (evenly spaced, :func:`pick_views`); None (default) embeds all.
+    embed_cache: folder of the contact sheets' embedding JPEGs (:mod:`.embed`):
+        used where it has a sheet's, filled where it lacks one; the page is the
+        same with or without it.
     """
     out = Path(out_dir)
     problems: list[str] = []
@@ -814,7 +806,7 @@ def report_html(results: dict, out_dir: str | os.PathLike, *,
         h.append(per_view_table_html(results, s, rows))
         for m in methods:
             if method_entry(results, s, m) is not None:
-                h.append(_method_section(results, out, s, m, problems, max_views))
+                h.append(_method_section(results, out, s, m, problems, max_views, embed_cache))
         h.append("</section>")
 
     # Metadata
@@ -830,19 +822,21 @@ def report_html(results: dict, out_dir: str | os.PathLike, *,
     return "\n".join(x for x in h if x) + "\n", problems
 
 
-def write_html(results: dict, out_dir: str | os.PathLike, *, max_views: int | None = MAX_VIEWS) -> Path:
+def write_html(results: dict, out_dir: str | os.PathLike, *, max_views: int | None = MAX_VIEWS,
+               embed_cache: str | os.PathLike | None = None) -> Path:
     """Write ``OUT/report.html`` (atomically) and return its path.
 
     max_views: per (scene, method), the number of per-view contact sheets
     embedded (evenly spaced along the path; None: all, the default).  The
-    sheets are embedded as JPEG (:data:`JPEG_QUALITY`, at most
-    :data:`EMBED_WIDTH` px wide); the lossless PNGs stay in the pictures folder.
+    sheets are embedded as JPEG (:data:`.embed.JPEG_QUALITY`, at most
+    :data:`.embed.EMBED_WIDTH` px wide); the lossless PNGs stay in the pictures
+    folder.  embed_cache: as in :func:`report_html`.
 
     Pictures that cannot be embedded are named on the page and in one
     :class:`~r360gpu.errors.R360Warning`.
     """
     out = Path(out_dir)
-    text, problems = report_html(results, out, max_views=max_views)
+    text, problems = report_html(results, out, max_views=max_views, embed_cache=embed_cache)
     path = out / REPORT_HTML
     write_text(path, text)
     if problems:

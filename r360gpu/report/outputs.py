@@ -9,11 +9,12 @@ from .results_io import write_results
 from .results_tables import write_tables
 
 
-def write_outputs(results: dict, out) -> dict[str, Path]:
+def write_outputs(results: dict, out, *, embed_cache=None) -> dict[str, Path]:
     """Write per-method plots, results.json, results.csv, tables.md/.tex and report.html.
 
     The plot paths are recorded in ``results`` (relative to ``out``) before
-    results.json is written.  Returns {"json", "csv", "md", "tex", "html": path}.
+    results.json is written.  embed_cache: see :func:`.html.report_html`.
+    Returns {"json", "csv", "md", "tex", "html": path}.
     """
     from ..metrics.record import ViewRecord
 
@@ -26,7 +27,7 @@ def write_outputs(results: dict, out) -> dict[str, Path]:
             m["plot"] = rel.as_posix()
     js, csv = write_results(results, out)
     md, tex = write_tables(results, out)
-    html = write_html(results, out)
+    html = write_html(results, out, embed_cache=embed_cache)
     return {"json": js, "csv": csv, "md": md, "tex": tex, "html": html}
 
 
@@ -34,7 +35,7 @@ def write_outputs(results: dict, out) -> dict[str, Path]:
 OUTPUT_DOCUMENTS = ("results.json", "results.csv", "tables.md", "tables.tex", "report.html")
 
 
-def write_run_outputs(results: dict, out) -> dict[str, Path]:
+def write_run_outputs(results: dict, out, *, embed_cache=None) -> dict[str, Path]:
     """:func:`write_outputs`, the documents replaced all together or not at all; a write
     error (disk full, read-only) is an InputError naming the file, with nothing changed."""
     from ..errors import InputError
@@ -44,7 +45,7 @@ def write_run_outputs(results: dict, out) -> dict[str, Path]:
     out = Path(out)
     try:
         with all_or_nothing([out / name for name in OUTPUT_DOCUMENTS]):
-            return write_outputs(results, out)
+            return write_outputs(results, out, embed_cache=embed_cache)
     except OSError as e:
         raise InputError(f"cannot write the results ({_reason(e)}): none of {', '.join(OUTPUT_DOCUMENTS)} "
                          f"was changed; per-view results are cached, rerun to finish", e.filename or out) from None

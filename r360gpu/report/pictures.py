@@ -273,8 +273,11 @@ def encode_png(image) -> bytes:
     with libpng's adaptive filters and with these settings (the "up" filter
     alone, OpenCV >= 4.11) in one run -- 77.6, 37.8 and 23.3 ms on the 2-core
     CI machine, files within 6% of each other, all lossless."""
-    rgb = as_rgb8(image, "PNG image")
-    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), _PNG_PARAMS)
+    return _png_of_bgr(cv2.cvtColor(as_rgb8(image, "PNG image"), cv2.COLOR_RGB2BGR))
+
+
+def _png_of_bgr(bgr: np.ndarray) -> bytes:
+    ok, buf = cv2.imencode(".png", bgr, _PNG_PARAMS)
     if not ok:
         raise RuntimeError("OpenCV could not encode a PNG")
     return buf.tobytes()
@@ -390,11 +393,22 @@ def sheet_image(panels: Sequence[tuple[str, np.ndarray]], *, columns: int | None
 
 def contact_sheet(path: str | os.PathLike, panels: Sequence[tuple[str, np.ndarray]], *, columns: int | None = None,
                   panel_width: int = PANEL_WIDTH, title: str | None = None, lines: Sequence[str] = (),
-                  legend: Sequence = ()) -> Path:
-    """Write :func:`sheet_image` of ``panels`` as a PNG (atomically); returns the path."""
+                  legend: Sequence = (), embed_cache: str | os.PathLike | None = None) -> Path:
+    """Write :func:`sheet_image` of ``panels`` as a PNG (atomically); returns the path.
+
+    embed_cache: a folder where the JPEG report.html embeds the sheet as is
+    made now, from the sheet in memory (see :mod:`.embed`)."""
     path = Path(path)
-    write_bytes(path, encode_png(sheet_image(panels, columns=columns, panel_width=panel_width, title=title,
-                                             lines=lines, legend=legend)), sync=False)  # regenerated if damaged
+    bgr = cv2.cvtColor(sheet_image(panels, columns=columns, panel_width=panel_width, title=title, lines=lines,
+                                   legend=legend), cv2.COLOR_RGB2BGR)
+    png = _png_of_bgr(bgr)
+    write_bytes(path, png, sync=False)  # regenerated if damaged
+    if embed_cache is not None:
+        from .embed import embed_jpeg, store_embed
+
+        jpeg = embed_jpeg(bgr)  # what decoding the (lossless) PNG would give, without decoding it
+        if jpeg is not None:
+            store_embed(embed_cache, png, jpeg)
     return path
 
 
@@ -532,10 +546,12 @@ def view_panels(
 
 
 def view_contact_sheet(path: str | os.PathLike, *, title: str | None = None, columns: int | None = None,
-                       width: int = PANEL_WIDTH, record: dict | None = None, **panels) -> Path:
+                       width: int = PANEL_WIDTH, record: dict | None = None,
+                       embed_cache: str | os.PathLike | None = None, **panels) -> Path:
     """Write the contact sheet of one view (panels from :func:`view_panels`, same keyword
     arguments) with the view's numbers from ``record`` (a view record dict; see
-    :func:`view_numbers`) under the title and the colour legend at the bottom; returns the path."""
+    :func:`view_numbers`) under the title and the colour legend at the bottom; returns the path.
+    embed_cache: as in :func:`contact_sheet`."""
     ps = view_panels(width=width, **panels)
     return contact_sheet(path, ps, columns=columns, panel_width=width, title=title, lines=view_numbers(record),
-                         legend=legend_items(ps))
+                         legend=legend_items(ps), embed_cache=embed_cache)
