@@ -109,7 +109,7 @@ def host_argsort(keys, bits: int):
         return np.arange(keys.size, dtype=np.intp)
     if kept < 32:
         keys = keys & np.uint32((1 << kept) - 1)
-    # LSD in 16-bit halves: numpy's stable sort of uint16 is a radix sort (~5x its uint32 sort)
+    # LSD in 16-bit halves: numpy's stable sort is a radix sort for uint16 keys, a merge sort for uint32
     perm = np.argsort((keys & np.uint32(0xFFFF)).astype(np.uint16), kind="stable")
     if kept > 16:
         perm = perm[np.argsort((keys[perm] >> np.uint32(16)).astype(np.uint16), kind="stable")]
