@@ -7,7 +7,7 @@ import pytest
 from r360gpu.gpu import GpuContext
 from r360gpu.render.scan import exclusive_scan
 from r360gpu.render.scratch import Scratch
-from r360gpu.render.sort import BLOCK, host_argsort, sort_pairs
+from r360gpu.render.sort import BLOCK, host_argsort, host_sort, sort_pairs
 
 
 def _check(ctx, keys, bits=32):
@@ -106,3 +106,17 @@ def test_host_argsort_small():
     assert host_argsort(np.zeros(0, np.uint32), 32).size == 0
     np.testing.assert_array_equal(host_argsort(np.array([5], np.uint32), 32), [0])
     np.testing.assert_array_equal(host_argsort(np.array([3, 1, 2, 1], np.uint32), 0), [0, 1, 2, 3])
+
+
+@pytest.mark.parametrize("bits", [0, 10, 32])
+def test_host_sort_sorts_device_buffers_in_place(ctx, bits):
+    rng = np.random.default_rng(5 + bits)
+    keys = rng.integers(0, 2**32, 3000, dtype=np.uint64).astype(np.uint32)
+    keys[::5] = keys[3]
+    vals = rng.integers(0, 2**32, 3000, dtype=np.uint64).astype(np.uint32)
+    want_k, want_v = sort_pairs(ctx, keys, vals, bits=bits)
+    kb, vb = ctx.buffer(np.concatenate([keys, [7, 7]]).astype(np.uint32)), ctx.buffer(vals)
+    ks, vs = host_sort(ctx, kb, vb, 3000, bits)
+    assert ks is kb and vs is vb
+    np.testing.assert_array_equal(ctx.read(kb, np.uint32, 3002), np.concatenate([want_k, [7, 7]]))  # tail untouched
+    np.testing.assert_array_equal(ctx.read(vb, np.uint32, 3000), want_v)

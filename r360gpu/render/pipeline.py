@@ -21,7 +21,7 @@ from .project import Projected, camera_arrays, project, tile_grid
 from .rasterize import PLANES, plane_stride, planes_to_numpy, record_rasterize
 from .scene import DeviceScene
 from .scratch import Scratch
-from .sort import host_argsort, radix_sort
+from .sort import host_sort, radix_sort
 
 #: Bits of the depth sort key (the float bits of the camera depth).
 DEPTH_BITS = 32
@@ -112,7 +112,7 @@ class Renderer:
         self.timed = timed
         self.count_work = count_work
         self.scene = DeviceScene(self.ctx, scene)
-        # Depth and tile sorts in numpy on CPU adapters: the same permutation for less CPU (sort.host_argsort).
+        # Depth and tile sorts in numpy on CPU adapters: the same permutation for less CPU (sort.host_sort).
         self._host_sort = self.ctx.kernel_backend("sort") == "cpu"
         self.scratch = Scratch(self.ctx)
         self.stats = RenderStats()
@@ -188,10 +188,8 @@ class Renderer:
         ctx.submit(enc)
         t0 = self._mark("project", t0, proj.row_counts)
 
-        if n > 1 and self._host_sort:
-            # idx is 0..n-1, so the sorted values are the permutation itself
-            order = scratch.get("depth.order", n * 4)
-            ctx.write(order, host_argsort(ctx.read(proj.depth_key, np.uint32, n), DEPTH_BITS).astype(np.uint32))
+        if self._host_sort:
+            _, order = host_sort(ctx, proj.depth_key, proj.idx, n, DEPTH_BITS)
         else:
             enc = ctx.encoder()
             _, order = radix_sort(ctx, enc, proj.depth_key, proj.idx, n, DEPTH_BITS, scratch, "depth")
@@ -252,10 +250,7 @@ class Renderer:
             bits = (num_tiles - 1).bit_length()  # 0 for one tile: already in order
             if bits and self._host_sort:
                 ctx.submit(enc)
-                host_keys, host_vals = ctx.read(keys, np.uint32, k), ctx.read(vals, np.uint32, k)
-                perm = host_argsort(host_keys, bits)
-                ctx.write(keys, host_keys[perm])
-                ctx.write(vals, host_vals[perm])
+                keys, vals = host_sort(ctx, keys, vals, k, bits)
                 enc = ctx.encoder()
             else:
                 keys, vals = radix_sort(ctx, enc, keys, vals, k, bits, scratch, "tiles")

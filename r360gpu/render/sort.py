@@ -116,6 +116,21 @@ def host_argsort(keys, bits: int):
     return perm
 
 
+def host_sort(ctx: GpuContext, keys, vals, n: int, bits: int):
+    """:func:`radix_sort` of the first ``n`` (key, value) pairs of two device buffers, done in
+    numpy (:func:`host_argsort`): the pairs are read back, sorted and written back in place.
+    Returns ``(keys, vals)``, the same buffers.  Waits for the device (every command
+    submitted before it must be finished), so it is for CPU adapters, where waiting is cheap."""
+    import numpy as np
+
+    if n > 1 and bits > 0:
+        host_keys, host_vals = ctx.read(keys, np.uint32, n), ctx.read(vals, np.uint32, n)
+        perm = host_argsort(host_keys, bits)
+        ctx.write(keys, host_keys[perm])
+        ctx.write(vals, host_vals[perm])
+    return keys, vals
+
+
 def sort_pairs(ctx: GpuContext, keys, vals=None, bits: int = 32, scratch: Scratch | None = None):
     """Sort host arrays on the device (convenience wrapper for tests and callers).
 

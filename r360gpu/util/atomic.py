@@ -1,7 +1,7 @@
 """Atomic file writes: write to a temporary file beside the target, then rename.
 
 A crash or Ctrl-C never leaves a half-written result behind.  Temporary
-files are named ``.NAME.XXXXXXXX.tmp``; a SIGKILL between the write and the
+files are named ``.NAME.<random>.tmp`` (mkstemp); a SIGKILL between the write and the
 rename leaves one, which :func:`remove_stale_temporaries` deletes (the CLI
 calls it once it holds the output folder's lock).  Inside an
 :func:`all_or_nothing` block, writes to the named files are kept as
