@@ -4,12 +4,13 @@ On a CPU adapter the renderer sorts depth keys and tile keys in numpy
 (``render.sort.host_argsort``; ``GpuContext.kernel_backend("sort")``).  This
 renders the same frames with ``R360GPU_SORT=gpu`` and ``=cpu`` and prints, per
 path, the wall time and the process CPU time per frame and the ``sort`` stage
+(medians over alternating rounds)
 (timed with device waits), the ratio, and whether the images are bit-equal.
 
 Scenes are bench_render.py's synthetic scene; the default size is the demo's
 (75k Gaussians at 480x360, about what ``r360gpu demo`` renders 224 times).
 
-Usage:  python bench/bench_render_sort.py [--sizes 75000 --width 480 --height 360] [--frames 8]
+Usage:  python bench/bench_render_sort.py [--sizes 75000 --width 480 --height 360] [--frames 8] [--rounds 5]
 """
 from __future__ import annotations
 
@@ -50,6 +51,7 @@ def main(argv=None) -> int:
     ap.add_argument("--width", type=int, default=480)
     ap.add_argument("--height", type=int, default=360)
     ap.add_argument("--frames", type=int, default=8)
+    ap.add_argument("--rounds", type=int, default=5, help="alternating rounds of both paths (medians reported)")
     args = ap.parse_args(argv)
     ctx = get_context()
     d = ctx.describe()
@@ -61,7 +63,14 @@ def main(argv=None) -> int:
     for n in args.sizes:
         scene = synthetic_scene(n)
         cam = camera(args.width, args.height, f)
-        res = {b: run(ctx, scene, cam, b, args.frames) for b in ("gpu", "cpu")}
+        # alternate the paths for --rounds rounds and keep each one's median: a 2-core machine's
+        # frame times wander by tens of per cent between consecutive runs
+        rounds = {"gpu": [], "cpu": []}
+        for _ in range(args.rounds):
+            for b in rounds:
+                rounds[b].append(run(ctx, scene, cam, b, args.frames))
+        res = {b: {k: float(np.median([r[k] for r in rs])) for k in ("wall", "cpu", "sort")} | {"out": rs[-1]["out"]}
+               for b, rs in rounds.items()}
         for b, r in res.items():
             print(f"{n:>9} {args.width}x{args.height:<4} {b:>5} {r['wall'] * 1e3:8.1f} {r['cpu'] * 1e3:8.1f} "
                   f"{r['sort'] * 1e3:8.1f}")
