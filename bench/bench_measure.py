@@ -7,7 +7,7 @@ method, float64 SSIM through cv2.sepFilter2D (metrics.fidelity.ssim) and a
 float64 MSE, the depth passes with their own uploads and waits, and a sweep
 doing one cv2.erode / cv2.dilate and one upload per offset and one IoU call
 per offset and axis.  Probe outputs are synthetic blobs (one semantic probe,
-one structural probe with 6 masks per rendering), so only the measuring is
+one structural probe with 6 masks per rendering; bool, as the probes hand them over), so only the measuring is
 timed.  Images are float32, as the renderer and the renders reader give them.
 Last, both SSIM backends (the WGSL kernel and the OpenCV path) are timed on
 this adapter.
@@ -28,9 +28,14 @@ from common import blob_masks, header  # noqa: E402
 
 
 def make_view(h, w, n_methods, rng):
+    """One view's inputs; probe masks are bool, as MaskSet and SemanticPrediction hold them."""
     from r360gpu.metrics.measure import MethodOutputs
 
     target = blob_masks(1, h, w, rng)[0].astype(bool)
+
+    def probe_masks(n):
+        return blob_masks(n, h, w, rng).astype(bool)
+
     ref = (rng.random((h, w, 3)) * 0.2 + np.linspace(0, 0.8, w)[None, :, None]).astype(np.float32)
     pre_depth = (3 + rng.normal(0, 0.01, (h, w))).astype(np.float32)
     pre_depth[target] = 2.0
@@ -39,9 +44,9 @@ def make_view(h, w, n_methods, rng):
         depth = pre_depth.copy()
         depth[target] = 3.0 + 0.1 * i
         rgb = np.clip(ref + rng.normal(0, 0.02 * (i + 1), ref.shape).astype(np.float32), 0, 1)
-        methods[f"m{i}"] = MethodOutputs(rgb=rgb, depth=depth, semantic={"sem": blob_masks(1 + i % 2, h, w, rng)},
-                                         structural={"str": blob_masks(6, h, w, rng)})
-    return target, ref, pre_depth, {"sem": blob_masks(2, h, w, rng)}, {"str": blob_masks(6, h, w, rng)}, methods
+        methods[f"m{i}"] = MethodOutputs(rgb=rgb, depth=depth, semantic={"sem": probe_masks(1 + i % 2)},
+                                         structural={"str": probe_masks(6)})
+    return target, ref, pre_depth, {"sem": probe_masks(2)}, {"str": probe_masks(6)}, methods
 
 
 def previous_way(target, ref, pre_depth, sem_pre, first, methods, ctx):

@@ -29,7 +29,7 @@ def test_backend_default_follows_the_adapter(ctx, monkeypatch):
     assert ctx.kernel_backend("depth_change") == ("cpu" if cpu else "gpu")
     pre, post = np.ones((3, 4), np.float32), np.full((3, 4), 2, np.float32)
     stage = K.delta_histogram(pre, post, ctx=ctx)
-    assert (stage.delta_host is not None) == cpu and (not stage.chunks) == cpu
+    assert (stage.bins_host is not None) == cpu and (not stage.chunks) == cpu
 
 
 def test_flavour_is_chosen_by_adapter_type(ctx, monkeypatch):
@@ -191,3 +191,14 @@ def test_split_just_below_a_whole_bin(ctx, t):
     pre = np.arange(1, 301, dtype=np.float32).reshape(10, 30)
     post = np.zeros_like(pre) + 0.5
     _run(ctx, pre, post, np.ones_like(pre, bool), t)
+
+
+def test_host_histogram_over_several_count_chunks(ctx, monkeypatch, histogram_flavour):
+    """cv2.calcHist counts in float32, so the host path counts at most _HIST_CHUNK pixels per call;
+    with a chunk far smaller than the image (not a divisor of it) the counts still equal the oracle's."""
+    if histogram_flavour != "cpu":
+        pytest.skip("host path only")
+    monkeypatch.setattr(K, "_HIST_CHUNK", 97)
+    pre, post, mask = _scene(np.random.default_rng(11), 45, 67)
+    stage, _ = _run(ctx, pre, post, mask, 100.0)
+    assert stage.hist.sum() == 45 * 67

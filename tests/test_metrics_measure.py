@@ -71,3 +71,41 @@ def test_without_reference_depth_or_probes(ctx):
     assert r.record.fidelity is None and r.record.geometric is None
     assert measure_view_methods(view="v", scene="sc", target=target, methods={}, semantic_pre={},
                                 structural_first={}, mode="reference", ctx=ctx) == {}
+
+
+@pytest.mark.parametrize("ssim_backend", ["cpu", "gpu"])
+def test_fidelity_overlap_keeps_values_and_errors(ctx, monkeypatch, ssim_backend):
+    """On the cpu SSIM backend fidelity runs in its own thread while the depth and mask passes
+    run here; the records are the same as on the inline path, and an error in that thread
+    (a NaN I_post) reaches the caller, naming the method."""
+    import threading
+
+    import r360gpu.metrics.fidelity as fidelity
+    from r360gpu.errors import InputError
+
+    monkeypatch.setenv("R360GPU_SSIM", ssim_backend)
+    rng = np.random.default_rng(8)
+    h, w = 40, 57
+    target = _blobs(rng, 1, h, w)[0]
+    ref = rng.random((h, w, 3)).astype(np.float32)
+    pre_depth = rng.uniform(1, 5, (h, w)).astype(np.float32)
+    methods = {m: MethodOutputs(rgb=np.clip(ref + rng.normal(0, 0.1, ref.shape), 0, 1).astype(np.float32),
+                                depth=pre_depth + i) for i, m in enumerate("ab")}
+    threads = []
+    real = fidelity.fidelity_views
+
+    def spy(*a, **k):
+        threads.append(threading.current_thread().name)
+        return real(*a, **k)
+
+    monkeypatch.setattr("r360gpu.metrics.measure.fidelity_views", spy)
+    kw = dict(view="v", scene="sc", target=target, semantic_pre={}, structural_first={}, mode="reference",
+              pre_depth=pre_depth, ref_rgb=ref, ctx=ctx)
+    got = measure_view_methods(methods=methods, **kw)
+    assert threads == (["r360-fidelity_0"] if ssim_backend == "cpu" else [threading.current_thread().name])
+    for m, mo in methods.items():
+        assert got[m].record.fidelity == fidelity_view(mo.rgb, ref, ctx=ctx)
+    bad = dict(methods)
+    bad["b"] = MethodOutputs(rgb=np.where(target[:, :, None], np.nan, ref).astype(np.float32), depth=pre_depth)
+    with pytest.raises(InputError, match="method b's I_post contains NaN"):
+        measure_view_methods(methods=bad, **kw)

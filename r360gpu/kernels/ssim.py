@@ -228,45 +228,64 @@ def _strip_buffers(rows: int, w: int, c: int) -> tuple:
     f32 = lambda shape: np.empty(shape, np.float32)  # noqa: E731
     vw = w - (WIN - 1)
     big = tuple(f32((rows + WIN - 1, w, c)) for _ in range(3))
-    return big + tuple(f32((rows, vw, c)) for _ in range(8))
+    # the last: squared errors in float64, over a strip's rows (the last strip's reach the bottom)
+    return big + tuple(f32((rows, vw, c)) for _ in range(8)) + (np.empty((rows + WIN - 1, w, c), np.float64),)
 
 
-def _squared_error(x: np.ndarray, y: np.ndarray) -> float:
-    """Sum of squared differences of two row blocks: exact for uint8 (integers), else
-    float32 differences squared and summed (pairwise) in float64."""
+def _squared_error(x: np.ndarray, y: np.ndarray, d32: np.ndarray, d64: np.ndarray) -> float:
+    """Sum of squared differences of two row blocks, in the buffers d32 / d64 (at least as many
+    rows): exact for uint8 (|x - y| squared in uint16, summed in uint64), else float32
+    differences squared and summed (pairwise) in float64.  No temporaries: fresh arrays of
+    this size cost more in page faults than the arithmetic."""
+    n = x.shape[0]
     if y.dtype == np.uint8:
-        d = (x.astype(np.int16) - y.astype(np.int16)).reshape(-1).astype(np.int64)
-        return float(np.dot(d, d))
+        d = d32.view(np.uint16).reshape(-1)[: x.size]
+        np.copyto(d, cv2.absdiff(x, y).reshape(-1))
+        d *= d  # 255^2 fits uint16
+        return float(d.sum(dtype=np.uint64))
+    d, d2 = d32[:n], d64[:n]
+    np.subtract(x, y, out=d)
+    d2[...] = d
+    np.square(d2, out=d2)
     # numpy's pairwise sum, not BLAS dot: BLAS splits the sum by its thread count, which
     # differs between processes (Ray workers run single-threaded), and so would the last bits
-    return float(np.square(np.subtract(x, y, dtype=np.float32).astype(np.float64)).sum())
+    return float(d2.sum())
+
+
+def _rows(a: np.ndarray) -> np.ndarray:
+    """A contiguous (rows, W, C) block as (rows, W * C): a per-channel constant tiled along the
+    row then broadcasts with a W * C long inner loop (against (C,), numpy's inner loop is C long)."""
+    return a.reshape(a.shape[0], -1)
 
 
 def _strip_sums(xs, y, shift, strip, bufs, g, c1, c2) -> tuple[np.ndarray, np.ndarray]:
     """Summed SSIM map of every method over output rows ``strip`` (o0, o1, e0, e1), and
-    summed squared error over image rows [e0, e1): float64 (len(xs),) each."""
+    summed squared error over image rows [e0, e1): float64 (len(xs),) each.
+
+    shift: I_ref's channel means tiled along a row, (W * C,) float32."""
     o0, o1, e0, e1 = strip
-    ys, xc, t, my, vy_c2, my2, my_sq_c1, mx, sxx, sxy, tmp = bufs
+    ys, xc, t, my, vy_c2, my2, my_sq_c1, mx, sxx, sxy, tmp, sq64 = bufs
     n_in, n_out = o1 - o0 + WIN - 1, o1 - o0
     yc, xcs, ts = ys[:n_in], xc[:n_in], t[:n_in]
     m_y, v_y, m_y2, m_yc = my[:n_out], vy_c2[:n_out], my2[:n_out], my_sq_c1[:n_out]
     m_x, s_xx, s_xy, q = mx[:n_out], sxx[:n_out], sxy[:n_out], tmp[:n_out]
+    shift_v = shift[: m_y.shape[1] * m_y.shape[2]]  # the valid columns' share (the tiling is periodic)
     sums = np.zeros(len(xs), np.float64)
-    sq = np.array([_squared_error(x[e0:e1], y[e0:e1]) for x in xs], np.float64)
+    sq = np.array([_squared_error(x[e0:e1], y[e0:e1], t, sq64) for x in xs], np.float64)
     # I_ref's share, once per strip for all methods (values shifted by its channel means).
-    np.subtract(y[o0 : o0 + n_in], shift, out=yc, dtype=np.float32)
+    np.subtract(_rows(y[o0 : o0 + n_in]), shift, out=_rows(yc), dtype=np.float32)
     _filter(yc, g, m_y)
     np.multiply(yc, yc, out=ts)
     _filter(ts, g, v_y)
     np.multiply(m_y, m_y, out=q)
     v_y -= q
     v_y += c2  # syy + C2
-    np.add(m_y, shift, out=m_y2)
+    np.add(_rows(m_y), shift_v, out=_rows(m_y2))
     np.multiply(m_y2, m_y2, out=m_yc)
     m_yc += c1  # my^2 + C1
     m_y2 *= np.float32(2.0)  # 2 my
     for k, x in enumerate(xs):
-        np.subtract(x[o0 : o0 + n_in], shift, out=xcs, dtype=np.float32)
+        np.subtract(_rows(x[o0 : o0 + n_in]), shift, out=_rows(xcs), dtype=np.float32)
         _filter(xcs, g, m_x)
         np.multiply(xcs, xcs, out=ts)
         _filter(ts, g, s_xx)
@@ -279,7 +298,7 @@ def _strip_sums(xs, y, shift, strip, bufs, g, c1, c2) -> tuple[np.ndarray, np.nd
         s_xy -= q
         s_xy *= np.float32(2.0)
         s_xy += c2  # 2 sxy + C2
-        m_x += shift
+        np.add(_rows(m_x), shift_v, out=_rows(m_x))
         np.multiply(m_x, m_x, out=q)
         q += m_yc
         q *= s_xx  # (mx^2 + my^2 + C1)(sxx + syy + C2)
@@ -308,7 +327,7 @@ def _ssim_mse_cpu(xs: list[np.ndarray], y: np.ndarray) -> list[tuple[float, floa
     vh, vw = h - (WIN - 1), w - (WIN - 1)
     # cv2.mean (float64 sums, <= 4 channels) in one contiguous pass; numpy's axis-0 mean is a strided one
     mean = cv2.mean(y)[:c] if c <= 4 else y.reshape(-1, c).mean(axis=0, dtype=np.float64)
-    shift = np.asarray(mean, np.float64).astype(np.float32)
+    shift = np.tile(np.asarray(mean, np.float64).astype(np.float32), w)
     rows = min(STRIP, vh)
     # output rows [o0, o1); squared errors over image rows [o0, o1), the last strip to the bottom
     strips = [(o0, min(vh, o0 + rows), o0, min(vh, o0 + rows) if o0 + rows < vh else h) for o0 in range(0, vh, rows)]

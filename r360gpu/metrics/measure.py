@@ -88,11 +88,58 @@ def measure_view_methods(
     check_mode(mode)
     names = list(methods)
     sem_names, str_names = list(semantic_pre), list(structural_first)
-    fid = {}
+    fid_job = None
     if ref_rgb is not None and names:
-        views = fidelity_views([methods[m].rgb for m in names], ref_rgb, lpips_model, ctx=ctx,
-                               what=[f"method {m}'s I_post" for m in names])
-        fid = dict(zip(names, views))
+        fid_job = _Fidelity([methods[m].rgb for m in names], ref_rgb, lpips_model, ctx,
+                            [f"method {m}'s I_post" for m in names])
+    try:
+        return _measure(view, scene, target, methods, semantic_pre, structural_first, mode, pre_depth, probes,
+                        boundary, xis, compat, ght_params, ctx, names, sem_names, str_names, fid_job)
+    finally:
+        if fid_job is not None:
+            fid_job.wait()
+
+
+class _Fidelity:
+    """fidelity_views of the view, in a background thread when SSIM runs on the host (its
+    OpenCV filters release the GIL, so the depth and mask passes overlap them); on the GPU
+    backend, here (one thread submits to the device)."""
+
+    _pool = None
+
+    def __init__(self, posts, ref, lpips_model, ctx, what):
+        import contextvars
+
+        from ..kernels.ssim import ssim_backend
+
+        from ..gpu import get_context
+
+        ctx = ctx or get_context()
+        args = (posts, ref, lpips_model)
+        kw = {"ctx": ctx, "what": what}
+        if ssim_backend(ctx) == "cpu":
+            if _Fidelity._pool is None:
+                from concurrent.futures import ThreadPoolExecutor
+
+                _Fidelity._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="r360-fidelity")
+            self._fut = _Fidelity._pool.submit(contextvars.copy_context().run, fidelity_views, *args, **kw)
+            self._views = None
+        else:
+            self._fut, self._views = None, fidelity_views(*args, **kw)
+
+    def result(self) -> list:
+        return self._views if self._fut is None else self._fut.result()
+
+    def wait(self) -> None:
+        """Let the thread finish before the inputs go (its errors, if unread, are dropped here)."""
+        if self._fut is not None:
+            from concurrent.futures import wait
+
+            wait([self._fut])
+
+
+def _measure(view, scene, target, methods, semantic_pre, structural_first, mode, pre_depth, probes, boundary, xis,
+             compat, ght_params, ctx, names, sem_names, str_names, fid_job) -> dict[str, MethodMeasures]:
     geo: dict[str, GeometricView] = {}
     with_depth = [m for m in names if pre_depth is not None and methods[m].depth is not None]
     if with_depth:
@@ -102,7 +149,7 @@ def measure_view_methods(
     sweep = boundary and bool(sem_names) and bool(str_names)
     if sweep:
         boundary_targets(target, ctx=ctx)  # once for all methods (memoised)
-    out = {}
+    parts = {}
     for m in names:
         mo = methods[m]
         sem_views = [semantic_view(semantic_pre[p], mo.semantic[p], target, view=view, ctx=ctx) for p in sem_names]
@@ -112,8 +159,6 @@ def measure_view_methods(
             pairs = {p: (structural_first[p], mo.structural[p]) for p in str_names}
         str_views = [structural_view(a, b, target, mode=mode, view=view, ctx=ctx) for a, b in pairs.values()]
         g = geo.get(m)
-        record = ViewRecord.build(view, scene, m, probes=probes, semantic=sem_views, structural=str_views,
-                                  geometric=g, fidelity=fid.get(m))
         rows = None
         if sweep:
             a, b = pairs[str_names[0]]
@@ -124,5 +169,11 @@ def measure_view_methods(
                 ctx=ctx,
             )
             rows = {row: table.row(row) for row in table.rows}
+        parts[m] = (sem_views, str_views, g, rows, pairs)
+    fid = {} if fid_job is None else dict(zip(names, fid_job.result()))
+    out = {}
+    for m, (sem_views, str_views, g, rows, pairs) in parts.items():
+        record = ViewRecord.build(view, scene, m, probes=probes, semantic=sem_views, structural=str_views,
+                                  geometric=g, fidelity=fid.get(m))
         out[m] = MethodMeasures(record, rows, g, pairs)
     return out

@@ -141,8 +141,12 @@ def boundary_targets(target, offsets: Sequence[int] = BOUNDARY_OFFSETS, *, view:
             _TARGETS.move_to_end(key)
             return hit[1]
     words = morph.perturb_packed(m, offs)
-    areas = np.unpackbits(words.view(np.uint8).reshape(len(offs), -1), axis=1).sum(axis=1, dtype=np.int64)
-    bt = BoundaryTargets(offs, K.pack(K.BitMasks(words, m.shape[1]), ctx=ctx), areas, m.shape)
+    packed = K.pack(K.BitMasks(words, m.shape[1]), ctx=ctx)
+    if packed.areas_host is not None:  # numpy >= 2 counted the bits while packing
+        areas = packed.areas_host.copy()
+    else:
+        areas = np.unpackbits(words.view(np.uint8).reshape(len(offs), -1), axis=1).sum(axis=1, dtype=np.int64)
+    bt = BoundaryTargets(offs, packed, areas, m.shape)
     with _TARGETS_LOCK:
         _TARGETS[key] = (ctx, bt)
         while len(_TARGETS) > _TARGETS_KEEP:
