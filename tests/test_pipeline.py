@@ -185,7 +185,7 @@ def test_picture_sink_writes_the_sheet_of_the_full_size_inputs(tmp_path, size):
 
     from r360gpu.metrics.compat import depth_delta
     from r360gpu.probes.base import MaskSet, SemanticPrediction
-    from r360gpu.report.pictures import view_contact_sheet
+    from r360gpu.report.pictures import panel_width_for, view_contact_sheet
 
     h, w = size
     rng = np.random.default_rng(h)
@@ -212,5 +212,26 @@ def test_picture_sink_writes_the_sheet_of_the_full_size_inputs(tmp_path, size):
     direct = view_contact_sheet(
         tmp_path / "direct.png", title="s / m / v", pre=pre, post=post, target=target, ref=ref,
         delta=depth_delta(d_pre, d_post), threshold=0.5, changed=Geo.changed, semantic_pre=sem[0].union(),
-        semantic_post=sem[1].union(), structural=[("a on I_pre", pre, masks.masks), ("a on I_post", post, masks.masks)])
+        semantic_post=sem[1].union(), structural=[("a on I_pre", pre, masks.masks), ("a on I_post", post, masks.masks)],
+        width=panel_width_for(w))
     assert (tmp_path / "out" / "pictures" / "s" / "m" / "v.png").read_bytes() == direct.read_bytes()
+
+
+def test_panel_width_follows_small_views():
+    """Views narrower than PANEL_WIDTH keep their own width (no enlarged pixels), down to MIN_PANEL_WIDTH,
+    which keeps the lines of numbers on a 4-column sheet whole."""
+    import cv2
+    import numpy as np
+
+    from r360gpu.report.pictures import (MIN_PANEL_WIDTH, PANEL_WIDTH, panel_width_for, sheet_image, view_numbers,
+                                         _FONT, _TITLE_SCALE)
+
+    assert [panel_width_for(w) for w in (4000, PANEL_WIDTH, 290, MIN_PANEL_WIDTH, 97, 1)] == [
+        PANEL_WIDTH, PANEL_WIDTH, 290, MIN_PANEL_WIDTH, MIN_PANEL_WIDTH, MIN_PANEL_WIDTH]
+    record = {"semantic": {"grounded-sam2": {"iou_pre": 0.87654, "iou_post": 0.12345}},
+              "geometric": {"acc_depth": 0.91234, "threshold": 0.12345},
+              "structural": {"sam-vit-h": {"sim_sam": 0.85432}},
+              "fidelity": {"psnr": 31.234, "ssim": 0.91234, "lpips": 0.12345}}
+    sheet_w = sheet_image([("p", np.zeros((8, 8, 3), np.uint8))] * 4, panel_width=MIN_PANEL_WIDTH).shape[1]
+    for line in view_numbers(record):
+        assert cv2.getTextSize(line, _FONT, _TITLE_SCALE, 1)[0][0] <= sheet_w - 8, line

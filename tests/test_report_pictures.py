@@ -106,6 +106,34 @@ def test_mask_overlay_is_seeded_and_outlined(scene):
         mask_overlay(rgb, masks[:, :10], width=W)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_mask_overlay_blend_is_the_plain_per_mask_blend(seed):
+    """The overlay blends each mask (in order) into the float32 panel as
+    (1 - alpha) * pixel + alpha * colour, rounded once at the end; it works on each mask's bounding
+    box only, which must give exactly the whole-image blend (outlines drawn on both alike)."""
+    from r360gpu.report.pictures import _outline, _resize_mask, _resize_rgb
+
+    rng = np.random.default_rng(seed)
+    h, w = rng.integers(1, 90, 2)
+    rgb = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    masks = rng.random((4, h, w)) < rng.uniform(0, 1, (4, 1, 1))
+    masks[0] = False  # an empty mask
+    if seed % 2:
+        masks[1] = True  # a full one
+    width = int(rng.integers(16, 200))
+    got = mask_overlay(rgb, masks, width=width, seed=seed, alpha=0.45)
+    img = _resize_rgb(rgb, width).astype(np.float32)
+    size = (img.shape[1], img.shape[0])
+    cols = mask_colors(4, seed)
+    small = [_resize_mask(m, size) for m in masks]
+    for m, col in zip(small, cols):
+        img[m] = (1.0 - 0.45) * img[m] + 0.45 * col.astype(np.float32)
+    want = np.rint(img).astype(np.uint8)
+    for m, col in zip(small, cols):
+        _outline(want, m, tuple(int(c) for c in col))
+    np.testing.assert_array_equal(got, want)
+
+
 def test_contact_sheet_layout_and_png(tmp_path, scene):
     rgb, target, delta = scene
     panels = [("a", rgb), ("b", target), ("c", depth_change_panel(delta, 0.5, 100)), ("d", rgb), ("e", rgb)]

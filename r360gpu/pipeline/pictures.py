@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 
 class PictureSink:
     """Writes per-(method, view) contact sheets under ``out/pictures`` (does nothing when disabled)."""
@@ -33,7 +35,7 @@ class PictureSink:
         are drawn on the sheet, so they survive copying it).
         """
         from ..metrics.compat import compat_quantise, depth_delta
-        from ..report.pictures import PANEL_WIDTH, view_contact_sheet
+        from ..report.pictures import panel_width_for, view_contact_sheet
 
         delta = threshold = changed = None
         if geo is not None:
@@ -43,7 +45,7 @@ class PictureSink:
                 delta = compat_quantise(delta)
         # Everything but the heat map is brought to the panel size first (once per array
         # and view when a _Shrink is shared): the panels resize exactly so, so the sheet is the same.
-        small = _shrink or _Shrink(PANEL_WIDTH)
+        small = _shrink or _Shrink(panel_width_for(np.shape(pre_rgb)[1]))
         rel = self.path_for(scene, method, view)
         view_contact_sheet(
             self.out / rel, title=f"{scene} / {method} / {view}", pre=small.rgb(pre_rgb), post=small.rgb(post_rgb),
@@ -52,15 +54,17 @@ class PictureSink:
             semantic_pre=None if semantic is None else small.union(semantic[0]),
             semantic_post=None if semantic is None else small.union(semantic[1]),
             structural=[(t, small.rgb(rgb), small.masks(ms.masks)) for t, rgb, ms in structural],
-            width=PANEL_WIDTH, record=record, embed_cache=self.embed_cache,
+            width=small.width, record=record, embed_cache=self.embed_cache,
         )
         return rel
 
     def view(self, jobs: list) -> None:
         """Write the sheets of one view's methods, converting the images they share once."""
-        from ..report.pictures import PANEL_WIDTH
+        from ..report.pictures import panel_width_for
 
-        shrink = _Shrink(PANEL_WIDTH)
+        if not jobs:
+            return
+        shrink = _Shrink(panel_width_for(np.shape(jobs[0]["pre_rgb"])[1]))
         for job in jobs:
             self.method_view(**job, _shrink=shrink)
 
@@ -95,8 +99,6 @@ class _Shrink:
         return _size_for(shape, self.width)
 
     def mask(self, m):
-        import numpy as np
-
         from ..report.pictures import _resize_mask
 
         return self._once(m, lambda x: _resize_mask(np.asarray(x) != 0, self._size(np.shape(x))))
@@ -106,8 +108,6 @@ class _Shrink:
         return self._once(prediction, lambda p: self.mask(p.union()))
 
     def masks(self, stack):
-        import numpy as np
-
         from ..report.pictures import _resize_mask
 
         def make(x):

@@ -28,6 +28,15 @@ from ..util.atomic import write_bytes
 
 #: Default panel width (px): keeps the report light.
 PANEL_WIDTH = 320
+#: Narrowest panel a view's sheet gets: four of them keep the lines of numbers under the title whole.
+MIN_PANEL_WIDTH = 240
+
+
+def panel_width_for(image_width: int) -> int:
+    """Panel width for a view ``image_width`` px wide: :data:`PANEL_WIDTH`, or the view's own
+    width when that is smaller (no enlarged pixels, less to encode), but at least
+    :data:`MIN_PANEL_WIDTH`."""
+    return max(MIN_PANEL_WIDTH, min(PANEL_WIDTH, int(image_width)))
 TARGET_RGB = (0, 230, 0)
 SEMANTIC_RGB = (255, 0, 255)
 THRESHOLD_RGB = (0, 255, 255)
@@ -248,9 +257,14 @@ def mask_overlay(rgb, masks, width: int = PANEL_WIDTH, *, color: tuple[int, int,
                          f"{full.shape[0]}x{full.shape[1]}")
     colors = (np.tile(np.array(color, np.uint8), (stack.shape[0], 1)) if color is not None
               else mask_colors(stack.shape[0], seed))
-    small = [_resize_mask(m, size) for m in stack]
+    small = [_resize_mask(m, size).astype(np.uint8) for m in stack]
+    keep = np.float32(1.0 - alpha)
     for m, col in zip(small, colors):
-        img[m] = (1.0 - alpha) * img[m] + alpha * col.astype(np.float32)
+        # blended within the mask's bounding box only, and written where the mask is
+        x, y, bw, bh = cv2.boundingRect(m)
+        if bw and bh:
+            box = img[y : y + bh, x : x + bw]
+            np.copyto(box, box * keep + alpha * col.astype(np.float32), where=m[y : y + bh, x : x + bw, None] != 0)
     out = np.rint(img).astype(np.uint8)
     for m, col in zip(small, colors):
         _outline(out, m, tuple(int(c) for c in col))
