@@ -253,7 +253,8 @@ _HIST_CHUNK = 1 << 24
 
 
 def _histogram(bins: np.ndarray) -> np.ndarray:
-    """(256,) int64 counts of a uint8 array (cv2.calcHist, ~6x np.bincount, which widens to intp first)."""
+    """(256,) int64 counts of a uint8 array (cv2.calcHist counts bytes as they are; np.bincount widens them
+    to intp first)."""
     import cv2
 
     flat = bins.reshape(-1)

@@ -17,7 +17,7 @@ Backends (:func:`ssim_backend`):
 ``cpu``
     on CPU adapters (lavapipe) a compute shader is a slower way to run the
     same CPU: its per-invocation storage loads make this 11 x 11 stencil
-    several times slower than OpenCV's vectorised separable filter (5.8x at
+    several times slower than OpenCV's vectorised separable filter (10x at
     1080p, 3 methods, in bench/bench_measure.py's last rows).  This path
     filters float32 images with cv2.sepFilter2D after subtracting each
     channel's mean of I_ref (so E[x^2] - E[x]^2 cancels on values near 0,
@@ -235,8 +235,8 @@ def _strip_buffers(rows: int, w: int, c: int) -> tuple:
 def _squared_error(x: np.ndarray, y: np.ndarray, d32: np.ndarray, d64: np.ndarray) -> float:
     """Sum of squared differences of two row blocks, in the buffers d32 / d64 (at least as many
     rows): exact for uint8 (|x - y| squared in uint16, summed in uint64), else float32
-    differences squared and summed (pairwise) in float64.  No temporaries: fresh arrays of
-    this size cost more in page faults than the arithmetic."""
+    differences squared and summed (pairwise) in float64.  The buffers are the thread's own and
+    reused strip after strip, so no image-sized temporary is allocated and faulted in per strip."""
     n = x.shape[0]
     if y.dtype == np.uint8:
         d = d32.view(np.uint16).reshape(-1)[: x.size]
