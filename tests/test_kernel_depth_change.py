@@ -192,13 +192,3 @@ def test_split_just_below_a_whole_bin(ctx, t):
     post = np.zeros_like(pre) + 0.5
     _run(ctx, pre, post, np.ones_like(pre, bool), t)
 
-
-def test_host_histogram_over_several_count_chunks(ctx, monkeypatch, histogram_flavour):
-    """cv2.calcHist counts in float32, so the host path counts at most _HIST_CHUNK pixels per call;
-    with a chunk far smaller than the image (not a divisor of it) the counts still equal the oracle's."""
-    if histogram_flavour != "cpu":
-        pytest.skip("host path only")
-    monkeypatch.setattr(K, "_HIST_CHUNK", 97)
-    pre, post, mask = _scene(np.random.default_rng(11), 45, 67)
-    stage, _ = _run(ctx, pre, post, mask, 100.0)
-    assert stage.hist.sum() == 45 * 67
