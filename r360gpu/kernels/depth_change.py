@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from ..errors import InputError
@@ -255,8 +256,6 @@ _HIST_CHUNK = 1 << 24
 def _histogram(bins: np.ndarray) -> np.ndarray:
     """(256,) int64 counts of a uint8 array (cv2.calcHist counts bytes as they are; np.bincount widens them
     to intp first)."""
-    import cv2
-
     flat = bins.reshape(-1)
     out = np.zeros(N_BINS, np.int64)
     for i in range(0, flat.size, _HIST_CHUNK):

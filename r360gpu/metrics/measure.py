@@ -88,92 +88,86 @@ def measure_view_methods(
     check_mode(mode)
     names = list(methods)
     sem_names, str_names = list(semantic_pre), list(structural_first)
-    fid_job = None
-    if ref_rgb is not None and names:
-        fid_job = _Fidelity([methods[m].rgb for m in names], ref_rgb, lpips_model, ctx,
-                            [f"method {m}'s I_post" for m in names])
-    try:
-        return _measure(view, scene, target, methods, semantic_pre, structural_first, mode, pre_depth, probes,
-                        boundary, xis, compat, ght_params, ctx, names, sem_names, str_names, fid_job)
-    finally:
-        if fid_job is not None:
-            fid_job.wait()
-
-
-class _Fidelity:
-    """fidelity_views of the view, in a background thread when SSIM runs on the host (its
-    OpenCV filters release the GIL, so the depth and mask passes overlap them); on the GPU
-    backend, here (one thread submits to the device)."""
-
-    _pool = None
-
-    def __init__(self, posts, ref, lpips_model, ctx, what):
-        import contextvars
-
-        from ..kernels.ssim import ssim_backend
-
-        from ..gpu import get_context
-
-        ctx = ctx or get_context()
-        args = (posts, ref, lpips_model)
-        kw = {"ctx": ctx, "what": what}
-        if ssim_backend(ctx) == "cpu":
-            if _Fidelity._pool is None:
-                from concurrent.futures import ThreadPoolExecutor
-
-                _Fidelity._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="r360-fidelity")
-            self._fut = _Fidelity._pool.submit(contextvars.copy_context().run, fidelity_views, *args, **kw)
-            self._views = None
-        else:
-            self._fut, self._views = None, fidelity_views(*args, **kw)
-
-    def result(self) -> list:
-        return self._views if self._fut is None else self._fut.result()
-
-    def wait(self) -> None:
-        """Let the thread finish before the inputs go (its errors, if unread, are dropped here)."""
-        if self._fut is not None:
-            from concurrent.futures import wait
-
-            wait([self._fut])
-
-
-def _measure(view, scene, target, methods, semantic_pre, structural_first, mode, pre_depth, probes, boundary, xis,
-             compat, ght_params, ctx, names, sem_names, str_names, fid_job) -> dict[str, MethodMeasures]:
-    geo: dict[str, GeometricView] = {}
-    with_depth = [m for m in names if pre_depth is not None and methods[m].depth is not None]
-    if with_depth:
-        views = acc_depth_views(pre_depth, [methods[m].depth for m in with_depth], target, compat=compat,
-                                ght_params=ght_params, ctx=ctx)
-        geo = dict(zip(with_depth, views))
-    sweep = boundary and bool(sem_names) and bool(str_names)
-    if sweep:
-        boundary_targets(target, ctx=ctx)  # once for all methods (memoised)
-    parts = {}
-    for m in names:
-        mo = methods[m]
-        sem_views = [semantic_view(semantic_pre[p], mo.semantic[p], target, view=view, ctx=ctx) for p in sem_names]
-        if mode == "reference":
-            pairs = {p: (mo.structural[p], structural_first[p]) for p in str_names}
-        else:
-            pairs = {p: (structural_first[p], mo.structural[p]) for p in str_names}
-        str_views = [structural_view(a, b, target, mode=mode, view=view, ctx=ctx) for a, b in pairs.values()]
-        g = geo.get(m)
-        rows = None
+    with _Fidelity(methods, ref_rgb, lpips_model, ctx) as fidelity:
+        geo: dict[str, GeometricView] = {}
+        with_depth = [m for m in names if pre_depth is not None and methods[m].depth is not None]
+        if with_depth:
+            views = acc_depth_views(pre_depth, [methods[m].depth for m in with_depth], target, compat=compat,
+                                    ght_params=ght_params, ctx=ctx)
+            geo = dict(zip(with_depth, views))
+        sweep = boundary and bool(sem_names) and bool(str_names)
         if sweep:
-            a, b = pairs[str_names[0]]
-            table = boundary_sensitivity(
-                [BoundaryInput(target, pred_pre=semantic_pre[sem_names[0]], pred_post=mo.semantic[sem_names[0]],
-                               masks_a=a, masks_b=b, geometric=g if g is not None else NOT_GIVEN, view=view)],
-                geometric=g is not None, structural_mode=mode, xis=xis, compat=compat, ght_params=ght_params,
-                ctx=ctx,
-            )
-            rows = {row: table.row(row) for row in table.rows}
-        parts[m] = (sem_views, str_views, g, rows, pairs)
-    fid = {} if fid_job is None else dict(zip(names, fid_job.result()))
+            boundary_targets(target, ctx=ctx)  # once for all methods (memoised)
+        parts = {}
+        for m in names:
+            mo = methods[m]
+            sem_views = [semantic_view(semantic_pre[p], mo.semantic[p], target, view=view, ctx=ctx)
+                         for p in sem_names]
+            if mode == "reference":
+                pairs = {p: (mo.structural[p], structural_first[p]) for p in str_names}
+            else:
+                pairs = {p: (structural_first[p], mo.structural[p]) for p in str_names}
+            str_views = [structural_view(a, b, target, mode=mode, view=view, ctx=ctx) for a, b in pairs.values()]
+            g = geo.get(m)
+            rows = None
+            if sweep:
+                a, b = pairs[str_names[0]]
+                table = boundary_sensitivity(
+                    [BoundaryInput(target, pred_pre=semantic_pre[sem_names[0]], pred_post=mo.semantic[sem_names[0]],
+                                   masks_a=a, masks_b=b, geometric=g if g is not None else NOT_GIVEN, view=view)],
+                    geometric=g is not None, structural_mode=mode, xis=xis, compat=compat, ght_params=ght_params,
+                    ctx=ctx,
+                )
+                rows = {row: table.row(row) for row in table.rows}
+            parts[m] = (sem_views, str_views, g, rows, pairs)
+        fid = fidelity.result()
     out = {}
     for m, (sem_views, str_views, g, rows, pairs) in parts.items():
         record = ViewRecord.build(view, scene, m, probes=probes, semantic=sem_views, structural=str_views,
                                   geometric=g, fidelity=fid.get(m))
         out[m] = MethodMeasures(record, rows, g, pairs)
     return out
+
+
+class _Fidelity:
+    """The view's fidelity_views (every method against I_ref; none without I_ref), as a context:
+    in a background thread when SSIM runs on the host (its OpenCV filters release the GIL, so
+    the depth and mask passes overlap them), inline on the GPU backend (one thread submits).
+    Leaving the context waits for the thread, so it never outlives the view's arrays."""
+
+    _pool = None
+
+    def __init__(self, methods: Mapping[str, MethodOutputs], ref_rgb, lpips_model, ctx):
+        import contextvars
+
+        from ..gpu import get_context
+        from ..kernels.ssim import ssim_backend
+
+        self._names = list(methods) if ref_rgb is not None else []
+        self._fut, self._views = None, []
+        if not self._names:
+            return
+        ctx = ctx or get_context()
+        args = ([methods[m].rgb for m in self._names], ref_rgb, lpips_model)
+        kw = {"ctx": ctx, "what": [f"method {m}'s I_post" for m in self._names]}
+        if ssim_backend(ctx) == "cpu":
+            if _Fidelity._pool is None:
+                from concurrent.futures import ThreadPoolExecutor
+
+                _Fidelity._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="r360-fidelity")
+            self._fut = _Fidelity._pool.submit(contextvars.copy_context().run, fidelity_views, *args, **kw)
+        else:
+            self._views = fidelity_views(*args, **kw)
+
+    def result(self) -> dict:
+        """{method: FidelityView} (errors of the thread are raised here)."""
+        return dict(zip(self._names, self._views if self._fut is None else self._fut.result()))
+
+    def __enter__(self) -> "_Fidelity":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._fut is not None:
+            from concurrent.futures import wait
+
+            wait([self._fut])  # its error, if the caller's own came first, is dropped
