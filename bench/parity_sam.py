@@ -45,14 +45,19 @@ sys.path.insert(0, str(HERE.parent))
 def parse_args():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sam-src", required=True, help="folder holding the fetched segment_anything package")
-    ap.add_argument("--samexporter-src", required=True, help="folder holding the fetched samexporter package")
-    ap.add_argument("--work", default="/tmp/probes-parity", help="where the ONNX exports are written")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--points-per-side", type=int, default=16)
+    add_model_args(ap)
     ap.add_argument("--quick", action="store_true", help="only the step checks (no models)")
     ap.add_argument("--margins-only", action="store_true",
                     help="of the mask-set checks, only the ONNX-vs-torch logit margins (minutes, not half an hour)")
     return ap.parse_args()
+
+
+def add_model_args(ap) -> None:
+    """The arguments both parity benches take: the exporter's source, where exports go, seed, point grid."""
+    ap.add_argument("--samexporter-src", required=True, help="folder holding the fetched samexporter package")
+    ap.add_argument("--work", default="/tmp/probes-parity", help="where the ONNX exports are written")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--points-per-side", type=int, default=16)
 
 
 def report(name: str, ok: bool, detail: str = "") -> bool:
@@ -303,26 +308,20 @@ class EmbeddingCache:
         models.embed = embed
 
 
+def generator_kwargs(params) -> dict:
+    """The keyword arguments SAM's and SAM 2's automatic mask generators share, from ``params``."""
+    keys = ("points_per_side", "points_per_batch", "pred_iou_thresh", "stability_score_thresh",
+            "stability_score_offset", "box_nms_thresh", "crop_n_layers", "crop_nms_thresh", "crop_overlap_ratio",
+            "crop_n_points_downscale_factor", "min_mask_region_area")
+    return {k: getattr(params, k) for k in keys} | {"output_mode": "binary_mask"}
+
+
 def official_generate(sam, image, params, cache: EmbeddingCache | None = None):
     from segment_anything import SamAutomaticMaskGenerator
 
     # The official generator reads the mask threshold from the model.
     sam.mask_threshold = params.mask_threshold
-    gen = SamAutomaticMaskGenerator(
-        sam,
-        points_per_side=params.points_per_side,
-        points_per_batch=params.points_per_batch,
-        pred_iou_thresh=params.pred_iou_thresh,
-        stability_score_thresh=params.stability_score_thresh,
-        stability_score_offset=params.stability_score_offset,
-        box_nms_thresh=params.box_nms_thresh,
-        crop_n_layers=params.crop_n_layers,
-        crop_nms_thresh=params.crop_nms_thresh,
-        crop_overlap_ratio=params.crop_overlap_ratio,
-        crop_n_points_downscale_factor=params.crop_n_points_downscale_factor,
-        min_mask_region_area=params.min_mask_region_area,
-        output_mode="binary_mask",
-    )
+    gen = SamAutomaticMaskGenerator(sam, **generator_kwargs(params))
     if cache is not None:
         cache.wrap_predictor(gen.predictor)
     anns = gen.generate(image)
@@ -505,6 +504,17 @@ def logit_margin(sam, onnx_models, torch_models, img, p) -> str:
             f"{len(keep_t)} masks{' (each within those diffs of its threshold)' if flip_explained else ' (NOT explained)'}")
 
 
+def print_configs(configs) -> None:
+    """One line per generator configuration, then the header of the mask-set table."""
+    for k, p in enumerate(configs):
+        print(f"   config {k}: points {p.points_per_side}, mask_threshold {p.mask_threshold}, pred_iou_thresh "
+              f"{p.pred_iou_thresh}, stability >= {p.stability_score_thresh} (offset {p.stability_score_offset}), "
+              f"box_nms {p.box_nms_thresh}, crop_n_layers {p.crop_n_layers} (points / "
+              f"{p.crop_n_points_downscale_factor}), min_mask_region_area {p.min_mask_region_area}")
+    print("   image        cfg | official | r360 on torch model: n, IoU==1 pairs, min IoU | "
+          "r360 on ONNX: n, IoU==1 pairs, IoU>0.5, mean / min IoU")
+
+
 def check_generators(sam, enc_path, dec_path, imgs, pps, margins_only=False) -> list[bool]:
     from r360gpu.probes.onnx_models import SamModels
     from r360gpu.probes.sam_amg import generate_masks
@@ -517,13 +527,7 @@ def check_generators(sam, enc_path, dec_path, imgs, pps, margins_only=False) -> 
     torch_models = TorchSamModels(sam)
     cache.wrap_predictor(torch_models.predictor)
     configs = generator_configs(pps)
-    for k, p in enumerate(configs):
-        print(f"   config {k}: points {p.points_per_side}, mask_threshold {p.mask_threshold}, pred_iou_thresh "
-              f"{p.pred_iou_thresh}, stability >= {p.stability_score_thresh} (offset {p.stability_score_offset}), "
-              f"box_nms {p.box_nms_thresh}, crop_n_layers {p.crop_n_layers} (points / {p.crop_n_points_downscale_factor}), "
-              f"min_mask_region_area {p.min_mask_region_area}")
-    print("   image        cfg | official | r360 on torch model: n, IoU==1 pairs, min IoU | "
-          "r360 on ONNX: n, IoU==1 pairs, IoU>0.5, mean / min IoU")
+    print_configs(configs)
     for name, img in imgs:
         for k, p in enumerate([] if margins_only else configs):
             t0 = time.perf_counter()

@@ -56,10 +56,7 @@ PRED_IOU_THRESH = 0.5
 def parse_args():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--gsam2-src", required=True, help="folder holding Grounded-SAM-2's sam2 package (with configs)")
-    ap.add_argument("--samexporter-src", required=True, help="folder holding the fetched samexporter package")
-    ap.add_argument("--work", default="/tmp/probes-parity", help="where the ONNX exports are written")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--points-per-side", type=int, default=16)
+    P.add_model_args(ap)
     ap.add_argument("--images", default="shapes240x320,noise210x280",
                     help="comma-separated names of parity_sam.py's images (default: one structured, one noise)")
     ap.add_argument("--explore", action="store_true", help="print logit / score distributions and stop")
@@ -172,29 +169,13 @@ class TorchSam2Models:
 
 
 def set_image(predictor, image, cache):
-    """SAM2ImagePredictor.set_image, memoised by the exact pixels (see parity_sam.EmbeddingCache)."""
-    if cache is None:
-        predictor.set_image(image)
-        return
-    k = ("sam2-torch",) + cache.key(image)
-    if k in cache.store:
-        cache.hits += 1
-        predictor.reset_predictor()
-        predictor._features, predictor._orig_hw = cache.store[k]
-        predictor._is_image_set = True
-        return
-    cache.misses += 1
-    predictor.set_image(image)
-    cache.store[k] = (predictor._features, list(predictor._orig_hw))
-
-
-def wrap_generator(gen, cache) -> None:
-    gen.predictor.set_image = lambda image: set_image_unwrapped(gen.predictor, image, cache)
-
-
-def set_image_unwrapped(predictor, image, cache):
+    """SAM2ImagePredictor.set_image, memoised by the exact pixels (see parity_sam.EmbeddingCache).
+    Calls the class's method, so a predictor whose set_image is wrapped (wrap_generator) does not recurse."""
     from sam2.sam2_image_predictor import SAM2ImagePredictor
 
+    if cache is None:
+        SAM2ImagePredictor.set_image(predictor, image)
+        return
     k = ("sam2-torch",) + cache.key(image)
     if k in cache.store:
         cache.hits += 1
@@ -207,25 +188,14 @@ def set_image_unwrapped(predictor, image, cache):
     cache.store[k] = (predictor._features, list(predictor._orig_hw))
 
 
+def wrap_generator(gen, cache) -> None:
+    gen.predictor.set_image = lambda image: set_image(gen.predictor, image, cache)
+
+
 def official_generate(model, image, params, cache):
     from sam2.automatic_mask_generator import SAM2AutomaticMaskGenerator
 
-    gen = SAM2AutomaticMaskGenerator(
-        model,
-        points_per_side=params.points_per_side,
-        points_per_batch=params.points_per_batch,
-        pred_iou_thresh=params.pred_iou_thresh,
-        stability_score_thresh=params.stability_score_thresh,
-        stability_score_offset=params.stability_score_offset,
-        mask_threshold=params.mask_threshold,
-        box_nms_thresh=params.box_nms_thresh,
-        crop_n_layers=params.crop_n_layers,
-        crop_nms_thresh=params.crop_nms_thresh,
-        crop_overlap_ratio=params.crop_overlap_ratio,
-        crop_n_points_downscale_factor=params.crop_n_points_downscale_factor,
-        min_mask_region_area=params.min_mask_region_area,
-        output_mode="binary_mask",
-    )
+    gen = SAM2AutomaticMaskGenerator(model, mask_threshold=params.mask_threshold, **P.generator_kwargs(params))
     wrap_generator(gen, cache)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the CUDA hole-filling extension is absent on CPU
@@ -346,13 +316,7 @@ def check_generators(model, enc_path, dec_path, imgs, pps) -> list[bool]:
     cache.wrap_models(onnx_models)
     torch_models = TorchSam2Models(model, cache)
     configs = generator_configs(pps)
-    for k, p in enumerate(configs):
-        print(f"   config {k}: points {p.points_per_side}, mask_threshold {p.mask_threshold}, pred_iou_thresh "
-              f"{p.pred_iou_thresh}, stability >= {p.stability_score_thresh} (offset {p.stability_score_offset}), "
-              f"box_nms {p.box_nms_thresh}, crop_n_layers {p.crop_n_layers} (points / "
-              f"{p.crop_n_points_downscale_factor}), min_mask_region_area {p.min_mask_region_area}")
-    print("   image        cfg | official | r360 on torch model: n, IoU==1 pairs, min IoU | "
-          "r360 on ONNX: n, IoU==1 pairs, IoU>0.5, mean / min IoU")
+    P.print_configs(configs)
     for name, img in imgs:
         for k, p in enumerate(configs):
             t0 = time.perf_counter()
