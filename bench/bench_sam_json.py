@@ -3,6 +3,9 @@
 reader (r360gpu.probes.sam_json) vs the standard way it replaced (json.loads +
 np.array of the nested lists, as read_sam_records does on plain lists), and vs
 the same reader with its true/false fast path (parse_bool_grid) turned off.
+Then the two ways of that fast path on single masks with more and more runs
+of ``true`` (parse_bool_runs, parse_bool_tokens), where the dispatcher's
+threshold (one run per ``_BYTES_PER_RUN`` bytes) sits among them.
 
     python bench/bench_sam_json.py [--views 5] [--masks 4] [--width 1200] [--height 1000] [--repeat 3]
 """
@@ -79,7 +82,33 @@ def main() -> int:
     for name, label in (("standard", "standard (json.loads + np.array of lists)"),
                         ("generic", "sam_json, generic path only (parse_grid)"), ("fast", "r360gpu.probes.sam_json")):
         print(f"{label:<46}{best[name]:>10.2f}{best[name] / n * 1e3:>16.1f}{best['standard'] / best[name]:>9.1f}x")
+    runs_table(args.height, args.width, args.repeat)
     return 0
+
+
+def runs_table(h: int, w: int, repeat: int) -> None:
+    """Per-mask time of the run and token ways as the runs of ``true`` per row grow."""
+    from r360gpu.probes import sam_json
+
+    print(f"\n# true/false grid, {h}x{w}, by runs of true per row (best of {repeat})")
+    print(f"{'runs/row':>9}{'bytes/run':>11}{'runs (ms)':>11}{'tokens (ms)':>13}{'dispatcher takes':>18}")
+    for per_row in (1, 4, 8, 16, 64, 256):
+        period = max(2, w // per_row)
+        grid = (np.arange(w)[None, :] % period < period // 2) & (np.arange(h)[:, None] >= 0)
+        raw = json.dumps(grid.tolist()).encode()
+        n_runs = int(grid[:, 0].sum() + (grid[:, 1:] & ~grid[:, :-1]).sum())
+        best = {}
+        for name, fn in (("runs", sam_json.parse_bool_runs), ("tokens", sam_json.parse_bool_tokens)):
+            ts = []
+            for _ in range(repeat):
+                t = time.perf_counter()
+                got = fn(raw, 0, len(raw))
+                ts.append(time.perf_counter() - t)
+                assert np.array_equal(got, grid)
+            best[name] = min(ts)
+        takes = "runs" if n_runs <= max(16, len(raw) // sam_json._BYTES_PER_RUN) else "tokens"
+        print(f"{per_row:>9}{len(raw) // max(1, n_runs):>11}{best['runs'] * 1e3:>11.1f}{best['tokens'] * 1e3:>13.1f}"
+              f"{takes:>18}")
 
 
 if __name__ == "__main__":

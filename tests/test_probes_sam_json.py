@@ -142,17 +142,24 @@ def _canonical_bool_grid(text: bytes):
     return np.array(obj, bool)
 
 
+#: The true/false grid parsers: the dispatcher and both of its ways.
+_BOOL_PARSERS = {"grid": sam_json.parse_bool_grid, "runs": sam_json.parse_bool_runs,
+                 "tokens": sam_json.parse_bool_tokens}
+
+
+@pytest.mark.parametrize("parser", sorted(_BOOL_PARSERS))
 @pytest.mark.parametrize("sep", [", ", ","])
-@pytest.mark.parametrize("shape", [(1, 1), (1, 3), (3, 1), (2, 3)])
-def test_parse_bool_grid_takes_exactly_json_dumps_text(sep, shape):
+@pytest.mark.parametrize("shape", [(1, 1), (1, 3), (3, 1), (2, 3), (3, 4)])
+def test_parse_bool_grid_takes_exactly_json_dumps_text(parser, sep, shape):
     """Every single-byte change, deletion and insertion of a canonical text is either decoded as the grid it
     spells (when it still is json.dump's text of one) or refused (None: the standard reader takes over)."""
+    parse = _BOOL_PARSERS[parser]
     rng = np.random.default_rng(len(sep) * 10 + shape[0] * 3 + shape[1])
     grid = rng.random(shape) < 0.5
     text = json.dumps(grid.tolist(), separators=(sep, ": ")).encode()
     pad = b'{"a": ' + text + b"}"  # the grid inside a file, as _fast sees it
     lo = 6
-    np.testing.assert_array_equal(sam_json.parse_bool_grid(pad, lo, lo + len(text)), grid)
+    np.testing.assert_array_equal(parse(pad, lo, lo + len(text)), grid)
     variants = set()
     for i in range(len(text)):
         for c in b"tfrueals, []01e":
@@ -161,12 +168,43 @@ def test_parse_bool_grid_takes_exactly_json_dumps_text(sep, shape):
         variants.add(text[:i] + text[i + 1 :])
     for v in variants:
         want = _canonical_bool_grid(v)
-        got = sam_json.parse_bool_grid(b"xx" + v + b"yy", 2, 2 + len(v))
+        got = parse(b"xx" + v + b"yy", 2, 2 + len(v))
         if want is None:
             assert got is None, v
         else:
             assert got is not None, v
             np.testing.assert_array_equal(got, want, err_msg=str(v))
+
+
+@pytest.mark.parametrize("sep", [", ", ","])
+@pytest.mark.parametrize("kind", ["blobs", "noise", "stripes", "full", "empty", "edges"])
+def test_bool_grid_ways_agree_on_large_masks(sep, kind):
+    """The run and token ways decode the same masks at full size, and the dispatcher takes the run way
+    for few runs and the token way (the run way refusing) for many."""
+    rng = np.random.default_rng(len(sep) + len(kind))
+    h, w = 97, 131
+    yy, xx = np.mgrid[:h, :w]
+    grid = {
+        "blobs": ((yy - 40) / 30.0) ** 2 + ((xx - 70) / 45.0) ** 2 < 1,
+        "noise": rng.random((h, w)) < 0.5,
+        "stripes": (xx % 3 == 0) | (yy == h - 1),
+        "full": np.ones((h, w), bool),
+        "empty": np.zeros((h, w), bool),
+        "edges": (xx == 0) | (xx == w - 1) | (yy == 0),
+    }[kind]
+    text = b"ab" + json.dumps(grid.tolist(), separators=(sep, ": ")).encode() + b"cd"
+    lo, hi = 2, len(text) - 2
+    for parse in _BOOL_PARSERS.values():
+        np.testing.assert_array_equal(parse(text, lo, hi), grid)
+    runs = int((grid[:, 1:] & ~grid[:, :-1]).sum() + grid[:, 0].sum())
+    assert (sam_json.parse_bool_runs(text, lo, hi, max_runs=runs) is None) is False
+    assert sam_json.parse_bool_runs(text, lo, hi, max_runs=runs - 1) is None or runs == 0
+    # a wrong byte in the middle of a long run is refused by both ways
+    bad = bytearray(text)
+    k = text.index(b"false" if kind != "full" else b"true", len(text) // 2)
+    bad[k + 1] = ord("x")
+    for parse in _BOOL_PARSERS.values():
+        assert parse(bytes(bad), lo, hi) is None
 
 
 def test_grid_end_finds_the_first_double_bracket():

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import re
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -91,11 +92,130 @@ def parse_grid(text: bytes) -> np.ndarray | None:
 def parse_bool_grid(raw: bytes, lo: int, hi: int) -> np.ndarray | None:
     """bool (H, W) from ``raw[lo:hi]`` when that is exactly the ``json.dump``
     text of a rectangular list of ``true``/``false`` (", " or "," separators),
-    else None.  No copy of the text is made.
+    else None.
 
-    The fast path for what SAM scripts write (``bool_mask.tolist()``), faster
-    than :func:`parse_grid` (23 vs 29 ms per 1000 x 1200 mask, file reading
-    included, in bench/bench_sam_json.py): every
+    The fast path for what SAM scripts write (``bool_mask.tolist()``).  Masks
+    of a few runs of ``true`` per row (what segmenters give) are decoded from
+    those runs and checked by rendering (:func:`parse_bool_runs`); masks of
+    many short runs go through the token-by-token check
+    (:func:`parse_bool_tokens`), whose cost does not grow with the runs.
+    Both give the same answer on every text (tests/test_probes_sam_json.py).
+    """
+    grid = parse_bool_runs(raw, lo, hi, max_runs=max(16, (hi - lo) // _BYTES_PER_RUN))
+    return parse_bool_tokens(raw, lo, hi) if grid is None else grid
+
+
+#: Above one ``true`` run per this many bytes of text, the run way (a Python
+#: step per run) stops being the faster (bench/bench_sam_json.py, its runs table).
+_BYTES_PER_RUN = 1024
+
+
+def parse_bool_runs(raw: bytes, lo: int, hi: int, max_runs: int | None = None) -> np.ndarray | None:
+    """:func:`parse_bool_grid` by runs: None also when the text has more than
+    ``max_runs`` runs of ``true``.
+
+    Only "t" starts a ``true`` token and nothing else in such text has a "t",
+    so the runs of ``true`` inside a row are the "t" bytes with no "t" one
+    token before (starts) or one token after (ends), and the rows end at the
+    "]" bytes: a few sparse searches give every run's row, column and length
+    (the ``false`` tokens between are counted from the byte gaps).  The mask
+    is filled from the runs, rendered back to the text ``json.dump`` writes
+    for it, and compared with ``raw[lo:hi]`` byte for byte, so a mask is
+    returned only for the exact text of that mask.
+    """
+    n_bytes = hi - lo
+    if n_bytes < 8 or raw[lo : lo + 2] != b"[[" or raw[hi - 2 : hi] != b"]]":
+        return None
+    comma = raw.find(b",", lo, hi)
+    sep = b"," if comma >= 0 and raw[comma + 1 : comma + 2] != b" " else b", "
+    q = 4 + len(sep)  # from one "true" token's "t" to the next one's in the same row
+    text = np.frombuffer(raw, np.uint8, n_bytes, lo)
+    t, step = _scratch(n_bytes)
+    np.equal(text, _T, out=t)
+    # a run starts at a "t" with none q bytes before, and ends at one with none q bytes after
+    np.greater(t[q:], t[:-q], out=step[: n_bytes - q])
+    starts = np.concatenate([np.flatnonzero(t[:q]), np.flatnonzero(step[: n_bytes - q]) + q])
+    if max_runs is not None and starts.size > max_runs:
+        return None
+    np.greater(t[:-q], t[q:], out=step[: n_bytes - q])
+    ends = np.concatenate([np.flatnonzero(step[: n_bytes - q]), np.flatnonzero(t[-q:]) + (n_bytes - q)])
+    closes = []  # every "]": one per row, then the outer one
+    i = raw.find(b"]", lo, hi)
+    while i >= 0:
+        closes.append(i - lo)
+        i = raw.find(b"]", i + 1, hi)
+    h = len(closes) - 1
+    if h < 1 or starts.size != ends.size:
+        return None
+    row_at = np.array([2] + closes[: h - 1], np.int64)  # where each row's first token starts
+    row_at[1:] += 2 + len(sep)
+    length, rem = np.divmod(ends - starts, q)
+    length += 1
+    row = np.searchsorted(row_at, starts, "right") - 1
+    if rem.any() or (row < 0).any():
+        return None
+    # tokens before each run in its row: the earlier runs' "true" tokens, and "false" tokens of q + 1 bytes
+    before = np.cumsum(length) - length
+    n_true = before - before[np.searchsorted(row, row)]
+    n_false, rem = np.divmod(starts - row_at[row] - n_true * q, q + 1)
+    col = n_true + n_false
+    t0 = int(length[row == 0].sum())
+    w, rem0 = divmod(closes[0] - 2 + len(sep) - t0 * q, q + 1)
+    w += t0
+    # 4 bytes per token at the least: a text that cannot hold an (h, w) grid allocates nothing
+    if rem.any() or rem0 or w < 1 or 4 * h * w > n_bytes or (n_false < 0).any() or (col + length > w).any():
+        return None
+    mask = np.zeros((h, w), bool)
+    rows: list = [None] * h
+    for r, c, n in zip(row.tolist(), col.tolist(), length.tolist()):
+        mask[r, c : c + n] = True
+        if rows[r] is None:
+            rows[r] = []
+        rows[r] += (c, n)
+    # the text json.dump writes for the mask, compared row by row in place (no copy of the whole)
+    fs, ts = b"false" + sep, b"true" + sep
+    empty = b"[" + fs * (w - 1) + b"false]" + sep
+    pos = lo + 1
+    for r, runs in enumerate(rows):
+        if runs is None:
+            piece = empty
+        else:
+            parts, c = [b"["], 0
+            for k in range(0, len(runs), 2):
+                parts += [fs * (runs[k] - c), ts * runs[k + 1]]
+                c = runs[k] + runs[k + 1]
+            parts.append(fs * (w - c))
+            piece = b"".join(parts)[: -len(sep)] + b"]" + sep
+        if r == h - 1:
+            piece = piece[: -len(sep)] + b"]"
+        if not raw.startswith(piece, pos):
+            return None
+        pos += len(piece)
+    return mask if pos == hi else None
+
+
+_LOCAL = threading.local()
+
+
+#: Largest grid text whose scratch buffers a thread keeps (a 1920 x 1080 mask is ~14 MB).
+_SCRATCH_KEPT = 1 << 25
+
+
+def _scratch(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Two bool buffers of ``n`` bytes, the calling thread's own: reused from grid to grid, so
+    the megabyte-sized temporaries are not allocated and faulted in for every mask."""
+    if n > _SCRATCH_KEPT:
+        return np.empty(n, bool), np.empty(n, bool)
+    bufs = getattr(_LOCAL, "bufs", None)
+    if bufs is None or bufs[0].size < n:
+        bufs = _LOCAL.bufs = (np.empty(n, bool), np.empty(n, bool))
+    return bufs[0][:n], bufs[1][:n]
+
+
+def parse_bool_tokens(raw: bytes, lo: int, hi: int) -> np.ndarray | None:
+    """:func:`parse_bool_grid` token by token.  No copy of the text is made.
+
+    Every
     token ends in the only "e" bytes such text has, so one byte comparison
     finds them all, and the byte before each tells "true" from "false".  The
     proof that the text is the rendering of the decoded mask: the text starts
@@ -145,7 +265,7 @@ def parse_bool_grid(raw: bytes, lo: int, hi: int) -> np.ndarray | None:
     return np.logical_not(is_false).reshape(n // w, w)
 
 
-_E, _S = ord("e"), ord("s")
+_E, _S, _OPEN = ord("e"), ord("s"), ord("[")
 _TRUE, _FALS = np.uint32(_u64(b"true")), np.uint32(_u64(b"fals"))
 _T, _F, _ONE, _ZERO = ord("t"), ord("f"), ord("1"), ord("0")
 _CLASS = np.zeros(256, np.uint8)
@@ -200,10 +320,10 @@ def _fast(raw: bytes):
     masks: list[np.ndarray] = []
     pieces: list[bytes] = []
     pos = 0
-    for m in _KEY.finditer(raw):
+    # searched from each grid's end: scanning megabytes of grid text for the next key costs as much as decoding it
+    m = _KEY.search(raw)
+    while m is not None:
         start = m.end() - 1
-        if start < pos:
-            return None
         end = _grid_end(raw, start)
         if end < 0:
             return None
@@ -215,6 +335,7 @@ def _fast(raw: bytes):
         pieces += [raw[pos:start], json.dumps(f"{_PLACEHOLDER}{len(masks)}").encode()]
         masks.append(grid)
         pos = end
+        m = _KEY.search(raw, end)
     pieces.append(raw[pos:])
     used = set()
 
