@@ -7,6 +7,7 @@ import pytest
 
 from r360gpu.errors import InputError
 from r360gpu.report.pictures import (
+    _resize_rgb,
     BACKGROUND_RGB,
     CHANGED_OUTSIDE_RGB,
     _legend_rows,
@@ -24,6 +25,7 @@ from r360gpu.report.pictures import (
     depth_change_panel,
     mask_colors,
     mask_overlay,
+    rgb8_at,
     sheet_image,
     view_contact_sheet,
     view_panels,
@@ -55,6 +57,44 @@ def test_as_rgb8_conversions():
     assert as_rgb8(np.zeros((4, 5, 4), np.uint8)).shape == (4, 5, 3)
     with pytest.raises(InputError, match="expected an"):
         as_rgb8(np.zeros((4, 5, 2)))
+
+
+@pytest.mark.parametrize("shape,width", [((120, 160, 3), 100), ((97, 203, 3), 64), ((1, 1, 3), 40),
+                                         ((31, 17), 240), ((40, 60, 4), 60), ((5, 7, 1), 3)])
+def test_rgb8_at_resizes_floats_first(shape, width):
+    """Floats are averaged then quantised once (within one level of quantising first); uint8 images,
+    upscales and non-finite floats give exactly what as_rgb8-then-resize gives."""
+    rng = np.random.default_rng(sum(shape) + width)
+    f = rng.random(shape).astype(np.float32)
+    q_first = _resize_rgb(as_rgb8(f), width)
+    got = rgb8_at(f, width)
+    assert got.dtype == np.uint8 and got.shape == q_first.shape
+    want = as_rgb8(_resize_rgb(np.asarray(f)[..., :3] if f.ndim == 3 and f.shape[2] == 4 else f, width))
+    np.testing.assert_array_equal(got, want)
+    assert np.abs(got.astype(int) - q_first).max() <= 1
+    if width >= shape[1]:  # nearest upscale: the same pixels either way
+        np.testing.assert_array_equal(got, q_first)
+    u8 = as_rgb8(f)
+    np.testing.assert_array_equal(rgb8_at(u8, width), _resize_rgb(u8, width))
+    np.testing.assert_array_equal(rgb8_at(f.astype(np.float64), width), got)
+    bad = f.copy()
+    bad.flat[:: max(1, bad.size // 7)] = [np.nan, np.inf, -np.inf, 2.0, -1.0, 0.5]  # flat assignment cycles
+    np.testing.assert_array_equal(rgb8_at(bad, width), _resize_rgb(as_rgb8(bad), width))
+    with pytest.raises(InputError, match="expected an"):
+        rgb8_at(np.zeros((4, 5, 2), np.float32), 3)
+
+
+def test_depth_change_panel_shows_non_finite_as_zero():
+    rng = np.random.default_rng(3)
+    d = rng.random((50, 80)).astype(np.float32)
+    holes = d.copy()
+    holes[::7, ::5] = np.nan
+    holes[3, 3], holes[9, 40] = np.inf, -np.inf
+    zeros = d.copy()
+    zeros[~np.isfinite(holes)] = 0
+    np.testing.assert_array_equal(depth_change_panel(holes, 0.3, width=64), depth_change_panel(zeros, 0.3, width=64))
+    np.testing.assert_array_equal(depth_change_panel(-d.astype(np.float64), 0.3, width=64),
+                                  depth_change_panel(d, 0.3, width=64))
 
 
 def test_depth_change_panel_marks_threshold(scene):

@@ -72,9 +72,9 @@ class PictureSink:
 class _Shrink:
     """RGB images and masks at a panel's size, made once per array (keyed by identity).
 
-    Uses the picture module's own conversion and resizing, in its order
-    (8-bit, then area-average / nearest resize), so a panel made from the
-    result is the panel made from the full-size input.
+    Uses the picture module's own conversion and resizing
+    (:func:`~r360gpu.report.pictures.rgb8_at`, nearest resize for masks), so
+    a panel made from the result is the panel made from the full-size input.
     """
 
     def __init__(self, width: int):
@@ -89,9 +89,9 @@ class _Shrink:
         return hit[1]
 
     def rgb(self, a):
-        from ..report.pictures import _resize_rgb, as_rgb8
+        from ..report.pictures import rgb8_at
 
-        return self._once(a, lambda x: _resize_rgb(as_rgb8(x), self.width))
+        return self._once(a, lambda x: rgb8_at(x, self.width))
 
     def _size(self, shape):
         from ..report.pictures import _size_for

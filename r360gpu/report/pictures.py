@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..util.atomic import write_bytes
+from . import png
 
 #: Default panel width (px): keeps the report light.
 PANEL_WIDTH = 320
@@ -59,13 +60,7 @@ def as_rgb8(image, what: str = "image") -> np.ndarray:
     Float values are clipped to [0, 1] (non-finite -> 0); bool masks become
     white on black.
     """
-    a = np.asarray(image)
-    if a.ndim == 3 and a.shape[2] == 1:
-        a = a[:, :, 0]
-    if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] not in (3, 4)) or a.shape[0] < 1 or a.shape[1] < 1:
-        raise InputError(f"{what}: expected an (H, W) or (H, W, 3) image, got shape {a.shape}")
-    if a.ndim == 3 and a.shape[2] == 4:
-        a = a[:, :, :3]
+    a = _image_array(image, what)
     if a.dtype == bool:
         a = a.astype(np.uint8) * 255
     elif a.dtype != np.uint8:
@@ -76,6 +71,33 @@ def as_rgb8(image, what: str = "image") -> np.ndarray:
     if a.ndim == 2:
         a = np.repeat(a[:, :, None], 3, axis=2)
     return np.ascontiguousarray(a)
+
+
+def _image_array(image, what: str) -> np.ndarray:
+    """(H, W) or (H, W, 3) view of an image (a single channel squeezed, alpha dropped); InputError otherwise."""
+    a = np.asarray(image)
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[:, :, 0]
+    if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] not in (3, 4)) or a.shape[0] < 1 or a.shape[1] < 1:
+        raise InputError(f"{what}: expected an (H, W) or (H, W, 3) image, got shape {a.shape}")
+    return a[:, :, :3] if a.ndim == 3 and a.shape[2] == 4 else a
+
+
+def rgb8_at(image, width: int, what: str = "image") -> np.ndarray:
+    """:func:`as_rgb8` of ``image`` at ``width`` px wide (aspect kept; area average down, nearest up).
+
+    Float images are resized first and quantised after: one rounding of the
+    averaged value, and the float-to-8-bit pass made at panel size (a large
+    render's conversion is ~20 ms; bench/bench_pictures.py).  Where the
+    average meets a non-finite value the image is quantised first instead, so
+    NaN and inf read as :func:`as_rgb8` reads them (0 and 1).
+    """
+    a = _image_array(image, what)
+    if a.dtype in (np.float32, np.float64) and a.shape[1] != width:
+        small = _resize_rgb(a, width)
+        if np.isfinite(small).all():
+            return as_rgb8(small, what)
+    return _resize_rgb(as_rgb8(a, what), width)
 
 
 def _mask(m, what: str) -> np.ndarray:
@@ -149,7 +171,7 @@ def _put_text(img: np.ndarray, text: str, org: tuple[int, int], rgb=(0, 0, 0), s
 def rgb_panel(image, width: int = PANEL_WIDTH, *, target=None) -> np.ndarray:
     """An RGB rendering as a panel ``width`` px wide, optionally with the target outline (green)."""
     width = _check_width(width)
-    img = _resize_rgb(as_rgb8(image, "RGB panel"), width).copy()
+    img = rgb8_at(image, width, "RGB panel").copy()
     if target is not None:
         t = _mask(target, "target mask")
         _outline(img, _resize_mask(t, (img.shape[1], img.shape[0])), TARGET_RGB)
@@ -171,15 +193,20 @@ def depth_change_panel(delta, threshold: float | None, width: int = PANEL_WIDTH,
     colour bar (0 on the left, vmax on the right) and its labels.
     """
     width = _check_width(width)
-    d = np.asarray(delta, dtype=np.float64)
+    d = np.asarray(delta)
     if d.ndim != 2:
         raise InputError(f"depth change: expected an (H, W) array, got shape {d.shape}")
-    d = np.abs(np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0))
-    top = float(vmax) if vmax is not None else float(d.max(initial=0.0))
+    d = np.abs(d.astype(np.float32))
+    largest = float(d.max(initial=0.0))
+    if not np.isfinite(largest):  # NaN or inf somewhere: shown as 0
+        d = np.nan_to_num(d, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+        largest = float(d.max(initial=0.0))
+    top = float(vmax) if vmax is not None else largest
     if not top > 0:
         top = 1.0
-    level = np.rint(np.clip(d / top, 0.0, 1.0) * 255.0).astype(np.uint8)
-    heat = _resize_rgb(cv2.cvtColor(cv2.applyColorMap(level, cv2.COLORMAP_INFERNO), cv2.COLOR_BGR2RGB), width)
+    # |dD| brought to the panel size first, then coloured: the colour of the averaged change
+    level = np.rint(np.clip(_resize_rgb(d, width) / np.float32(top), 0.0, 1.0) * 255.0).astype(np.uint8)
+    heat = cv2.cvtColor(cv2.applyColorMap(level, cv2.COLORMAP_INFERNO), cv2.COLOR_BGR2RGB)
     strip_h, bar_h = 26, 8
     panel = np.full((heat.shape[0] + strip_h, width, 3), 255, np.uint8)
     panel[: heat.shape[0]] = heat
@@ -248,13 +275,13 @@ def mask_overlay(rgb, masks, width: int = PANEL_WIDTH, *, color: tuple[int, int,
     target: optional (H, W) target mask, outlined in green on top.
     """
     width = _check_width(width)
-    full = as_rgb8(rgb, "overlay image")
-    img = _resize_rgb(full, width).astype(np.float32)
+    full_hw = _image_array(rgb, "overlay image").shape[:2]
+    img = rgb8_at(rgb, width, "overlay image").astype(np.float32)
     size = (img.shape[1], img.shape[0])
     stack = _stack(masks, "overlay masks")
-    if stack.shape[0] and stack.shape[1:] != full.shape[:2]:
+    if stack.shape[0] and stack.shape[1:] != full_hw:
         raise InputError(f"overlay masks are {stack.shape[1]}x{stack.shape[2]} but the image is "
-                         f"{full.shape[0]}x{full.shape[1]}")
+                         f"{full_hw[0]}x{full_hw[1]}")
     colors = (np.tile(np.array(color, np.uint8), (stack.shape[0], 1)) if color is not None
               else mask_colors(stack.shape[0], seed))
     small = [_resize_mask(m, size).astype(np.uint8) for m in stack]
@@ -275,26 +302,9 @@ def mask_overlay(rgb, masks, width: int = PANEL_WIDTH, *, color: tuple[int, int,
 
 # -- sheets ----------------------------------------------------------------------
 
-_PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 1] + (
-    [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_UP] if hasattr(cv2, "IMWRITE_PNG_FILTER") else [])
-
-
 def encode_png(image) -> bytes:
-    """PNG bytes of an RGB (or gray) image (compression level 1, "up" row filter; no metadata).
-
-    Pictures are written for every method and view, and encoding is most of
-    their cost: bench/bench_png.py times one contact sheet at level 6 and 1
-    with libpng's adaptive filters and with these settings (the "up" filter
-    alone, OpenCV >= 4.11) in one run -- 77.6, 37.8 and 23.3 ms on the 2-core
-    CI machine, files within 6% of each other, all lossless."""
-    return _png_of_bgr(cv2.cvtColor(as_rgb8(image, "PNG image"), cv2.COLOR_RGB2BGR))
-
-
-def _png_of_bgr(bgr: np.ndarray) -> bytes:
-    ok, buf = cv2.imencode(".png", bgr, _PNG_PARAMS)
-    if not ok:
-        raise RuntimeError("OpenCV could not encode a PNG")
-    return buf.tobytes()
+    """PNG bytes of an RGB (or gray) image (:mod:`.png`: "up" row filter, ISA-L deflate; no metadata)."""
+    return png.encode(as_rgb8(image, "PNG image"))
 
 
 def balanced_columns(n: int, max_columns: int = 5) -> int:
@@ -378,7 +388,7 @@ def sheet_image(panels: Sequence[tuple[str, np.ndarray]], *, columns: int | None
         raise InputError("a contact sheet needs at least one panel")
     width = _check_width(panel_width)
     cols = balanced_columns(len(panels)) if columns is None else max(1, min(int(columns), len(panels)))
-    imgs = [(t, _resize_rgb(as_rgb8(p, f"panel {t!r}"), width)) for t, p in panels]
+    imgs = [(t, rgb8_at(p, width, f"panel {t!r}")) for t, p in panels]
     rows = [imgs[i : i + cols] for i in range(0, len(imgs), cols)]
     row_h = [_TITLE_H + max(im.shape[0] for _, im in r) for r in rows]
     sheet_w = _PAD + cols * (width + _PAD)
@@ -413,16 +423,16 @@ def contact_sheet(path: str | os.PathLike, panels: Sequence[tuple[str, np.ndarra
     embed_cache: a folder where the JPEG report.html embeds the sheet as is
     made now, from the sheet in memory (see :mod:`.embed`)."""
     path = Path(path)
-    bgr = cv2.cvtColor(sheet_image(panels, columns=columns, panel_width=panel_width, title=title, lines=lines,
-                                   legend=legend), cv2.COLOR_RGB2BGR)
-    png = _png_of_bgr(bgr)
-    write_bytes(path, png, sync=False)  # regenerated if damaged
+    sheet = sheet_image(panels, columns=columns, panel_width=panel_width, title=title, lines=lines, legend=legend)
+    data = png.encode(sheet)
+    write_bytes(path, data, sync=False)  # regenerated if damaged
     if embed_cache is not None:
         from .embed import embed_jpeg, store_embed
 
-        jpeg = embed_jpeg(bgr)  # what decoding the (lossless) PNG would give, without decoding it
+        # what decoding the (lossless) PNG would give, without decoding it
+        jpeg = embed_jpeg(cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))
         if jpeg is not None:
-            store_embed(embed_cache, png, jpeg)
+            store_embed(embed_cache, data, jpeg)
     return path
 
 
