@@ -212,3 +212,25 @@ def test_grid_end_finds_the_first_double_bracket():
     start = raw.index(b"[[")
     assert raw[start : sam_json._grid_end(raw, start)] == b"[[true, false], [false, true]]"
     assert sam_json._grid_end(b"[[true], [false] ]", 0) == -1
+
+
+def test_reused_read_buffer_never_reads_past_the_file(tmp_path):
+    """A thread reads every file into one buffer; a short file after a long one is read as itself,
+    by the fast path, the standard one and the error path alike."""
+    rng = np.random.default_rng(7)
+    big = [{"segmentation": (rng.random((40, 60)) < 0.3).tolist(), "area": 1, "bbox": [0, 0, 1, 1]}
+           for _ in range(3)]
+    long_file = _write(tmp_path, "long.json", json.dumps(big))
+    short_fast = _write(tmp_path, "short.json", json.dumps([{"segmentation": [[True, False]], "area": 1}]))
+    short_indented = _write(tmp_path, "indented.json", json.dumps([{"segmentation": [[False], [True]]}], indent=1))
+    broken = _write(tmp_path, "broken.json", '[{"segmentation": [[true]]}')
+    for p in (long_file, short_fast, long_file, short_indented, long_file):
+        _same(p)
+    assert sam_json._read(short_fast)[0] is sam_json._read(long_file)[0]  # the same buffer, reused
+    assert sam_json._fast(*sam_json._read(short_fast)) is not None  # and the fast path still taken
+    _same(long_file)
+    with pytest.raises(InputError) as got:
+        P.read_sam_json(broken)
+    with pytest.raises(InputError) as want:
+        sam_json._standard(broken.read_bytes(), broken)  # the message of the file read on its own
+    assert str(got.value) == str(want.value) and "line 1, column 28" in str(got.value)

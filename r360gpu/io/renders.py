@@ -83,10 +83,11 @@ def read_rgb(path: str | os.PathLike) -> np.ndarray:
     if img.ndim == 2 or img.shape[2] == 1:
         img = np.repeat(img.reshape(img.shape[0], img.shape[1], 1), 3, axis=2)
     elif img.shape[2] == 3:
-        img = img[:, :, ::-1]  # OpenCV decodes to BGR
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)  # OpenCV decodes to BGR
     else:
         raise InputError(f"RGB rendering has {img.shape[2]} channels", path)
-    return np.ascontiguousarray(img, dtype=np.float32) / np.float32(scale)
+    out = img.astype(np.float32)  # one float image, divided in place
+    return np.divide(out, np.float32(scale), out=out)
 
 
 def read_depth(path: str | os.PathLike, depth_scale: float = 1.0) -> np.ndarray:
