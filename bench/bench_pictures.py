@@ -61,7 +61,7 @@ def main() -> int:
     args = ap.parse_args()
     cv2.setNumThreads(1)  # the picture writer is one thread beside the scoring ones
     from r360gpu.report import pictures as P
-    from r360gpu.report.embed import embed_jpeg
+    from r360gpu.report.embed import EMBED_WIDTH, embed_jpeg
 
     view = fake_view(args.height, args.width, np.random.default_rng(0))
     width = P.panel_width_for(args.width)
@@ -81,7 +81,13 @@ def main() -> int:
     layout = best(lambda: P.sheet_image(ps, panel_width=width, title="scene / method / view",
                                         legend=P.legend_items(ps)), args.repeat)
     png = best(lambda: P.encode_png(sheet), args.repeat)
-    jpeg = best(lambda: embed_jpeg(cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR)), args.repeat)
+    bgr = cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR)
+    jpeg = best(lambda: embed_jpeg(bgr), args.repeat)
+    to = (EMBED_WIDTH, max(1, round(bgr.shape[0] * EMBED_WIDTH / bgr.shape[1])))
+    area = best(lambda: cv2.resize(bgr, to, interpolation=cv2.INTER_AREA), args.repeat)
+    linear = best(lambda: cv2.resize(bgr, to, interpolation=cv2.INTER_LINEAR), args.repeat)
+    grey = np.abs(cv2.resize(bgr, to, interpolation=cv2.INTER_AREA).astype(int)
+                  - cv2.resize(bgr, to, interpolation=cv2.INTER_LINEAR)).mean()
     with tempfile.TemporaryDirectory() as tmp:
         whole = best(lambda: P.view_contact_sheet(Path(tmp) / "v.png", width=width, title="scene / method / view",
                                                   embed_cache=Path(tmp) / "embed", **view), args.repeat)
@@ -93,6 +99,9 @@ def main() -> int:
     print(f"{'layout (sheet_image)':<52}{layout * 1e3:>8.1f}")
     print(f"{'PNG encode':<52}{png * 1e3:>8.1f}")
     print(f"{'embedding JPEG':<52}{jpeg * 1e3:>8.1f}")
+    print(f"{f'  its reduction to {EMBED_WIDTH} px: area average':<52}{area * 1e3:>8.1f}")
+    print(f"{'  bilinear (taken below 2x)':<52}{linear * 1e3:>8.1f}   {area / linear:.1f}x, "
+          f"{grey:.2f} grey levels apart on average")
     print(f"{'whole sheet written (view_contact_sheet)':<52}{whole * 1e3:>8.1f}")
     return 0
 

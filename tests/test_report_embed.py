@@ -56,9 +56,15 @@ def test_writer_jpeg_is_the_jpeg_made_from_the_png(tmp_path, n, width):
                           cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
     cached = load_embed(tmp_path / "embed", png)
     assert cached is not None and cached[:2] == b"\xff\xd8"
-    assert cached == jpeg_from_png(png) == _old_jpeg(png)
+    assert cached == jpeg_from_png(png)
     jpg = cv2.imdecode(np.frombuffer(cached, np.uint8), cv2.IMREAD_COLOR)
     assert jpg.shape[1] == min(rgb.shape[1], EMBED_WIDTH)
+    area = _old_jpeg(png)
+    if not EMBED_WIDTH < rgb.shape[1] < 2 * EMBED_WIDTH:  # not reduced, or reduced 2x and more: areas averaged
+        assert cached == area
+    else:  # reduced less than 2x: bilinear, about a grey level from the area average (noisy panels: the most)
+        diff = np.abs(jpg.astype(int) - cv2.imdecode(np.frombuffer(area, np.uint8), cv2.IMREAD_COLOR))
+        assert diff.mean() < 1.5, diff.mean()
 
 
 def test_no_cache_folder_writes_no_jpeg(tmp_path):

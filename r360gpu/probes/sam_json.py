@@ -2,7 +2,7 @@
 
 The public scripts write each mask as ``bool_mask.tolist()`` through
 ``json.dump``: a ~1000 x 1200 mask is 1.2 million ``true``/``false`` tokens,
-and ``json.loads`` + ``np.array`` spend ~0.1 s per mask building and
+and ``json.loads`` + ``np.array`` spend ~60 ms per mask building and
 converting Python lists.  :func:`load` cuts every ``"segmentation"`` /
 ``"mask"`` nested list out of the raw bytes, decodes it with byte-level
 numpy operations, and parses only the remaining (small) JSON with the
