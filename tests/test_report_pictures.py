@@ -55,6 +55,9 @@ def test_as_rgb8_conversions():
     f = as_rgb8(np.array([[[0.0, 0.5, 2.0]]], np.float32))
     assert f.dtype == np.uint8 and f.tolist() == [[[0, 128, 255]]]
     assert as_rgb8(np.zeros((4, 5, 4), np.uint8)).shape == (4, 5, 3)
+    odd = np.array([[np.nan, np.inf, -np.inf, -0.0, 0.5, 1.5, -2.0, 127.5 / 255]])
+    for dt in (np.float32, np.float64):  # non-finite as 0 / 1 / 0, then clipped, scaled and rounded
+        assert as_rgb8(odd.astype(dt))[0, :, 0].tolist() == [0, 255, 0, 0, 128, 255, 0, 128]
     with pytest.raises(InputError, match="expected an"):
         as_rgb8(np.zeros((4, 5, 2)))
 

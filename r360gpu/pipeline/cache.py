@@ -125,7 +125,9 @@ class ViewCache:
     def store(self, method: str, view: str, cell: dict) -> None:
         from ..util.atomic import write_json
 
-        write_json(self._path(method, view), cell, allow_nan=False, sync=False)  # a damaged cell is recomputed
+        # compact (no indent): written for every method and view, read back by this class only;
+        # a damaged cell is recomputed
+        write_json(self._path(method, view), cell, allow_nan=False, sync=False, indent=None)
 
 
 def fingerprint(bundle, sources) -> str:

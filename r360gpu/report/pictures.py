@@ -66,8 +66,11 @@ def as_rgb8(image, what: str = "image") -> np.ndarray:
     elif a.dtype != np.uint8:
         if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
             raise InputError(f"{what}: unsupported dtype {a.dtype}")
-        f = np.nan_to_num(a.astype(np.float32), nan=0.0, posinf=1.0, neginf=0.0)
-        a = np.rint(np.clip(f, 0.0, 1.0) * 255.0).astype(np.uint8)
+        # fmax/fmin return the number where the other is NaN: NaN -> 0, +inf -> 1, -inf -> 0
+        f = np.fmax(a, np.float32(0.0), dtype=np.float32)
+        np.fmin(f, np.float32(1.0), out=f)
+        f *= np.float32(255.0)
+        a = np.rint(f, out=f).astype(np.uint8)
     if a.ndim == 2:
         a = np.repeat(a[:, :, None], 3, axis=2)
     return np.ascontiguousarray(a)
