@@ -93,16 +93,19 @@ def main() -> int:
                                                   embed_cache=Path(tmp) / "embed", **view), args.repeat)
     print(f"# one view's contact sheet, renders {args.width}x{args.height}, panels {width} px wide, "
           f"sheet {sheet.shape[1]}x{sheet.shape[0]}; best of {args.repeat}, one thread, CPU cores: {os.cpu_count()}")
+    rows = [
+        ("panels, quantised at full size then resized (before)", before, ""),
+        ("panels, resized then quantised (rgb8_at)", ours, f"{before / ours:.1f}x"),
+        ("layout (sheet_image)", layout, ""),
+        ("PNG encode", png, ""),
+        ("embedding JPEG", jpeg, ""),
+        (f"  its reduction to {EMBED_WIDTH} px: area average", area, ""),
+        ("  bilinear (taken below 2x)", linear, f"{area / linear:.1f}x, {grey:.2f} grey levels apart on average"),
+        ("whole sheet written (view_contact_sheet)", whole, ""),
+    ]
     print(f"{'step':<52}{'ms':>8}")
-    print(f"{'panels, quantised at full size then resized (before)':<52}{before * 1e3:>8.1f}")
-    print(f"{'panels, resized then quantised (rgb8_at)':<52}{ours * 1e3:>8.1f}   {before / ours:.1f}x")
-    print(f"{'layout (sheet_image)':<52}{layout * 1e3:>8.1f}")
-    print(f"{'PNG encode':<52}{png * 1e3:>8.1f}")
-    print(f"{'embedding JPEG':<52}{jpeg * 1e3:>8.1f}")
-    print(f"{f'  its reduction to {EMBED_WIDTH} px: area average':<52}{area * 1e3:>8.1f}")
-    print(f"{'  bilinear (taken below 2x)':<52}{linear * 1e3:>8.1f}   {area / linear:.1f}x, "
-          f"{grey:.2f} grey levels apart on average")
-    print(f"{'whole sheet written (view_contact_sheet)':<52}{whole * 1e3:>8.1f}")
+    for label, seconds, note in rows:
+        print(f"{label:<52}{seconds * 1e3:>8.1f}   {note}".rstrip())
     return 0
 
 
