@@ -90,7 +90,7 @@ def parse_grid(text: bytes) -> np.ndarray | None:
     return (cls & 1).astype(bool).reshape(n // w, w)
 
 
-def parse_bool_grid(raw: bytes, lo: int, hi: int) -> np.ndarray | None:
+def parse_bool_grid(raw: bytes, lo: int, hi: int, closes: list[int] | None = None) -> np.ndarray | None:
     """bool (H, W) from ``raw[lo:hi]`` when that is exactly the ``json.dump``
     text of a rectangular list of ``true``/``false`` (", " or "," separators),
     else None.
@@ -101,8 +101,11 @@ def parse_bool_grid(raw: bytes, lo: int, hi: int) -> np.ndarray | None:
     many short runs go through the token-by-token check
     (:func:`parse_bool_tokens`), whose cost does not grow with the runs.
     Both give the same answer on every text (tests/test_probes_sam_json.py).
+    closes: :func:`_closes` of the grid when the caller has it.
     """
-    grid = parse_bool_runs(raw, lo, hi, max_runs=max(16, (hi - lo) // _BYTES_PER_RUN))
+    if raw[lo + 2 : lo + 3] not in (b"t", b"f"):  # 0/1 grids and non-grids: not this path's
+        return None
+    grid = parse_bool_runs(raw, lo, hi, max_runs=max(16, (hi - lo) // _BYTES_PER_RUN), closes=closes)
     return parse_bool_tokens(raw, lo, hi) if grid is None else grid
 
 
@@ -111,9 +114,11 @@ def parse_bool_grid(raw: bytes, lo: int, hi: int) -> np.ndarray | None:
 _BYTES_PER_RUN = 1024
 
 
-def parse_bool_runs(raw: bytes, lo: int, hi: int, max_runs: int | None = None) -> np.ndarray | None:
+def parse_bool_runs(raw: bytes, lo: int, hi: int, max_runs: int | None = None,
+                    closes: list[int] | None = None) -> np.ndarray | None:
     """:func:`parse_bool_grid` by runs: None also when the text has more than
-    ``max_runs`` runs of ``true``.
+    ``max_runs`` runs of ``true``.  closes: :func:`_closes` ``(raw, lo, hi)``
+    when the caller has it (it found the grid's end with them).
 
     Only "t" starts a ``true`` token and nothing else in such text has a "t",
     so a run of ``true`` inside a row is a series of "t" bytes one token
@@ -138,16 +143,16 @@ def parse_bool_runs(raw: bytes, lo: int, hi: int, max_runs: int | None = None) -
     if max_runs is not None and starts.size > max_runs:
         return None
     ends = at[np.concatenate((gap, [True]))] if at.size else at
-    closes = []  # every "]": one per row, then the outer one
-    i = raw.find(b"]", lo, hi)
-    while i >= 0:
-        closes.append(i - lo)
-        i = raw.find(b"]", i + 1, hi)
+    if closes is None:
+        closes = _closes(raw, lo, hi)
+    if not closes or closes[-1] != hi - 1:  # every "]": one per row, then the outer one, the text's last byte
+        return None
     h = len(closes) - 1
     if h < 1 or starts.size != ends.size:
         return None
-    row_at = np.array([2] + closes[: h - 1], np.int64)  # where each row's first token starts
-    row_at[1:] += 2 + len(sep)
+    row_at = np.empty(h, np.int64)  # where each row's first token starts:
+    row_at[0] = 2  # after "[["
+    row_at[1:] = np.asarray(closes[: h - 1], np.int64) + (2 + len(sep) - lo)  # after the row before's "]" + sep + "["
     length, rem = np.divmod(ends - starts, q)
     length += 1
     row = np.searchsorted(row_at, starts, "right") - 1
@@ -159,7 +164,7 @@ def parse_bool_runs(raw: bytes, lo: int, hi: int, max_runs: int | None = None) -
     n_false, rem = np.divmod(starts - row_at[row] - n_true * q, q + 1)
     col = n_true + n_false
     t0 = int(length[row == 0].sum())
-    w, rem0 = divmod(closes[0] - 2 + len(sep) - t0 * q, q + 1)
+    w, rem0 = divmod(closes[0] - lo - 2 + len(sep) - t0 * q, q + 1)
     w += t0
     # 4 bytes per token at the least: a text that cannot hold an (h, w) grid allocates nothing
     if rem.any() or rem0 or w < 1 or 4 * h * w > n_bytes or (n_false < 0).any() or (col + length > w).any():
@@ -196,7 +201,7 @@ def parse_bool_runs(raw: bytes, lo: int, hi: int, max_runs: int | None = None) -
 _LOCAL = threading.local()
 
 
-#: Largest grid text whose scratch buffers a thread keeps (a 1920 x 1080 mask is ~14 MB).
+#: Largest grid text whose scratch buffer a thread keeps (a 1920 x 1080 mask is ~14 MB).
 _SCRATCH_KEPT = 1 << 25
 
 
@@ -307,13 +312,12 @@ def _read(path: Path) -> tuple[bytes | bytearray, int]:
             if buf is None or len(buf) <= size:  # with room to spare: the next file may be a little larger
                 buf = _LOCAL.read = bytearray(min(_KEEP_READ + 1, size + (size >> 3) + 4096))
             n = 0
-            view = memoryview(buf)
-            while n < len(buf):
-                k = f.readinto(view[n:])
-                if not k:
-                    break
-                n += k
-            view.release()
+            with memoryview(buf) as view:
+                while n < len(buf):
+                    k = f.readinto(view[n:])
+                    if not k:
+                        break
+                    n += k
             if n == len(buf):  # the file grew while it was read
                 rest = f.read()
                 data = bytes(buf[:n]) + rest
@@ -332,16 +336,28 @@ def _standard(raw: bytes, path: Path):
         raise InputError(f"malformed JSON ({exc.msg} at line {exc.lineno}, column {exc.colno})", path) from None
 
 
-def _grid_end(raw: bytes, start: int, stop: int | None = None) -> int:
-    """End of the first "]]" in ``raw[start:stop]`` (where json.dump ends a grid), or -1.
+def _closes(raw: bytes, start: int, stop: int) -> list[int] | None:
+    """Positions of every "]" in ``raw[start:stop]`` up to the first "]]" (both of its brackets,
+    where json.dump ends a grid), or None when there is no "]]".
 
     One memchr-speed search per row: ``bytes.find(b"]]")`` is several times
-    slower on megabytes of true/false text."""
-    stop = len(raw) if stop is None else stop
+    slower on megabytes of true/false text.  The row ends found on the way
+    are the rows :func:`parse_bool_runs` needs."""
+    out = []
     i = raw.find(b"]", start, stop)
-    while i >= 0 and (i + 1 >= stop or raw[i + 1] != _CLOSE):
+    while i >= 0:
+        out.append(i)
+        if i + 1 < stop and raw[i + 1] == _CLOSE:
+            out.append(i + 1)
+            return out
         i = raw.find(b"]", i + 2, stop)
-    return -1 if i < 0 else i + 2
+    return None
+
+
+def _grid_end(raw: bytes, start: int, stop: int | None = None) -> int:
+    """End of the first "]]" in ``raw[start:stop]``, or -1."""
+    closes = _closes(raw, start, len(raw) if stop is None else stop)
+    return -1 if closes is None else closes[-1] + 1
 
 
 def _fast(raw: bytes | bytearray, n: int | None = None):
@@ -354,10 +370,11 @@ def _fast(raw: bytes | bytearray, n: int | None = None):
     m = _KEY.search(raw, 0, n)
     while m is not None:
         start = m.end() - 1
-        end = _grid_end(raw, start, n)
-        if end < 0:
+        closes = _closes(raw, start, n)
+        if closes is None:
             return None
-        grid = parse_bool_grid(raw, start, end)
+        end = closes[-1] + 1
+        grid = parse_bool_grid(raw, start, end, closes)
         if grid is None:
             grid = parse_grid(raw[start:end])
         if grid is None:
