@@ -16,6 +16,7 @@ time, as ``r360gpu/scoring.py`` does (tests/test_metrics_measure.py).
 """
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -136,6 +137,7 @@ class _Fidelity:
     Leaving the context waits for the thread, so it never outlives the view's arrays."""
 
     _pool = None
+    _pool_lock = threading.Lock()
 
     def __init__(self, methods: Mapping[str, MethodOutputs], ref_rgb, lpips_model, ctx):
         import contextvars
@@ -151,13 +153,19 @@ class _Fidelity:
         args = ([methods[m].rgb for m in self._names], ref_rgb, lpips_model)
         kw = {"ctx": ctx, "what": [f"method {m}'s I_post" for m in self._names]}
         if ssim_backend(ctx) == "cpu":
-            if _Fidelity._pool is None:
-                from concurrent.futures import ThreadPoolExecutor
-
-                _Fidelity._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="r360-fidelity")
-            self._fut = _Fidelity._pool.submit(contextvars.copy_context().run, fidelity_views, *args, **kw)
+            self._fut = _Fidelity._thread().submit(contextvars.copy_context().run, fidelity_views, *args, **kw)
         else:
             self._views = fidelity_views(*args, **kw)
+
+    @classmethod
+    def _thread(cls):
+        """The process's one fidelity thread (made on first use; measured views may come from several threads)."""
+        with cls._pool_lock:
+            if cls._pool is None:
+                from concurrent.futures import ThreadPoolExecutor
+
+                cls._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="r360-fidelity")
+            return cls._pool
 
     def result(self) -> dict:
         """{method: FidelityView} (errors of the thread are raised here)."""

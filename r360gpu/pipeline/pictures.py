@@ -35,7 +35,7 @@ class PictureSink:
         are drawn on the sheet, so they survive copying it).
         """
         from ..metrics.compat import compat_quantise, depth_delta
-        from ..report.pictures import panel_width_for, view_contact_sheet
+        from ..report.pictures import view_contact_sheet
 
         delta = threshold = changed = None
         if geo is not None:
@@ -45,7 +45,7 @@ class PictureSink:
                 delta = compat_quantise(delta)
         # Everything but the heat map is brought to the panel size first (once per array
         # and view when a _Shrink is shared): the panels resize exactly so, so the sheet is the same.
-        small = _shrink or _Shrink(panel_width_for(np.shape(pre_rgb)[1]))
+        small = _shrink or _Shrink.for_view(pre_rgb)
         rel = self.path_for(scene, method, view)
         view_contact_sheet(
             self.out / rel, title=f"{scene} / {method} / {view}", pre=small.rgb(pre_rgb), post=small.rgb(post_rgb),
@@ -60,11 +60,9 @@ class PictureSink:
 
     def view(self, jobs: list) -> None:
         """Write the sheets of one view's methods, converting the images they share once."""
-        from ..report.pictures import panel_width_for
-
         if not jobs:
             return
-        shrink = _Shrink(panel_width_for(np.shape(jobs[0]["pre_rgb"])[1]))
+        shrink = _Shrink.for_view(jobs[0]["pre_rgb"])
         for job in jobs:
             self.method_view(**job, _shrink=shrink)
 
@@ -80,6 +78,13 @@ class _Shrink:
     def __init__(self, width: int):
         self.width = width
         self._memo: dict = {}
+
+    @classmethod
+    def for_view(cls, pre_rgb) -> "_Shrink":
+        """At the panel width of a view as wide as ``pre_rgb``."""
+        from ..report.pictures import panel_width_for
+
+        return cls(panel_width_for(np.shape(pre_rgb)[1]))
 
     def _once(self, a, make):
         hit = self._memo.get(id(a))

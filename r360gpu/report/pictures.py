@@ -31,13 +31,6 @@ from . import png
 PANEL_WIDTH = 320
 #: Narrowest panel a view's sheet gets: four of them keep the lines of numbers under the title whole.
 MIN_PANEL_WIDTH = 240
-
-
-def panel_width_for(image_width: int) -> int:
-    """Panel width for a view ``image_width`` px wide: :data:`PANEL_WIDTH`, or the view's own
-    width when that is smaller (no enlarged pixels, less to encode), but at least
-    :data:`MIN_PANEL_WIDTH`."""
-    return max(MIN_PANEL_WIDTH, min(PANEL_WIDTH, int(image_width)))
 TARGET_RGB = (0, 230, 0)
 SEMANTIC_RGB = (255, 0, 255)
 THRESHOLD_RGB = (0, 255, 255)
@@ -50,6 +43,13 @@ _FONT = cv2.FONT_HERSHEY_SIMPLEX
 _TITLE_SCALE = 0.42
 _TITLE_H = 18
 _PAD = 4
+
+
+def panel_width_for(image_width: int) -> int:
+    """Panel width for a view ``image_width`` px wide: :data:`PANEL_WIDTH`, or the view's own
+    width when that is smaller (no enlarged pixels, less to encode), but at least
+    :data:`MIN_PANEL_WIDTH`."""
+    return max(MIN_PANEL_WIDTH, min(PANEL_WIDTH, int(image_width)))
 
 
 # -- conversion ----------------------------------------------------------------
