@@ -22,7 +22,6 @@ read the standard way, so results and error messages are exactly those of
 from __future__ import annotations
 
 import json
-import os
 import re
 import threading
 from pathlib import Path
@@ -291,38 +290,10 @@ def _patterns(sep: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return _PATTERNS[sep]
 
 
-#: Largest file read into a buffer the reading thread keeps (about seven 1000 x 1200 masks).
-_KEEP_READ = 1 << 26
-
-
-def _read(path: Path) -> tuple[bytes | bytearray, int]:
-    """(buffer, n): the file's bytes are the buffer's first n.
-
-    Files up to :data:`_KEEP_READ` bytes go into the calling thread's own
-    buffer, reused from file to file: the page faults of a fresh 25 MB bytes
-    object cost several times the copy itself (10.7 vs 1.9 ms a file on the
-    CI machine), and every view has two such files."""
+def _read(path: Path) -> bytes:
     try:
-        with open(path, "rb", buffering=0) as f:
-            size = os.fstat(f.fileno()).st_size
-            if size > _KEEP_READ:
-                data = f.read()
-                return data, len(data)
-            buf = getattr(_LOCAL, "read", None)
-            if buf is None or len(buf) <= size:  # with room to spare: the next file may be a little larger
-                buf = _LOCAL.read = bytearray(min(_KEEP_READ + 1, size + (size >> 3) + 4096))
-            n = 0
-            with memoryview(buf) as view:
-                while n < len(buf):
-                    k = f.readinto(view[n:])
-                    if not k:
-                        break
-                    n += k
-            if n == len(buf):  # the file grew while it was read
-                rest = f.read()
-                data = bytes(buf[:n]) + rest
-                return data, len(data)
-            return buf, n
+        with open(path, "rb") as f:
+            return f.read()
     except OSError as exc:
         raise InputError(f"cannot read file ({exc.strerror or exc})", path) from None
 
@@ -360,17 +331,16 @@ def _grid_end(raw: bytes, start: int, stop: int | None = None) -> int:
     return -1 if closes is None else closes[-1] + 1
 
 
-def _fast(raw: bytes | bytearray, n: int | None = None):
-    """The parsed JSON of ``raw[:n]`` with nested-list masks as arrays, or None to fall back."""
-    n = len(raw) if n is None else n
+def _fast(raw: bytes):
+    """The parsed JSON with nested-list masks as arrays, or None to fall back."""
     masks: list[np.ndarray] = []
     pieces: list[bytes] = []
     pos = 0
     # searched from each grid's end: scanning megabytes of grid text for the next key costs as much as decoding it
-    m = _KEY.search(raw, 0, n)
+    m = _KEY.search(raw)
     while m is not None:
         start = m.end() - 1
-        closes = _closes(raw, start, n)
+        closes = _closes(raw, start, len(raw))
         if closes is None:
             return None
         end = closes[-1] + 1
@@ -382,8 +352,8 @@ def _fast(raw: bytes | bytearray, n: int | None = None):
         pieces += [raw[pos:start], json.dumps(f"{_PLACEHOLDER}{len(masks)}").encode()]
         masks.append(grid)
         pos = end
-        m = _KEY.search(raw, end, n)
-    pieces.append(raw[pos:n])
+        m = _KEY.search(raw, end)
+    pieces.append(raw[pos:])
     used = set()
 
     def hook(obj: dict):
@@ -409,7 +379,6 @@ def load(path) -> object:
     """A SAM JSON file parsed, nested-list masks as bool (H, W) arrays (see the
     module docstring); InputError naming the file when it cannot be read."""
     path = Path(path)
-    raw, n = _read(path)
-    has_grid = raw.find(b'"segmentation"', 0, n) >= 0 or raw.find(b'"mask"', 0, n) >= 0
-    data = _fast(raw, n) if has_grid else None
-    return _standard(bytes(raw[:n]) if n < len(raw) else raw, path) if data is None else data
+    raw = _read(path)
+    data = _fast(raw) if (b'"segmentation"' in raw or b'"mask"' in raw) else None
+    return _standard(raw, path) if data is None else data
