@@ -41,9 +41,10 @@ def embed_jpeg(bgr: np.ndarray) -> bytes | None:
 
     Sheets are reduced by less than 2x (1180-1610 px to 960): bilinear
     interpolation then reads every source pixel, and OpenCV's area averaging
-    at such fractional factors costs 7x as much (5.3 vs 0.75 ms a sheet,
-    bench/bench_pictures.py) for a picture 0.6-1.2 grey levels away on
-    average (tests/test_report_embed.py); from 2x on it averages areas."""
+    at such fractional factors costs about 7x as much (bench/bench_pictures.py
+    times both and prints how far apart they are: ~0.6 grey levels on average
+    on its sheets; under 1.5 on the noisy panels of tests/test_report_embed.py);
+    from 2x on it averages areas."""
     if bgr.shape[1] > EMBED_WIDTH:
         h = max(1, round(bgr.shape[0] * EMBED_WIDTH / bgr.shape[1]))
         interp = cv2.INTER_LINEAR if bgr.shape[1] < 2 * EMBED_WIDTH else cv2.INTER_AREA
