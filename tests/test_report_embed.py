@@ -30,8 +30,9 @@ def _panels(n: int, seed: int):
     return out
 
 
-def _old_jpeg(png: bytes) -> bytes:
-    """report.html's JPEG as made before the cache: decode, area resize to EMBED_WIDTH, encode."""
+def _area_jpeg(png: bytes) -> bytes:
+    """report.html's JPEG as first made: decode, area resize to EMBED_WIDTH, encode (embed_jpeg
+    still averages areas for sheets that are not reduced, or reduced 2x and more)."""
     img = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
     if img.shape[1] > EMBED_WIDTH:
         h = max(1, round(img.shape[0] * EMBED_WIDTH / img.shape[1]))
@@ -59,7 +60,7 @@ def test_writer_jpeg_is_the_jpeg_made_from_the_png(tmp_path, n, width):
     assert cached == jpeg_from_png(png)
     jpg = cv2.imdecode(np.frombuffer(cached, np.uint8), cv2.IMREAD_COLOR)
     assert jpg.shape[1] == min(rgb.shape[1], EMBED_WIDTH)
-    area = _old_jpeg(png)
+    area = _area_jpeg(png)
     if not EMBED_WIDTH < rgb.shape[1] < 2 * EMBED_WIDTH:  # not reduced, or reduced 2x and more: areas averaged
         assert cached == area
     else:  # reduced less than 2x: bilinear, about a grey level from the area average (noisy panels: the most)
@@ -100,7 +101,8 @@ def test_report_is_the_same_with_and_without_the_cache(fake, tmp_path, monkeypat
     assert n == len(set(_sheets(results))) > 4
 
     calls = []
-    monkeypatch.setattr(embed, "jpeg_from_png", lambda png: calls.append(1) or _old_jpeg(png))
+    real = embed.jpeg_from_png
+    monkeypatch.setattr(embed, "jpeg_from_png", lambda png: calls.append(1) or real(png))
     assert _report(results, out, cache) == plain
     assert calls == []  # every sheet came from the cache, no PNG decoded
     for p in list(cache.iterdir())[: n // 2]:  # half the entries gone: made again, and stored
@@ -144,7 +146,7 @@ def test_damaged_cache_entries_fall_back_to_the_png(fake, tmp_path, how):
     if how != "directory":  # damaged entries were replaced by good ones
         for rel in set(_sheets(results)):
             png = (out / rel).read_bytes()
-            assert load_embed(cache, png) == _old_jpeg(png)
+            assert load_embed(cache, png) == jpeg_from_png(png)
 
 
 def test_unwritable_cache_folder_is_skipped(fake, tmp_path):
