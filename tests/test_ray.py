@@ -41,6 +41,47 @@ def _tree(folder: Path, sub: str) -> dict:
     return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(base.rglob("*")) if p.is_file()}
 
 
+def _tree_differences(a: dict, b: dict) -> list[str]:
+    """What differs between two {path: bytes} trees, short: files on one side only, and for PNGs
+    that differ, where their pixels differ (a byte dump of a whole sheet says nothing)."""
+    import cv2
+    import numpy as np
+
+    out = [f"only in the first: {k}" for k in sorted(a.keys() - b.keys())]
+    out += [f"only in the second: {k}" for k in sorted(b.keys() - a.keys())]
+    for k in sorted(a.keys() & b.keys()):
+        if a[k] == b[k]:
+            continue
+        ia, ib = (cv2.imdecode(np.frombuffer(x, np.uint8), cv2.IMREAD_UNCHANGED) for x in (a[k], b[k]))
+        if ia is None or ib is None or ia.shape != ib.shape:
+            out.append(f"{k}: {len(a[k])} vs {len(b[k])} bytes, images "
+                       f"{None if ia is None else ia.shape} vs {None if ib is None else ib.shape}")
+            continue
+        d = np.abs(ia.astype(np.int16) - ib.astype(np.int16)).reshape(ia.shape[0], ia.shape[1], -1).max(axis=2)
+        ys, xs = np.nonzero(d)
+        where = f"rows {ys.min()}-{ys.max()}, columns {xs.min()}-{xs.max()}" if ys.size else "no pixel"
+        out.append(f"{k}: {len(a[k])} vs {len(b[k])} bytes; {ys.size} pixels differ (at most by {d.max()}), {where} "
+                   f"of {ia.shape[1]}x{ia.shape[0]}")
+    return out
+
+
+def test_tree_differences_name_files_and_pixels():
+    import cv2
+    import numpy as np
+
+    img = np.zeros((6, 8, 3), np.uint8)
+    other = img.copy()
+    other[2, 5] = (0, 9, 0)
+    png = lambda x: cv2.imencode(".png", x)[1].tobytes()  # noqa: E731
+    a = {"p/a.png": png(img), "p/b.png": png(img), "p/c.png": b"x"}
+    b = {"p/a.png": png(img), "p/b.png": png(other), "p/d.png": b"y"}
+    assert _tree_differences(a, a) == []
+    assert _tree_differences(a, b) == [
+        "only in the first: p/c.png", "only in the second: p/d.png",
+        f"p/b.png: {len(a['p/b.png'])} vs {len(b['p/b.png'])} bytes; 1 pixels differ (at most by 9), "
+        "rows 2-2, columns 5-5 of 8x6"]
+
+
 def test_chunks_cover_the_views_in_order():
     views = [f"v{i}" for i in range(7)]
     assert chunk_views(views, 3) == [["v0", "v1", "v2"], ["v3", "v4", "v5"], ["v6"]]
@@ -107,7 +148,9 @@ def test_two_scenes_on_ray_equal_the_serial_run(scenes, serial, ray_instance, tm
     assert doc["timing"]["executor"]["tasks"] == 4 and doc["timing"]["executor"]["views_sent"] == 4
     assert "render" in doc["timing"]["stages_s"]  # the workers' stage timings are merged
     assert (out / "tables.md").read_bytes() == (s_out / "tables.md").read_bytes()
-    assert _tree(out, "pictures") == _tree(s_out, "pictures") and _tree(out, "pictures")
+    pictures = _tree(out, "pictures")
+    assert pictures and not _tree_differences(pictures, _tree(s_out, "pictures")), \
+        _tree_differences(pictures, _tree(s_out, "pictures"))
     assert _tree(out, ".r360cache/views") == _tree(s_out, ".r360cache/views")
     assert s_res["scenes"].keys() == {"room", "garden"}
 
