@@ -261,6 +261,32 @@ def test_interrupted_run_names_how_to_resume(tmp_path, capsys, monkeypatch):
     assert "Traceback" not in err
 
 
+def test_ctrl_c_inside_an_extension_import_is_an_interrupt(tmp_path, capsys, monkeypatch):
+    """Ctrl-C while a C extension initialises (matplotlib's _image, seen in CI) surfaces as
+    "ImportError: initialization failed" caused by the KeyboardInterrupt: exit 130, no traceback."""
+    b = renders_bundle(tmp_path / "b")
+    import importlib
+
+    pipeline_evaluate = importlib.import_module("r360gpu.pipeline.evaluate")
+
+    def extension_import(*a, **k):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as e:
+            raise ImportError("initialization failed") from e
+    monkeypatch.setattr(pipeline_evaluate, "gather", extension_import)
+    assert cli.main(["score", str(b), "--out", str(tmp_path / "o"), *SCORE_FLAGS]) == 130
+    err = capsys.readouterr().err
+    assert err.strip().splitlines()[-1].startswith("r360gpu: interrupted") and "Traceback" not in err
+    assert not (tmp_path / "o" / "results.json").exists()
+
+    def plain_import_error(*a, **k):  # an ImportError of its own is not an interrupt
+        raise ImportError("no module named nowhere")
+    monkeypatch.setattr(pipeline_evaluate, "gather", plain_import_error)
+    with pytest.raises(ImportError, match="nowhere"):
+        cli.main(["score", str(b), "--out", str(tmp_path / "o2"), *SCORE_FLAGS])
+
+
 def test_a_killed_run_holds_no_lock_and_its_temporaries_go(tmp_path, capsys):
     b = renders_bundle(tmp_path / "b")
     out = tmp_path / "o"

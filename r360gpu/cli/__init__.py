@@ -51,6 +51,24 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("r360gpu: interrupted" + _resume_hint(args), file=sys.stderr)
         return 130
+    except Exception as e:
+        # Ctrl-C inside a C extension's import (matplotlib's _image, say) comes out as
+        # "ImportError: initialization failed" caused by the KeyboardInterrupt: still an interrupt.
+        if not _caused_by_interrupt(e):
+            raise
+        print("r360gpu: interrupted" + _resume_hint(args), file=sys.stderr)
+        return 130
+
+
+def _caused_by_interrupt(e: BaseException) -> bool:
+    """True when a KeyboardInterrupt is in the cause/context chain of ``e``."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False
 
 
 def _resume_hint(args) -> str:
