@@ -6,6 +6,7 @@ import json
 import pytest
 
 from r360gpu.cli import main
+from r360gpu.errors import R360Warning
 from r360gpu.pipeline import EvaluateOptions, evaluate
 from r360gpu.report.outputs import write_outputs
 from r360gpu.synthetic import generate_benchmark
@@ -56,6 +57,26 @@ def test_outputs_are_written(scored):
     assert doc["schema"] == "r360gpu.results/1"
     assert doc["scenes"]["room"]["methods"]["clean"]["plot"] == "plots/room/clean.png"
     assert (out / doc["scenes"]["room"]["methods"]["hole"]["pictures"]["view_001"]).is_file()
+
+
+def test_plots_drawn_while_scoring_are_those_of_the_finished_results(scored, tmp_path):
+    """evaluate() draws a scene's plots as soon as the scene is scored; write_outputs draws the
+    same from the finished document, and writes plots handed to it as they are."""
+    from r360gpu.report.outputs import method_plots, scene_records
+
+    out, res = scored
+    entry = res["scenes"]["room"]
+    drawn = method_plots("room", scene_records(entry))
+    assert set(drawn) == set(entry["methods"])
+    for m in entry["methods"]:
+        assert (out / "plots" / "room" / f"{m}.png").read_bytes() == drawn[m]
+    given = {"room": {m: f"plot of {m}".encode() for m in entry["methods"]}}
+    with pytest.warns(R360Warning, match="not embedded"):  # (no pictures in this folder)
+        write_outputs(json.loads(json.dumps(res)), tmp_path, plots=given)
+    assert (tmp_path / "plots" / "room" / "hole.png").read_bytes() == b"plot of hole"
+    with pytest.warns(R360Warning, match="not embedded"):
+        write_outputs(json.loads(json.dumps(res)), tmp_path, plots={"room": {"hole": b"one only"}})
+    assert (tmp_path / "plots" / "room" / "hole.png").read_bytes() == drawn["hole"]  # incomplete: drawn here
 
 
 def test_rerun_resumes_from_the_cache_and_force_recomputes(bundle, scored, ctx):

@@ -2,6 +2,7 @@
 any thread stop the run, pictures and cache cells come from one writer thread."""
 from __future__ import annotations
 
+import importlib
 import threading
 
 import pytest
@@ -235,3 +236,108 @@ def test_panel_width_follows_small_views():
     sheet_w = sheet_image([("p", np.zeros((8, 8, 3), np.uint8))] * 4, panel_width=MIN_PANEL_WIDTH).shape[1]
     for line in view_numbers(record):
         assert cv2.getTextSize(line, _FONT, _TITLE_SCALE, 1)[0][0] <= sheet_w - 8, line
+
+
+def _small_benchmark(root, ctx, scenes=("room",)):
+    from r360gpu.synthetic import generate_benchmark
+
+    return generate_benchmark(root, n_views=4, width=64, height=48, scenes=scenes, detail=0.08, ctx=ctx)
+
+
+def test_splat_views_are_rendered_ahead_while_the_first_is_probed(tmp_path, ctx, monkeypatch):
+    """With every source rendered on the GPU thread, a view's size is known once it is rendered:
+    the next views are rendered while the host threads probe the first."""
+    import r360gpu.pipeline.stages as st
+
+    ev = importlib.import_module("r360gpu.pipeline.evaluate")  # (the package exports a function of that name)
+
+    folder = _small_benchmark(tmp_path / "b", ctx)[0]
+    rendered, waited = [], []
+    second = threading.Event()
+    real_render, real_gather = st.render_on_device, ev._gather
+
+    def render(run, v):
+        rendered.append(v)
+        if len(rendered) >= 2:
+            second.set()
+        return real_render(run, v)
+
+    def gather(run, data):
+        if data.view == rendered[0]:
+            waited.append(second.wait(timeout=20))
+        return real_gather(run, data)
+
+    monkeypatch.setattr(st, "render_on_device", render)
+    monkeypatch.setattr(ev, "_gather", gather)
+    evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    assert waited == [True] and len(rendered) == 4
+
+
+def test_the_next_scene_is_opened_while_the_last_views_are_probed(tmp_path, ctx, monkeypatch):
+    import r360gpu.pipeline.stages as st
+
+    ev = importlib.import_module("r360gpu.pipeline.evaluate")  # (the package exports a function of that name)
+
+    folders = _small_benchmark(tmp_path / "b", ctx, scenes=("room", "garden"))
+    alone = {f.name: evaluate(f, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)["scenes"][f.name]
+             for f in folders}
+    events = []
+
+    class Recorded(SceneRun):
+        def __init__(self, bundle, *a, **k):
+            events.append(("open", bundle.name))
+            super().__init__(bundle, *a, **k)
+
+    real_measure = st.measure
+
+    def measure(run, data, sink):
+        events.append(("measure", run.bundle.name, data.view))
+        return real_measure(run, data, sink)
+
+    monkeypatch.setattr(ev, "SceneRun", Recorded)
+    monkeypatch.setattr(st, "measure", measure)
+    both = evaluate(folders, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    room_views = both["scenes"]["room"]["views"]
+    assert events.index(("open", "garden")) < events.index(("measure", "room", room_views[-1]))
+    assert [e for e in events if e[0] == "open"] == [("open", "room"), ("open", "garden")]
+    for name, entry in alone.items():  # opened ahead or not, a scene's numbers are its own
+        assert both["scenes"][name] == entry
+
+
+def test_warnings_are_recorded_in_scene_and_view_order():
+    from r360gpu.pipeline.evaluate import in_run_order
+
+    def rec(scene, view, message):
+        return {"scene": scene, "method": None, "view": view, "file": None, "message": message}
+
+    raised = [rec("b", "v2", "late"), rec("a", "v1", "x"), rec(None, None, "run-wide"), rec("b", None, "scene b"),
+              rec("a", "v0", "first"), rec("a", "v1", "y"), rec("b", "v0", "b0")]
+    views_of = {"a": {"v0": 0, "v1": 1}, "b": {"v0": 0, "v2": 1}}
+    got = in_run_order(raised, ["a", "b"], views_of)
+    assert [r["message"] for r in got] == ["run-wide", "first", "x", "y", "scene b", "b0", "late"]
+    assert in_run_order(list(reversed(got)), ["a", "b"], views_of) != got  # within a view: as raised
+    assert sorted(map(str, got)) == sorted(map(str, raised))
+
+
+def test_a_scene_that_cannot_be_opened_ahead_fails_at_its_turn(tmp_path, ctx, monkeypatch):
+    """The error of a scene opened ahead comes once the scene before is scored and cached."""
+    import r360gpu.pipeline.stages as st
+
+    import cv2
+    import numpy as np
+
+    room, garden = _small_benchmark(tmp_path / "b", ctx, scenes=("room", "garden"))
+    masks = sorted((garden / "masks").glob("*.png"))
+    good = {p: p.read_bytes() for p in masks}
+    for p in masks:  # no target in any view: found once the scene is opened
+        assert cv2.imwrite(str(p), np.zeros((48, 64), np.uint8))
+    with pytest.raises(InputError) as err:
+        evaluate([room, garden], out=tmp_path / "out", options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    assert "garden" in str(err.value) and "empty" in str(err.value)
+    for p, data in good.items():
+        p.write_bytes(data)
+    rendered = []
+    real_render = st.render_on_device
+    monkeypatch.setattr(st, "render_on_device", lambda run, v: rendered.append(run.bundle.name) or real_render(run, v))
+    evaluate([room, garden], out=tmp_path / "out", options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    assert rendered.count("room") == 0 and rendered.count("garden") == 4  # every room view was cached

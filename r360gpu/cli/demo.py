@@ -24,6 +24,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from ..gpu import get_context
+    from ..render.kept import KeptRenders
     from ..synthetic import generate_benchmark
 
     from ..util.outdir import check_output_folder
@@ -33,9 +35,11 @@ def run(args) -> int:
     t = time.perf_counter()
     print(f"generating the synthetic benchmark in {out / 'benchmark'} ...")
     reused: list = []
+    kept = KeptRenders()  # the reference renders the masks are drawn from: scoring needs them again
     bundles = generate_benchmark(out / "benchmark", seed=args.scene_seed, n_views=args.n_views,
                                  width=args.width, height=args.height, progress=not args.quiet,
-                                 reuse=True, reused=reused)
-    kept = f" ({', '.join(reused)} unchanged since the last run: kept)" if reused else ""
-    print(f"  {len(bundles)} scenes in {time.perf_counter() - t:.1f} s{kept}")
-    return score_and_report(bundles, out / "report", args)
+                                 reuse=True, reused=reused, kept=kept,
+                                 ctx=get_context(getattr(args, "adapter", None)))  # scoring's context
+    unchanged = f" ({', '.join(reused)} unchanged since the last run: kept)" if reused else ""
+    print(f"  {len(bundles)} scenes in {time.perf_counter() - t:.1f} s{unchanged}")
+    return score_and_report(bundles, out / "report", args, kept=kept)

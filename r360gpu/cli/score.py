@@ -170,18 +170,19 @@ def probes_from_args(args):
     return sem, stru
 
 
-def score_and_report(bundles, out, args, executor=None) -> int:
+def score_and_report(bundles, out, args, executor=None, kept=None) -> int:
     """evaluate() (which writes every output under ``out``, all together or not at all), then the
-    summary and where the files are; ``out`` is locked for the run."""
+    summary and where the files are; ``out`` is locked for the run.  kept: renders made before
+    (``evaluate(kept=...)``)."""
     from ..util.filehash import memo_file
     from ..util.outdir import open_output_folder
     from ..util.warning_log import collecting
 
     with open_output_folder(out), collecting(), memo_file(Path(out) / ".r360hashes.json"):
-        return _score_and_report(bundles, Path(out), args, executor)
+        return _score_and_report(bundles, Path(out), args, executor, kept)
 
 
-def _score_and_report(bundles, out, args, executor) -> int:
+def _score_and_report(bundles, out, args, executor, kept=None) -> int:
     from ..pipeline import evaluate
     from ..report.html import REPORT_HTML
     from ..report.outputs import summary_lines
@@ -191,7 +192,7 @@ def _score_and_report(bundles, out, args, executor) -> int:
     sem, stru = probes_from_args(args)
     results = evaluate(bundles, out=out, semantic_probes=sem, structural_probes=stru,
                        options=options_from_args(args), adapter=args.adapter, force=args.force,
-                       progress=not args.quiet, executor=executor)
+                       progress=not args.quiet, executor=executor, kept=kept)
     for line in summary_lines(results):
         print(line)
     print(f"\nreport: {Path(out) / REPORT_HTML}")

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import contextvars
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from .. import __version__
@@ -30,6 +31,7 @@ def evaluate(
     log=print,
     executor=None,
     ray_address: str | None = None,
+    kept=None,
 ) -> dict:
     """Score one or more scene bundles; returns the results document (a dict).
 
@@ -51,6 +53,9 @@ def evaluate(
         (uncached views scored as Ray tasks, :mod:`.distributed`; needs the
         ``r360gpu[ray]`` extra), or a :class:`~.distributed.RayExecutor`.
     ray_address: with executor="ray": "local" (default), "auto" or a cluster address.
+    kept: renders made before (:class:`~r360gpu.render.kept.KeptRenders`, as
+        ``r360gpu demo`` keeps the generator's reference renders), used where
+        they are exactly what would be rendered; emptied when the run ends.
     """
     from ..bundle import Bundle, load_bundle
     from ..gpu import get_context
@@ -83,12 +88,16 @@ def evaluate(
     cache = RunCache(out, force=force)
     sink = PictureSink(out, opts.pictures, embed_cache=cache.embed)
     with warning_log.collecting():
-        return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,
-                         executor)
+        try:
+            return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,
+                             executor, kept)
+        finally:
+            if kept is not None:
+                kept.clear()
 
 
 def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,
-              executor=None) -> dict:
+              executor=None, kept=None) -> dict:
     from ..aggregate.pooling import aggregate_results
 
     timer = Timer()
@@ -104,34 +113,122 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
     }
     t_start = time.perf_counter()
     n_views_done = 0
-    for bundle in loaded:
+    views_of: dict = {}
+
+    def open_run(bundle) -> SceneRun:
         with warning_log.where(scene=bundle.name):
-            run = SceneRun(bundle, opts, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
-                           warnings=warnings)
-            try:
-                scene_res = evaluate_scene(run, cache, sink, progress, executor)
-            finally:
-                run.release()
-        if opts.compat:
-            from ..aggregate.compat import apply_compat
+            return SceneRun(bundle, opts, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
+                            warnings=warnings, kept=kept)
 
-            apply_compat(scene_res, bundle, opts.compat, xis=opts.xis, ght=opts.ght)
-        results["scenes"][bundle.name] = scene_res
-        results["probes"] = run.probes_desc
-        n_views_done += len(run.views)
-    results["timing"] = {"stages_s": {k: round(v, 3) for k, v in timer.totals.items()},
-                         "total_s": round(time.perf_counter() - t_start, 3),
-                         "views": n_views_done}
-    if executor is not None:  # what ran where; a comparison of runs leaves timing out
-        results["timing"]["executor"] = executor.describe()
-        executor.close()
-    aggregate_results(results, n_boot=opts.n_boot, n_perm=opts.n_perm, seed=opts.seed)
-    results["warnings"], results["warning_counts"] = warning_log.records(), warning_log.counts()
-    if out is not None:
-        from ..report.outputs import write_run_outputs
+    scenes, plots = _ScenesAhead(loaded, open_run), _PlotsAhead(enabled=out is not None)
+    try:
+        for i, bundle in enumerate(loaded):
+            run = scenes.take(i)
+            with warning_log.where(scene=bundle.name):
+                try:
+                    scene_res = evaluate_scene(run, cache, sink, progress, executor, rendered=scenes.opener(i + 1))
+                finally:
+                    run.release()
+            views_of[bundle.name] = {v: k for k, v in enumerate(run.views)}
+            if opts.compat:
+                from ..aggregate.compat import apply_compat
 
-        write_run_outputs(results, out, embed_cache=cache.embed)
+                apply_compat(scene_res, bundle, opts.compat, xis=opts.xis, ght=opts.ght)
+            results["scenes"][bundle.name] = scene_res
+            results["probes"] = run.probes_desc
+            n_views_done += len(run.views)
+            plots.draw(bundle.name, scene_res)
+        results["timing"] = {"stages_s": {k: round(v, 3) for k, v in timer.totals.items()},
+                             "total_s": round(time.perf_counter() - t_start, 3),
+                             "views": n_views_done}
+        if executor is not None:  # what ran where; a comparison of runs leaves timing out
+            results["timing"]["executor"] = executor.describe()
+            executor.close()
+        aggregate_results(results, n_boot=opts.n_boot, n_perm=opts.n_perm, seed=opts.seed)
+        results["warnings"] = in_run_order(warning_log.records(), [b.name for b in loaded], views_of)
+        results["warning_counts"] = warning_log.counts()
+        if out is not None:
+            from ..report.outputs import write_run_outputs
+
+            write_run_outputs(results, out, embed_cache=cache.embed, plots=plots.drawn())
+    finally:
+        scenes.close()
+        plots.close()
     return results
+
+
+class _ScenesAhead:
+    """The scenes' runs, opened in order; the next one may be opened ahead of its turn.
+
+    A scene's :func:`opener` is called (on the GPU thread) once the scene before it has
+    rendered its last view: its sources are loaded and its probes fitted while the host
+    threads finish the views before.
+    """
+
+    def __init__(self, loaded: list, open_run):
+        self.loaded, self.open_run, self.opened = loaded, open_run, {}
+
+    def take(self, i: int) -> SceneRun:
+        run = self.opened.pop(i, None)
+        if isinstance(run, Exception):  # opening it ahead failed: the error comes at its turn, as it
+            raise run                   # would have, once the scene before is scored and cached
+        return run if run is not None else self.open_run(self.loaded[i])
+
+    def opener(self, i: int):
+        def open_ahead() -> None:
+            if i < len(self.loaded) and i not in self.opened:
+                try:
+                    self.opened[i] = self.open_run(self.loaded[i])
+                except Exception as e:  # noqa: BLE001 (raised again by take)
+                    self.opened[i] = e
+
+        return open_ahead
+
+    def close(self) -> None:
+        """Release runs opened ahead and never taken (the run stopped before their turn)."""
+        for run in self.opened.values():
+            if not isinstance(run, Exception):
+                run.release()
+        self.opened.clear()
+
+
+class _PlotsAhead:
+    """Each finished scene's plots, drawn on a thread of their own while the next scene is scored."""
+
+    def __init__(self, enabled: bool):
+        self.pool = ThreadPoolExecutor(1, thread_name_prefix="r360-plots") if enabled else None
+        self.jobs: dict = {}
+
+    def draw(self, scene: str, entry: dict) -> None:
+        if self.pool is not None:
+            from ..report.outputs import method_plots, scene_records
+
+            self.jobs[scene] = self.pool.submit(method_plots, scene, scene_records(entry))
+
+    def drawn(self) -> dict:
+        """{scene: {method: PNG bytes}} (waits for the last scene's)."""
+        return {scene: job.result() for scene, job in self.jobs.items()}
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=False, cancel_futures=True)
+
+
+def in_run_order(records: list[dict], scenes: list[str], views_of: dict) -> list[dict]:
+    """The warning records by scene (in ``scenes`` order; run-wide ones first), then view (in
+    ``views_of[scene]`` order; scene-wide ones first), else in the order they were raised.
+
+    Threads raise warnings in the order they get to them, and a scene may be opened while
+    the last views of the one before are still probed; this order is the same every run,
+    serial or distributed.
+    """
+    scene_ix = {s: k for k, s in enumerate(scenes)}
+
+    def key(rec: dict) -> tuple[int, int]:
+        s, v = rec.get("scene"), rec.get("view")
+        return scene_ix.get(s, -1), (-1 if v is None else views_of.get(s, {}).get(v, -1))
+
+    return sorted(records, key=key)
 
 
 def missing_methods(bundles) -> list[str]:
@@ -152,8 +249,12 @@ LOOKAHEAD = 2
 HOST_THREADS = 2
 
 
-def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool, executor=None) -> dict:
-    """Every view of one scene (from the view cache where it has them); the scene's results entry."""
+def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool, executor=None,
+                   rendered=None) -> dict:
+    """Every view of one scene (from the view cache where it has them); the scene's results entry.
+
+    rendered: called (once, on this thread) when the last view to score here is rendered.
+    """
     from ..aggregate.results import method_axes
     from ..aggregate.validity import scene_validity
     from ..metrics.record import ViewRecord
@@ -177,7 +278,7 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     # thread is then closed, every picture written) before the scene is assembled.
     ticks = iter(_progress(todo, f"scoring {bundle.name}{done}", progress))
     next(ticks, None)
-    for v, cells in score_views(run, todo, sink, view_cache):
+    for v, cells in score_views(run, todo, sink, view_cache, rendered=rendered):
         cells_of[v] = cells
         next(ticks, None)
     scored = [*bundle.methods, *run.controls.values()]
@@ -231,24 +332,28 @@ def _cached_views(run: SceneRun, cache: RunCache, sink: PictureSink):
     return view_cache, cells_of, todo
 
 
-def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache):
+def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rendered=None):
     """Score ``views``, yielding (view, cells) in order, with the stages overlapped:
 
     this (the GPU) thread renders on the device and measures; ``HOST_THREADS``
     threads read renders, masks and run the probes up to ``LOOKAHEAD`` views
     ahead; one writer thread writes the pictures and then the view's cache
     cells (so a cached cell always has its picture).  Once the first view's
-    size is known, fewer views are kept in flight when they would hold more
-    than ``MEMORY_BUDGET`` bytes (large images: 4K and up).
+    size is known (when it is rendered, or when its files are read), fewer
+    views are kept in flight when they would hold more than ``MEMORY_BUDGET``
+    bytes (large images: 4K and up).  ``rendered`` is called once the last
+    view is rendered.
     """
     from collections import deque
     from concurrent.futures import ThreadPoolExecutor
 
-    from .stages import measure, picture_jobs, render_on_device
+    from .stages import measure, on_host, picture_jobs, render_on_device, view_sources
     from .writer import BackgroundWriter
 
     if not views:
         return
+    # files read by the host threads: a view's size is known once its first one is read
+    host_sources = any(on_host(source) for _, _, source in view_sources(run))
     host = ThreadPoolExecutor(max_workers=HOST_THREADS, thread_name_prefix="r360-host")
     writer = None
     lookahead = 0  # until the first view's size is known
@@ -260,9 +365,15 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache):
             while len(inflight) <= lookahead:
                 v = next(pending, None)
                 if v is None:
+                    if rendered is not None:
+                        rendered, call = None, rendered
+                        call()
                     break
                 with warning_log.where(view=v):
                     data = render_on_device(run, v)
+                if writer is None and not host_sources:  # every image is here: its size is known now
+                    lookahead, bound = _in_flight(_view_bytes(data))
+                    writer = BackgroundWriter(bound=bound)
                 # contextvars do not follow work into a pool: the run's warning log and the
                 # view's place in it go along explicitly
                 inflight.append((v, host.submit(contextvars.copy_context().run, _gather, run, data)))

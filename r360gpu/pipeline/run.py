@@ -15,7 +15,10 @@ holds
   learn from the scene are fitted (as per-scene copies) on pre renders that
   are then reused for scoring those views, or, when a fit record in the
   cache says what the fit gives, only once a view has to be scored;
-* ``warnings``: a :class:`WarningLog` the stages add to.
+* ``warnings``: a :class:`WarningLog` the stages add to;
+* ``kept``: renders made before the run (:class:`~r360gpu.render.kept.KeptRenders`,
+  e.g. the synthetic generator's reference renders), used instead of rendering
+  a view again.
 
 Everything it is built from (a bundle spec, :class:`~.options.EvaluateOptions`,
 probe objects) is picklable, so another process can open the same run and
@@ -107,12 +110,12 @@ class SceneRun:
     """The opened sources, masks and probes of one scene (see the module docstring)."""
 
     def __init__(self, bundle, opts, ctx, sem_probes, str_probes, *, cache, timer: Timer, warnings: WarningLog,
-                 fit: bool = True):
+                 fit: bool = True, kept=None):
         from ..metrics.fidelity import LpipsModel
         from ..render.sources import open_source
 
         self.bundle, self.opts, self.ctx = bundle, opts, ctx
-        self.timer, self.warnings = timer, warnings
+        self.timer, self.warnings, self.kept = timer, warnings, kept
         self.views = select_views(bundle.views, opts.views, getattr(bundle, "config", None) or bundle.root)
         self.depth_mode = opts.depth or bundle.options.depth
         ref_free = bundle.reference is None or (opts.reference_free if opts.reference_free is not None
@@ -192,7 +195,13 @@ class SceneRun:
     def render_pre(self, name: str, view: str):
         """The view rendered by pre source ``name``; the fit's renders are used once more, not redone."""
         hit = self._fit_renders.pop((name, view), None)
-        return hit if hit is not None else self.pres[name].images(view, self.camera(view))
+        return hit if hit is not None else self.images(self.pres[name], view)
+
+    def images(self, source, view: str):
+        """``source`` rendered at the view's camera: a kept render when there is one."""
+        cam = self.camera(view)
+        hit = self.kept.take(source, cam) if self.kept is not None else None
+        return hit if hit is not None else source.images(view, cam)
 
     def done(self, view: str) -> None:
         """Drop what was kept for ``view``."""
@@ -229,8 +238,7 @@ class SceneRun:
         """
         t0 = time.perf_counter()
         pick = self._fit_views()
-        self._fit_renders = {(name, v): src.images(v, self.camera(v)) for name, src in self.pres.items()
-                             for v in pick}
+        self._fit_renders = {(name, v): self.images(src, v) for name, src in self.pres.items() for v in pick}
         for p in self._to_fit:
             p.fit([r.rgb for r in self._fit_renders.values()], [self.mask(v) for _, v in self._fit_renders])
         self.timer.add("fit probes", t0)

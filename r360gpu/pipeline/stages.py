@@ -50,7 +50,7 @@ def on_host(source) -> bool:
     return getattr(source, "kind", None) == "renders"
 
 
-def _sources(run):
+def view_sources(run):
     """(slot, key, source) of every source a view needs: pre sources, the reference, the methods."""
     out = [("pre", name, run.pres[name]) for name in dict.fromkeys(run.pre_of.values())]
     if run.reference is not None:
@@ -63,16 +63,16 @@ def _render(run, data: ViewData, slot, key, source) -> None:
     if slot == "pre":
         data.pres[key] = run.render_pre(key, data.view)
     elif slot == "ref":
-        data.ref = source.images(data.view, run.camera(data.view))
+        data.ref = run.images(source, data.view)
     else:
-        data.posts[key] = source.images(data.view, run.camera(data.view))
+        data.posts[key] = run.images(source, data.view)
 
 
 def render_on_device(run, view: str) -> ViewData:
     """Render the sources that live on the GPU (call from the GPU thread)."""
     t = time.perf_counter()
     data = ViewData(view)
-    for slot, key, source in _sources(run):
+    for slot, key, source in view_sources(run):
         if not on_host(source):
             _render(run, data, slot, key, source)
     run.timer.add("render", t)
@@ -95,7 +95,7 @@ def gather(run, data: ViewData) -> ViewData:
     """Read the host-side renders and the mask, check sizes, and run every probe."""
     view = data.view
     t = time.perf_counter()
-    for slot, key, source in _sources(run):
+    for slot, key, source in view_sources(run):
         if on_host(source):
             _render(run, data, slot, key, source)
     data.mask = mask = run.mask(view)

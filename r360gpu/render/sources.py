@@ -45,10 +45,11 @@ class SceneSource:
         in_memory = isinstance(scene, Gaussians)
         self.path = "<in memory>" if in_memory else scene
         self.depth_mode = depth
+        self.background = tuple(float(c) for c in background)
         self.gaussians = scene if in_memory else load_gaussians(scene)
         self.render_options = RenderOptions(**(render or {}))
         try:
-            self.renderer = Renderer(self.gaussians, ctx=ctx, background=tuple(float(c) for c in background),
+            self.renderer = Renderer(self.gaussians, ctx=ctx, background=self.background,
                                      options=self.render_options)
         except InputError as e:  # e.g. more Gaussians than one binding holds: name the file, say what to do
             if e.path is not None or in_memory:

@@ -3,27 +3,42 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..util.atomic import write_bytes
 from .html import write_html
-from .plots import view_axes_plot
+from .plots import view_axes_png
 from .results_io import write_results
 from .results_tables import write_tables
 
 
-def write_outputs(results: dict, out, *, embed_cache=None) -> dict[str, Path]:
+def method_plots(scene: str, records: dict) -> dict[str, bytes]:
+    """PNG bytes of the per-view axes plot of each method of ``scene``; records: {method: [ViewRecord]}."""
+    return {method: view_axes_png(recs, title=f"{scene} / {method}: per-view axes") for method, recs in records.items()}
+
+
+def scene_records(scene_entry: dict) -> dict:
+    """{method: [ViewRecord]} of a scene's results entry (what :func:`method_plots` draws)."""
+    from ..metrics.record import ViewRecord
+
+    return {method: [ViewRecord.from_dict(v) for v in m["views"]] for method, m in scene_entry["methods"].items()}
+
+
+def write_outputs(results: dict, out, *, embed_cache=None, plots: dict | None = None) -> dict[str, Path]:
     """Write per-method plots, results.json, results.csv, tables.md/.tex and report.html.
 
     The plot paths are recorded in ``results`` (relative to ``out``) before
     results.json is written.  embed_cache: see :func:`.html.report_html`.
-    Returns {"json", "csv", "md", "tex", "html": path}.
+    plots: {scene: {method: PNG bytes}} drawn already (:func:`method_plots`, as
+    the pipeline draws each scene's while the next one is scored); the others
+    are drawn here.  Returns {"json", "csv", "md", "tex", "html": path}.
     """
-    from ..metrics.record import ViewRecord
-
     out = Path(out)
     for scene, s in results["scenes"].items():
+        drawn = (plots or {}).get(scene) or {}
+        if set(drawn) != set(s["methods"]):
+            drawn = method_plots(scene, scene_records(s))
         for method, m in s["methods"].items():
             rel = Path("plots") / scene / f"{method}.png"
-            records = [ViewRecord.from_dict(v) for v in m["views"]]
-            view_axes_plot(out / rel, records, title=f"{scene} / {method}: per-view axes")
+            write_bytes(out / rel, drawn[method])
             m["plot"] = rel.as_posix()
     js, csv = write_results(results, out)
     md, tex = write_tables(results, out)
@@ -35,7 +50,7 @@ def write_outputs(results: dict, out, *, embed_cache=None) -> dict[str, Path]:
 OUTPUT_DOCUMENTS = ("results.json", "results.csv", "tables.md", "tables.tex", "report.html")
 
 
-def write_run_outputs(results: dict, out, *, embed_cache=None) -> dict[str, Path]:
+def write_run_outputs(results: dict, out, *, embed_cache=None, plots: dict | None = None) -> dict[str, Path]:
     """:func:`write_outputs`, the documents replaced all together or not at all; a write
     error (disk full, read-only) is an InputError naming the file, with nothing changed."""
     from ..errors import InputError
@@ -45,7 +60,7 @@ def write_run_outputs(results: dict, out, *, embed_cache=None) -> dict[str, Path
     out = Path(out)
     try:
         with all_or_nothing([out / name for name in OUTPUT_DOCUMENTS]):
-            return write_outputs(results, out, embed_cache=embed_cache)
+            return write_outputs(results, out, embed_cache=embed_cache, plots=plots)
     except OSError as e:
         raise InputError(f"cannot write the results ({_reason(e)}): none of {', '.join(OUTPUT_DOCUMENTS)} "
                          f"was changed; per-view results are cached, rerun to finish", e.filename or out) from None

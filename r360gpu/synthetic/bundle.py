@@ -24,6 +24,7 @@ import json
 import os
 import sys
 import zlib
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -201,9 +202,34 @@ def reusable_bundle(folder: str | os.PathLike, request: dict) -> bool:
             and meta.get("files") == _bundle_files(folder))
 
 
+def _masks_of_files(scene: SyntheticScene, folder: Path, cameras: str, *, ctx, progress: bool, kept):
+    """The target masks drawn from the bundle's own reference.ply and cameras, read back as scoring
+    reads them (the file's Gaussians differ from the in-memory ones in the last bits of their scales and
+    rotations), so that the masks belong to the files and the renders can serve scoring."""
+    from ..io.load import load_cameras
+    from ..render.sources import SceneSource
+
+    reference = SceneSource(str(folder / "reference.ply"), ctx=ctx)
+    try:
+        return target_masks(scene, progress=progress, reference=reference, cameras=load_cameras(folder / cameras),
+                            kept=kept)
+    finally:
+        reference.release()
+
+
+def _write_methods(scene: SyntheticScene, folder: Path, methods: Sequence[str], seed: int) -> dict[str, int]:
+    """Write every method's edited scene; their Gaussian counts by method."""
+    counts = {}
+    for m in methods:
+        g = make_method(scene, m, seed=seed)
+        save_ply(folder / "methods" / f"{m}.ply", g)
+        counts[m] = g.n
+    return counts
+
+
 def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int = 0,
                  methods: Sequence[str] | None = None, camera_format: str = "colmap", ctx=None,
-                 progress: bool = False, request: dict | None = None) -> Path:
+                 progress: bool = False, request: dict | None = None, kept=None) -> Path:
     """Write ``scene`` as a bundle into ``folder`` (created; an earlier synthetic bundle there
     is replaced) and return the folder.
 
@@ -213,6 +239,8 @@ def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int 
     "transforms" (``transforms.json``).  ctx: GPU context for the mask renders.
     request: the arguments the bundle was made from, recorded in the marker
     with the files' SHA-256 so :func:`reusable_bundle` can tell it is current.
+    kept: a :class:`~r360gpu.render.kept.KeptRenders` that receives the
+    reference renders the masks are drawn from, for scoring to use.
     """
     methods = list(METHODS) if methods is None else list(methods)
     unknown = [m for m in methods if m not in METHODS]
@@ -223,7 +251,7 @@ def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int 
     folder = Path(folder)
     _prepare(folder)
 
-    steps = ["masks", "cameras", "pre", "reference", *methods]
+    steps = ["cameras", "pre", "reference", "masks", *methods]
     bar = None
     if progress and sys.stderr.isatty():  # (a redrawn bar is noise in a log; the masks report their own lines)
         from tqdm import tqdm
@@ -236,10 +264,6 @@ def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int 
             bar.update(1)
 
     try:
-        masks = target_masks(scene, ctx=ctx, progress=progress)
-        for name, mask in masks.items():
-            write_bytes(folder / "masks" / f"{name}.png", encode_mask(mask))
-        done("masks")
         if camera_format == "colmap":
             save_colmap(folder / "cameras", scene.cameras, binary=True)
             cameras = "cameras"
@@ -251,11 +275,15 @@ def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int 
         done("pre")
         save_ply(folder / "reference.ply", scene.background)
         done("reference")
-        counts = {}
+        # the method edits are host work (numpy, k-d trees, file writing): made beside the mask renders
+        with ThreadPoolExecutor(1, thread_name_prefix="r360-synthetic") as pool:
+            edited = pool.submit(_write_methods, scene, folder, methods, seed)
+            masks = _masks_of_files(scene, folder, cameras, ctx=ctx, progress=progress, kept=kept)
+            for name, mask in masks.items():
+                write_bytes(folder / "masks" / f"{name}.png", encode_mask(mask))
+            done("masks")
+            counts = edited.result()
         for m in methods:
-            g = make_method(scene, m, seed=seed)
-            save_ply(folder / "methods" / f"{m}.ply", g)
-            counts[m] = g.n
             done(m)
     finally:
         if bar is not None:
@@ -293,7 +321,8 @@ def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int 
 def generate_benchmark(out_dir: str | os.PathLike, *, seed: int = 0, n_views: int = 20, width: int = 480,
                        height: int = 360, scenes: Sequence[str] = ("room", "garden"), detail: float = 1.0,
                        methods: Sequence[str] | None = None, camera_format: str = "colmap", ctx=None,
-                       progress: bool = False, reuse: bool = False, reused: list | None = None) -> list[Path]:
+                       progress: bool = False, reuse: bool = False, reused: list | None = None,
+                       kept=None) -> list[Path]:
     """Generate the built-in synthetic benchmark: one bundle per scene under ``out_dir``.
 
     Returns the bundle folders (``out_dir / scene``) in the order of
@@ -302,6 +331,8 @@ def generate_benchmark(out_dir: str | os.PathLike, *, seed: int = 0, n_views: in
     reuse: keep a scene's bundle that was made with the same arguments and
     whose files are unchanged (checked by content) instead of writing it
     again; the names of the scenes kept are appended to ``reused``.
+    kept: a :class:`~r360gpu.render.kept.KeptRenders` that receives the
+    reference renders of the bundles written (not of those reused).
     """
     scenes = list(scenes)
     unknown = [s for s in scenes if s not in SCENES]
@@ -314,18 +345,30 @@ def generate_benchmark(out_dir: str | os.PathLike, *, seed: int = 0, n_views: in
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder", out)
+    requests = {name: {"r360gpu_version": __version__, "scene": name, "seed": int(seed), "n_views": int(n_views),
+                       "width": int(width), "height": int(height), "detail": float(detail),
+                       "methods": list(METHODS) if methods is None else list(methods),
+                       "camera_format": camera_format}
+                for name in scenes}
+    keep = {name for name in scenes if reuse and reusable_bundle(out / name, requests[name])}
     folders = []
-    for name in scenes:
-        request = {"r360gpu_version": __version__, "scene": name, "seed": int(seed), "n_views": int(n_views),
-                   "width": int(width), "height": int(height), "detail": float(detail),
-                   "methods": list(METHODS) if methods is None else list(methods), "camera_format": camera_format}
-        if reuse and reusable_bundle(out / name, request):
-            folders.append(out / name)
-            if reused is not None:
-                reused.append(name)
-            continue
-        scene = make_scene(name, seed=seed, n_views=n_views, width=width, height=height, detail=detail)
-        folders.append(write_bundle(scene, out / name, seed=seed, methods=methods, camera_format=camera_format,
-                                    ctx=ctx, progress=progress, request=request))
+    # the next scene is built (numpy) while this one's masks render
+    with ThreadPoolExecutor(1, thread_name_prefix="r360-synthetic") as pool:
+        made = {name: pool.submit(make_scene, name, seed=seed, n_views=n_views, width=width, height=height,
+                                  detail=detail)
+                for name in scenes if name not in keep}
+        try:
+            for name in scenes:
+                if name in keep:
+                    folders.append(out / name)
+                    if reused is not None:
+                        reused.append(name)
+                    continue
+                folders.append(write_bundle(made[name].result(), out / name, seed=seed, methods=methods,
+                                            camera_format=camera_format, ctx=ctx, progress=progress,
+                                            request=requests[name], kept=kept))
+        finally:  # after a failure, scenes not started are not built
+            for f in made.values():
+                f.cancel()
     return folders
 

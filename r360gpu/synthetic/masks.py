@@ -25,15 +25,23 @@ MASK_DEPTH_EPS = 0.02
 MASK_ALPHA = 0.5
 
 
-def target_masks(scene: SyntheticScene, *, ctx=None, progress: bool = False) -> dict[str, np.ndarray]:
+def target_masks(scene: SyntheticScene, *, ctx=None, progress: bool = False, reference=None, cameras=None,
+                 kept=None) -> dict[str, np.ndarray]:
     """Target mask (H, W) bool of every camera of ``scene``, by camera name.
 
     Renders each view twice (target alone, background alone) on ``ctx``
-    (default: the shared GPU context).
+    (default: the shared GPU context).  reference: the source the background
+    is rendered from (default: ``scene.background`` in memory) and cameras:
+    the cameras (default: ``scene.cameras``); :func:`~.bundle.write_bundle`
+    passes the bundle's own reference file and cameras as scoring reads them,
+    so the masks are those of the files, and each background render can be
+    kept for scoring in ``kept`` (a :class:`~r360gpu.render.kept.KeptRenders`).
     """
-    target = Renderer(scene.target, ctx=ctx)
-    background = Renderer(scene.background, ctx=target.ctx)
-    cams = scene.cameras
+    from ..render.sources import SceneSource
+
+    target = Renderer(scene.target, ctx=ctx if reference is None else reference.renderer.ctx)
+    background = reference if reference is not None else SceneSource(scene.background, ctx=target.ctx)
+    cams = list(scene.cameras if cameras is None else cameras)
     if progress:
         from ..util.progress import progress as report
 
@@ -42,10 +50,13 @@ def target_masks(scene: SyntheticScene, *, ctx=None, progress: bool = False) -> 
     try:
         for cam in cams:
             t = target.render(cam)
-            b = background.render(cam)
+            b = background.images(cam.name, cam)
             in_front = (t.depth < b.depth + MASK_DEPTH_EPS) | (b.alpha < NO_COVERAGE_ALPHA)
             masks[cam.name] = (t.alpha > MASK_ALPHA) & in_front
+            if kept is not None:
+                kept.keep(background, cam, b)
     finally:
         target.release()
-        background.release()
+        if reference is None:
+            background.release()
     return masks
