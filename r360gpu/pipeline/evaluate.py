@@ -99,7 +99,10 @@ def evaluate(
 def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,
               executor=None, kept=None) -> dict:
     from ..aggregate.pooling import aggregate_results
+    from ..util.imports import ImportAhead
 
+    # the cross-scene statistics (two scenes or more) use scipy.stats, first needed once every view is scored
+    later = ImportAhead(*(["scipy.stats"] if len(loaded) >= 2 else []))
     timer = Timer()
     warnings = WarningLog()
     results = {
@@ -144,6 +147,7 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
         if executor is not None:  # what ran where; a comparison of runs leaves timing out
             results["timing"]["executor"] = executor.describe()
             executor.close()
+        later.wait()
         aggregate_results(results, n_boot=opts.n_boot, n_perm=opts.n_perm, seed=opts.seed)
         results["warnings"] = in_run_order(warning_log.records(), [b.name for b in loaded], views_of)
         results["warning_counts"] = warning_log.counts()
