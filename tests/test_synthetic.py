@@ -56,6 +56,28 @@ def test_same_seed_gives_byte_identical_files(tmp_path, ctx):
     assert (c[0] / "pre.ply").read_bytes() != fa["room/pre.ply"]
 
 
+def test_a_generation_stopped_half_way_is_regenerated_by_the_next_run(tmp_path, ctx, monkeypatch):
+    """Ctrl-C after a bundle's first files: the next run rewrites the folder (it is marked as a
+    synthetic bundle before anything is written) instead of refusing it as a foreign folder."""
+    import r360gpu.synthetic.bundle as sb
+
+    kwargs = dict(seed=2, n_views=3, width=64, height=48, detail=0.08, scenes=("room",), ctx=ctx)
+    clean = generate_benchmark(tmp_path / "clean", **kwargs)[0]
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr(sb, "save_ply", interrupted)  # the cameras are written, the first .ply is not
+        with pytest.raises(KeyboardInterrupt):
+            generate_benchmark(tmp_path / "stopped", **kwargs, reuse=True)
+    assert (tmp_path / "stopped" / "room" / "cameras").is_dir()
+    assert not (tmp_path / "stopped" / "room" / "scene.toml").exists()
+    reused = []
+    again = generate_benchmark(tmp_path / "stopped", **kwargs, reuse=True, reused=reused)[0]
+    assert reused == [] and _files(again) == _files(clean)
+
+
 def test_an_unchanged_benchmark_is_reused_and_a_changed_one_rewritten(tmp_path, ctx):
     import os
 
