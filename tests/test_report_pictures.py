@@ -280,3 +280,32 @@ def test_sheet_panel_cuts_out_one_panel(n_lines, width):
     assert got is not None and np.array_equal(got, expected)
     assert sheet_panel(sheet, 9, n_lines=n_lines) is None  # only 4 columns
     assert sheet_panel(np.full((200, 300, 3), 255, np.uint8), 1, n_lines=0) is None  # not a sheet
+
+
+def test_panels_of_the_same_arrays_are_made_once_per_view_and_equal_fresh_ones(scene):
+    """A view's sheets share I_pre, I_ref and the probes' readings on them: with a memo those
+    panels are made once (same objects) and equal the panels made without it."""
+    rgb, target, delta = scene
+    rng = np.random.default_rng(0)
+    ref = np.clip(rgb + 0.1, 0, 1)
+    ref_masks = rng.random((3,) + target.shape) < 0.3
+    memo: dict = {}
+    sheets = []
+    for k in range(3):  # three methods of one view
+        post = np.clip(rgb * (0.5 + 0.1 * k), 0, 1)
+        kw = dict(pre=rgb, post=post, target=target, ref=ref, delta=delta, threshold=0.5, semantic_pre=target,
+                  semantic_post=np.roll(target, k, axis=1),
+                  structural=[("masks on I_ref", ref, ref_masks), ("masks on I_post", post, ref_masks[:k + 1])],
+                  width=120)
+        got = view_panels(**kw, memo=memo)
+        fresh = view_panels(**kw)
+        assert [t for t, _ in got] == [t for t, _ in fresh]
+        for (_, a), (_, b) in zip(got, fresh):
+            np.testing.assert_array_equal(a, b)
+        sheets.append(dict(got))
+    for title in ("I_pre (target outlined)", "I_ref", "semantic probe on I_pre", "masks on I_ref"):
+        assert sheets[0][title] is sheets[1][title] is sheets[2][title]
+    for title in ("I_post (target outlined)", "semantic probe on I_post", "masks on I_post"):
+        assert sheets[0][title] is not sheets[1][title]
+    other = view_panels(pre=rgb, post=rgb, target=target, width=100, memo=memo)  # another width: drawn anew
+    assert other[0][1].shape[1] == 100

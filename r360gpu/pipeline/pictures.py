@@ -26,7 +26,7 @@ class PictureSink:
 
     def method_view(self, *, scene: str, method: str, view: str, pre_rgb, post_rgb, ref_rgb, pre_depth, post_depth,
                     mask, geo, compat: bool, semantic, structural, record: dict | None = None,
-                    _shrink=None) -> str:
+                    _shrink=None, _panels: dict | None = None) -> str:
         """Write the sheet of one method at one view (host arrays only); returns its relative path.
 
         geo: GeometricView or None; semantic: (pre, post) predictions of the
@@ -54,7 +54,7 @@ class PictureSink:
             semantic_pre=None if semantic is None else small.union(semantic[0]),
             semantic_post=None if semantic is None else small.union(semantic[1]),
             structural=[(t, small.rgb(rgb), small.masks(ms.masks)) for t, rgb, ms in structural],
-            width=small.width, record=record, embed_cache=self.embed_cache,
+            width=small.width, record=record, embed_cache=self.embed_cache, memo=_panels,
         )
         return rel
 
@@ -62,9 +62,9 @@ class PictureSink:
         """Write the sheets of one view's methods, converting the images they share once."""
         if not jobs:
             return
-        shrink = _Shrink.for_view(jobs[0]["pre_rgb"])
+        shrink, panels = _Shrink.for_view(jobs[0]["pre_rgb"]), {}  # panels of I_pre, I_ref: made once
         for job in jobs:
-            self.method_view(**job, _shrink=shrink)
+            self.method_view(**job, _shrink=shrink, _panels=panels)
 
 
 class _Shrink:

@@ -534,6 +534,7 @@ def view_panels(
     structural: Sequence[tuple[str, object, object]] = (),
     width: int = PANEL_WIDTH,
     seed: int = 0,
+    memo: dict | None = None,
 ) -> list[tuple[str, np.ndarray]]:
     """The standard panels of one view, in the report's order.
 
@@ -549,11 +550,22 @@ def view_panels(
         on I_post / I_pre, drawn in magenta (skipped when None).
     structural: (title, rgb, masks) per structural panel, e.g.
         ("SAM masks on I_post", post, masks_a); masks in random colours.
+    memo: a dict shared by the sheets of one view's methods: a panel made from
+        the same array objects (I_pre, I_ref and the probes' readings on them)
+        is made once and reused, not drawn again for every method.
     """
-    out = [("I_pre (target outlined)", rgb_panel(pre, width, target=target)),
-           ("I_post (target outlined)", rgb_panel(post, width, target=target))]
+    def once(name, arrays, make):
+        if memo is None:
+            return make()
+        key = (name, width, seed, tuple(id(a) for a in arrays))
+        if key not in memo:
+            memo[key] = (arrays, make())  # the arrays are kept, so their ids stay theirs
+        return memo[key][1]
+
+    out = [("I_pre (target outlined)", once("rgb", (pre, target), lambda: rgb_panel(pre, width, target=target))),
+           ("I_post (target outlined)", once("rgb", (post, target), lambda: rgb_panel(post, width, target=target)))]
     if ref is not None:
-        out.append(("I_ref", rgb_panel(ref, width, target=target)))
+        out.append(("I_ref", once("rgb", (ref, target), lambda: rgb_panel(ref, width, target=target))))
     if delta is not None:
         label = "|dD|" if threshold is None else f"|dD|, t_depth (GHT) = {float(threshold):.3g}"
         out.append((label, depth_change_panel(delta, threshold, width)))
@@ -563,12 +575,16 @@ def view_panels(
         out.append(("changed |dD| > t_depth (legend below)", changed_panel(changed, target, width)))
     if semantic_pre is not None:
         out.append(("semantic probe on I_pre",
-                    mask_overlay(pre, semantic_pre, width, color=SEMANTIC_RGB, target=target)))
+                    once("semantic", (pre, semantic_pre, target),
+                         lambda: mask_overlay(pre, semantic_pre, width, color=SEMANTIC_RGB, target=target))))
     if semantic_post is not None:
         out.append(("semantic probe on I_post",
-                    mask_overlay(post, semantic_post, width, color=SEMANTIC_RGB, target=target)))
+                    once("semantic", (post, semantic_post, target),
+                         lambda: mask_overlay(post, semantic_post, width, color=SEMANTIC_RGB, target=target))))
     for i, (t, rgb, masks) in enumerate(structural):
-        out.append((t, mask_overlay(rgb, masks, width, target=target, seed=seed + i)))
+        out.append((t, once(f"structural {i}", (rgb, masks, target),
+                            lambda rgb=rgb, masks=masks, i=i: mask_overlay(rgb, masks, width, target=target,
+                                                                            seed=seed + i))))
     return out
 
 
