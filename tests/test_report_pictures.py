@@ -289,7 +289,9 @@ def test_panels_of_the_same_arrays_are_made_once_per_view_and_equal_fresh_ones(s
     rng = np.random.default_rng(0)
     ref = np.clip(rgb + 0.1, 0, 1)
     ref_masks = rng.random((3,) + target.shape) < 0.3
-    memo: dict = {}
+    from r360gpu.util.memo import ByIdentity
+
+    memo = ByIdentity()
     sheets = []
     for k in range(3):  # three methods of one view
         post = np.clip(rgb * (0.5 + 0.1 * k), 0, 1)

@@ -39,7 +39,7 @@ def run(args) -> int:
     bundles = generate_benchmark(out / "benchmark", seed=args.scene_seed, n_views=args.n_views,
                                  width=args.width, height=args.height, progress=not args.quiet,
                                  reuse=True, reused=reused, kept=kept,
-                                 ctx=get_context(getattr(args, "adapter", None)))  # scoring's context
+                                 ctx=get_context(args.adapter))  # scoring's context: its renders are kept
     unchanged = f" ({', '.join(reused)} unchanged since the last run: kept)" if reused else ""
     print(f"  {len(bundles)} scenes in {time.perf_counter() - t:.1f} s{unchanged}")
     return score_and_report(bundles, out / "report", args, kept=kept)

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..util.memo import ByIdentity
+
 
 class PictureSink:
     """Writes per-(method, view) contact sheets under ``out/pictures`` (does nothing when disabled)."""
@@ -26,7 +28,7 @@ class PictureSink:
 
     def method_view(self, *, scene: str, method: str, view: str, pre_rgb, post_rgb, ref_rgb, pre_depth, post_depth,
                     mask, geo, compat: bool, semantic, structural, record: dict | None = None,
-                    _shrink=None, _panels: dict | None = None) -> str:
+                    _shrink=None, _panels=None) -> str:
         """Write the sheet of one method at one view (host arrays only); returns its relative path.
 
         geo: GeometricView or None; semantic: (pre, post) predictions of the
@@ -62,7 +64,7 @@ class PictureSink:
         """Write the sheets of one view's methods, converting the images they share once."""
         if not jobs:
             return
-        shrink, panels = _Shrink.for_view(jobs[0]["pre_rgb"]), {}  # panels of I_pre, I_ref: made once
+        shrink, panels = _Shrink.for_view(jobs[0]["pre_rgb"]), ByIdentity()  # panels of I_pre, I_ref: made once
         for job in jobs:
             self.method_view(**job, _shrink=shrink, _panels=panels)
 
@@ -77,7 +79,7 @@ class _Shrink:
 
     def __init__(self, width: int):
         self.width = width
-        self._memo: dict = {}
+        self._memo = ByIdentity()
 
     @classmethod
     def for_view(cls, pre_rgb) -> "_Shrink":
@@ -86,17 +88,10 @@ class _Shrink:
 
         return cls(panel_width_for(np.shape(pre_rgb)[1]))
 
-    def _once(self, a, make):
-        hit = self._memo.get(id(a))
-        if hit is None or hit[0] is not a:
-            hit = (a, make(a))  # the array is kept so its id stays unique
-            self._memo[id(a)] = hit
-        return hit[1]
-
     def rgb(self, a):
         from ..report.pictures import rgb8_at
 
-        return self._once(a, lambda x: rgb8_at(x, self.width))
+        return self._memo.get("rgb", (a,), lambda: rgb8_at(a, self.width))
 
     def _size(self, shape):
         from ..report.pictures import _size_for
@@ -106,11 +101,11 @@ class _Shrink:
     def mask(self, m):
         from ..report.pictures import _resize_mask
 
-        return self._once(m, lambda x: _resize_mask(np.asarray(x) != 0, self._size(np.shape(x))))
+        return self._memo.get("mask", (m,), lambda: _resize_mask(np.asarray(m) != 0, self._size(np.shape(m))))
 
     def union(self, prediction):
         """A semantic prediction's union mask, at the panel size."""
-        return self._once(prediction, lambda p: self.mask(p.union()))
+        return self._memo.get("union", (prediction,), lambda: self.mask(prediction.union()))
 
     def masks(self, stack):
         from ..report.pictures import _resize_mask
@@ -124,4 +119,4 @@ class _Shrink:
             size = self._size(a.shape[1:])
             return np.stack([_resize_mask(k, size) for k in a])
 
-        return self._once(stack, make)
+        return self._memo.get("masks", (stack,), lambda: make(stack))

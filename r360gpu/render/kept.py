@@ -71,6 +71,8 @@ class KeptRenders:
 
     def take(self, source, camera):
         """The kept render of ``source`` at ``camera`` (removed from the store), or None."""
+        if not self._kept:  # (every render of a run asks: no key work once the store is empty)
+            return None
         key = _key(source, camera)
         with self._lock:
             images = self._kept.pop(key, None) if key is not None else None

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..util.atomic import write_bytes
+from ..util.memo import ByIdentity
 from . import png
 
 #: Default panel width (px): keeps the report light.
@@ -534,7 +535,7 @@ def view_panels(
     structural: Sequence[tuple[str, object, object]] = (),
     width: int = PANEL_WIDTH,
     seed: int = 0,
-    memo: dict | None = None,
+    memo: ByIdentity | None = None,
 ) -> list[tuple[str, np.ndarray]]:
     """The standard panels of one view, in the report's order.
 
@@ -550,17 +551,13 @@ def view_panels(
         on I_post / I_pre, drawn in magenta (skipped when None).
     structural: (title, rgb, masks) per structural panel, e.g.
         ("SAM masks on I_post", post, masks_a); masks in random colours.
-    memo: a dict shared by the sheets of one view's methods: a panel made from
-        the same array objects (I_pre, I_ref and the probes' readings on them)
-        is made once and reused, not drawn again for every method.
+    memo: a :class:`~r360gpu.util.memo.ByIdentity` shared by the sheets of one
+        view's methods: a panel made from the same array objects (I_pre, I_ref
+        and the probes' readings on them) is made once and reused, not drawn
+        again for every method.
     """
     def once(name, arrays, make):
-        if memo is None:
-            return make()
-        key = (name, width, seed, tuple(id(a) for a in arrays))
-        if key not in memo:
-            memo[key] = (arrays, make())  # the arrays are kept, so their ids stay theirs
-        return memo[key][1]
+        return make() if memo is None else memo.get((name, width, seed), arrays, make)
 
     out = [("I_pre (target outlined)", once("rgb", (pre, target), lambda: rgb_panel(pre, width, target=target))),
            ("I_post (target outlined)", once("rgb", (post, target), lambda: rgb_panel(post, width, target=target)))]
