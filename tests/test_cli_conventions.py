@@ -129,3 +129,14 @@ def test_view_takes_prompt_and_method_name(tmp_path, monkeypatch, ctx):
     assert main(["view", str(folder), "--prompt", "couch", "--method-name", "OC"]) == 0
     assert isinstance(seen[0], Bundle) and seen[0].prompt == "couch" and list(seen[0].methods) == ["OC"]
     assert main(["view", str(folder)]) == 0 and seen[1] == str(folder)  # no override: the viewer loads it
+
+
+def test_building_the_command_line_imports_no_scipy_or_matplotlib():
+    # Every command builds the whole parser first; scipy.special alone cost each one ~0.17 s
+    # (through aggregate.reliability), before any command that needs it had started.
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    code = ("import sys; from r360gpu.cli import build_parser; build_parser(); "
+            "print(sorted({m.split('.')[0] for m in sys.modules} & {'scipy', 'matplotlib', 'wgpu'}))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"

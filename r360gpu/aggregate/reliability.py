@@ -21,7 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import ndtri  # the normal quantile, without importing scipy.stats (~0.6 s)
 
 # Resamples per chunk: bounds memory at chunk x S x M floats for large grids.
 # Chunking does not change the numbers (the generator's stream is consumed
@@ -82,6 +81,10 @@ def reliability(scene_rqs, n_boot: int = 20000, seed: int = 0, ci_level: float =
 
     mean = r.mean(axis=0)
     sd = r.std(axis=0, ddof=1)
+    # here, not at the top: scipy.special costs every command ~0.15 s to import, and only
+    # runs of two scenes or more need the normal quantile (scipy.stats would cost ~0.6 s)
+    from scipy.special import ndtri
+
     half = ndtri(0.5 + ci_level / 2.0) * sd / np.sqrt(n_scenes)
     best = int(np.argmax(mean))
 
