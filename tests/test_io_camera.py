@@ -127,3 +127,14 @@ def test_checked_rotation():
 def test_nearest_rotation_is_proper():
     r = nearest_rotation(np.diag([1.0, 1.0, -1.0]) + 1e-3)
     assert np.linalg.det(r) == pytest.approx(1.0)
+
+
+def test_key_tells_apart_what_decides_a_rendering_and_not_the_name():
+    base = dict(R=np.eye(3), t=[0.0, 0.0, 1.0], fx=100.0, fy=100.0, cx=50.0, cy=40.0, width=100, height=80)
+    key = Camera(**base, name="a").key()
+    assert Camera(**{**base, "fx": 100, "width": 100.0}, name="b").key() == key  # the same numbers, typed otherwise
+    hash(key)
+    turned = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    for field, value in [("R", turned), ("t", [0.0, 0.0, 1.0 + 1e-12]), ("fx", 100.5), ("fy", 99.0), ("cx", 50.5),
+                         ("cy", 40.5), ("width", 101), ("height", 81)]:
+        assert Camera(**{**base, field: value}).key() != key, field

@@ -95,6 +95,10 @@ class Camera:
         r = r_c2w.T
         return cls(r, -r @ centre, fx, fy, cx, cy, width, height, name)
 
+    def key(self) -> tuple:
+        """Hashable identity of everything that decides a rendering: pose, intrinsics, size (not the name)."""
+        return (self.R.tobytes(), self.t.tobytes(), self.fx, self.fy, self.cx, self.cy, self.width, self.height)
+
     @property
     def center(self) -> np.ndarray:
         """(3,) float64 camera centre in world coordinates, ``-R.T @ t``."""

@@ -19,8 +19,6 @@ import json
 import threading
 from pathlib import Path
 
-import numpy as np
-
 __all__ = ["KeptRenders"]
 
 #: Bytes of renders a KeptRenders holds by default (16 views of two 480x360 scenes take 110 MB).
@@ -41,11 +39,8 @@ def _key(source, camera) -> tuple | None:
     except OSError:
         return None
     desc = {k: v for k, v in source.describe().items() if k != "path"}
-    cam = (np.ascontiguousarray(camera.R, np.float64).tobytes(), np.ascontiguousarray(camera.t, np.float64).tobytes(),
-           float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy), int(camera.width),
-           int(camera.height))
     return (str(path), st.st_size, st.st_mtime_ns, json.dumps(desc, sort_keys=True, default=str),
-            tuple(float(c) for c in source.background), id(source.renderer.ctx), cam)
+            tuple(float(c) for c in source.background), id(source.renderer.ctx), camera.key())
 
 
 class KeptRenders:

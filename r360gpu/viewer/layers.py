@@ -32,9 +32,8 @@ CACHE_SIZE = 3
 
 
 def camera_key(camera) -> tuple:
-    """Hashable identity of everything that decides a rendering: pose, intrinsics, size."""
-    return (camera.R.tobytes(), camera.t.tobytes(), camera.fx, camera.fy, camera.cx, camera.cy,
-            camera.width, camera.height)
+    """Hashable identity of everything that decides a rendering (:meth:`r360gpu.io.Camera.key`)."""
+    return camera.key()
 
 
 @dataclass
