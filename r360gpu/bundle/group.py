@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import InputError
 from .load import inspect_bundle
 from .model import Bundle, BundleError, Problem
+from .names import RESERVED_METHOD_NAMES, check_names
 
 GROUP_LAYOUT = "group"
 
@@ -76,6 +77,8 @@ def group_scene(members: dict, *, scene_name: str | None = None, prompt: str | N
                 raise InputError(f"scene {name!r}: method {key!r} is given twice")
             methods[key] = b.methods[m]
             method_pres[key] = b.pre_of(m)
+    check_names("scene", [name])
+    check_names("method", list(methods), reserved=RESERVED_METHOD_NAMES)
     if len(prompts) > 1:
         listed = "; ".join(f"{p!r} in {root}" for p, root in prompts.items())
         raise InputError(f"scene {name!r}: the methods' folders give different prompts ({listed}); "
@@ -106,7 +109,9 @@ def parse_method_folders(args: list[str]) -> tuple[list[str], list[tuple[str, st
     plain, pairs = [], []
     for a in args:
         method, eq, folder = a.partition("=")
-        if eq and method and folder and not os.path.exists(a) and "/" not in method and "\\" not in method:
+        if eq and not os.path.exists(a) and "/" not in method and "\\" not in method:
+            if not method or not folder:
+                raise InputError(f"{a!r}: a METHOD=FOLDER pair needs both a method name and a folder")
             pairs.append((method, folder))
         else:
             plain.append(a)
@@ -135,12 +140,12 @@ def load_benchmark(root: str | os.PathLike, *, prompt: str | None = None,
     root = Path(root)
     if not root.is_dir():
         raise InputError("benchmark root is not a folder (expected ROOT/<method>/<scene>/)", root)
-    methods = sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith("."))
+    methods = sorted(p.name for p in _folders(root))
     if not methods:
         raise InputError("benchmark root has no method folders (expected ROOT/<method>/<scene>/)", root)
     scenes: dict[str, dict] = {}
     for m in methods:
-        for s in sorted(p.name for p in (root / m).iterdir() if p.is_dir() and not p.name.startswith(".")):
+        for s in sorted(p.name for p in _folders(root / m)):
             scenes.setdefault(s, {})[m] = root / m / s
     if not scenes:
         raise InputError("benchmark root has no scene folders under its method folders "
@@ -153,3 +158,21 @@ def load_benchmark(root: str | os.PathLike, *, prompt: str | None = None,
                          f"{', '.join(missing)} (expected {root / missing[0] / s})")
     bundles = [group_scene(scenes[s], scene_name=s, prompt=prompt, views=views) for s in sorted(scenes)]
     return bundles, notes
+
+
+def _folders(folder: Path) -> list[Path]:
+    """The visible sub-folders of ``folder``; a symbolic link that leads nowhere (dangling, or a
+    loop) is an InputError naming it, not a folder silently left out."""
+    try:
+        entries = sorted(folder.iterdir())
+    except OSError as e:
+        raise InputError(f"cannot list the folder: {e.strerror or e}", folder) from None
+    out = []
+    for p in entries:
+        if p.name.startswith("."):
+            continue
+        if p.is_symlink() and not p.exists():
+            raise InputError(f"symbolic link to {os.readlink(p)!r}, which does not exist (or is a link loop)", p)
+        if p.is_dir():
+            out.append(p)
+    return out

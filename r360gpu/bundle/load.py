@@ -43,13 +43,16 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
 from ..errors import InputError
+from ..util import warning_log
 from ..io.camera import Camera
 from ..io.compressed_ply import check_compressed_header, is_compressed_ply
 from ..io.inria_ply import check_inria_header, is_inria_ply
 from ..io.load import _latest_inria_iteration, load_cameras
 from ..io.masks import load_mask, mask_size
+from ..io.paths import link_problem
 from ..io.ply import read_ply_header
-from ..io.renders import RendersReader, image_size
+from ..io.renders import RendersReader, depth_size, image_size
+from .names import bad_name, name_problems
 from .model import (DEPTH_MODES, PRINCIPAL_POINTS, RENDER_KEYS, RESERVED_METHOD_NAMES, Bundle, BundleError,
                     BundleOptions, Draft, Problem, RenderSettings, SourceSpec)
 from .remove360_layout import is_remove360_folder, remove360_draft
@@ -363,18 +366,8 @@ def _parse_options(table, bad) -> BundleOptions:
 
 
 def _bad_file_name(name: str) -> str | None:
-    """Why ``name`` cannot name an output folder, or None when it can."""
-    if not name.strip():
-        return "is empty"
-    if name in (".", ".."):
-        return "is not a usable name"
-    if "/" in name or "\\" in name:
-        return "contains a path separator"
-    if any(ord(c) < 32 for c in name):
-        return "contains control characters"
-    if name != name.strip():
-        return "has leading or trailing spaces"
-    return None
+    """Why ``name`` cannot name an output folder, or None (:func:`.names.bad_name`)."""
+    return bad_name(name)
 
 
 # --- resolving and checking the files ------------------------------------------------------------
@@ -389,6 +382,8 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
     where = str(draft.config) if draft.config is not None else str(draft.root)
 
     _check_method_names(draft, where, problems)
+    if draft.layout != "scene.toml":  # (scene.toml's name is checked where it is parsed, with a hint)
+        problems += [Problem(str(draft.root), p) for p in name_problems("scene", [draft.name])]
     # (role, method name, source): methods may not shadow pre/reference even when misnamed.
     entries = [("pre", None, draft.pre), ("reference", None, draft.reference)]
     entries += [("method", name, spec) for name, spec in draft.methods.items()]
@@ -399,10 +394,15 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
     if draft.cameras_path is None and scene_labels:
         problems.append(Problem(where, f"missing key 'cameras': needed to render the splat scene of "
                                        f"{', '.join(scene_labels)}"))
-    cameras = _load_cameras(draft.cameras_path, problems) if draft.cameras_path is not None else None
+    with warning_log.where(scene=draft.name):  # a camera loader's warning names the scene
+        cameras = _load_cameras(draft.cameras_path, problems) if draft.cameras_path is not None else None
     masks = _list_masks(draft.masks_dir, problems) if draft.masks_dir is not None else None
 
     views = _select_views(draft, where, cameras, masks, problems)
+    named = name_problems("view", views)
+    _add_capped(problems, [Problem(str(draft.masks_dir), p) for p in named], str(draft.masks_dir), "view names")
+    if named:
+        views = []
     sizes = _check_masks(views, cameras, masks or {}, draft, problems, deep=deep)
 
     resolved: dict[tuple[str, str | None], SourceSpec | None] = {}
@@ -427,20 +427,8 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
 
 
 def _check_method_names(draft: Draft, where: str, problems: list[Problem]) -> None:
-    seen: dict[str, str] = {}
-    for name in draft.methods:
-        if name.lower() in RESERVED_METHOD_NAMES:
-            problems.append(Problem(where, f"method name {name!r} is reserved (the bundle's "
-                                           f"{', '.join(RESERVED_METHOD_NAMES)} sources); rename it"))
-        reason = _bad_file_name(name)
-        if reason:
-            problems.append(Problem(where, f"method name {name!r} {reason} (it names output folders)"))
-        key = name.casefold()
-        if key in seen:
-            problems.append(Problem(where, f"duplicate method name: {seen[key]!r} and {name!r} differ only in "
-                                           f"case (their output folders would collide)"))
-        else:
-            seen[key] = name
+    problems += [Problem(where, p) for p in name_problems("method", list(draft.methods),
+                                                          reserved=RESERVED_METHOD_NAMES)]
 
 
 def view_name(camera_name: str) -> str:
@@ -472,7 +460,9 @@ def _load_cameras(path: Path, problems: list[Problem]) -> dict[str, Camera] | No
 
 def _list_masks(folder: Path, problems: list[Problem]) -> dict[str, Path] | None:
     if not folder.is_dir():
-        problems.append(Problem(str(folder), "masks folder does not exist" if not folder.exists()
+        broken = link_problem(folder)
+        problems.append(Problem(str(folder), f"masks folder is a {broken}" if broken
+                                else "masks folder does not exist" if not folder.exists()
                                 else "masks must be a folder of <view>.png files"))
         return None
     masks: dict[str, Path] = {}
@@ -486,7 +476,10 @@ def _list_masks(folder: Path, problems: list[Problem]) -> dict[str, Path] | None
         if p.name.startswith("."):
             continue
         if not p.is_file():
-            if p.suffix.lower() in _IMAGE_EXTENSIONS:  # e.g. masks/view.png/ made by a script
+            broken = link_problem(p)
+            if broken and p.suffix.lower() in _IMAGE_EXTENSIONS:
+                problems.append(Problem(str(p), f"mask is a {broken}"))
+            elif p.suffix.lower() in _IMAGE_EXTENSIONS and p.is_dir():  # e.g. masks/view.png/ made by a script
                 problems.append(Problem(str(p), "is a folder, not a mask image"))
             continue
         if p.suffix.lower() == ".png":
@@ -614,7 +607,7 @@ def _check_scene(spec: SourceSpec, label: str, problems: list[Problem]) -> Sourc
     p = Path(spec.path)
     try:
         if not p.exists():
-            raise InputError("no such file", p)
+            raise InputError(f"scene file is a {link_problem(p)}" if link_problem(p) else "no such file", p)
         if p.is_dir():
             p = _latest_inria_iteration(p)
         suffix = p.suffix.lower()
@@ -679,14 +672,19 @@ def _check_renders(spec: SourceSpec, label: str, views: list[str], sizes: dict[s
                    depth_required: bool, where: str, problems: list[Problem]) -> None:
     rgb_ok = spec.rgb_dir is not None and spec.rgb_dir.is_dir()
     if not rgb_ok:
-        problems.append(Problem(str(spec.rgb_dir or spec.path), f"RGB folder of {label} does not exist"))
+        folder = spec.rgb_dir or spec.path
+        broken = link_problem(folder)
+        problems.append(Problem(str(folder), f"RGB folder of {label} is a {broken}" if broken
+                                else f"RGB folder of {label} does not exist"))
     depth_dir = spec.depth_dir
     if depth_dir is None:
         if depth_required:
             problems.append(Problem(where, f"{label} has no depth: the geometric axis needs depth renderings "
                                            f"for pre and every method (a depth/ folder, or depth = \"FOLDER\")"))
     elif not depth_dir.is_dir():
-        problems.append(Problem(str(depth_dir), f"depth folder of {label} does not exist"))
+        broken = link_problem(depth_dir)
+        problems.append(Problem(str(depth_dir), f"depth folder of {label} is a {broken}" if broken
+                                else f"depth folder of {label} does not exist"))
         depth_dir = None
     if not rgb_ok:
         return
@@ -695,21 +693,22 @@ def _check_renders(spec: SourceSpec, label: str, views: list[str], sizes: dict[s
     except InputError as e:
         problems.append(Problem(e.path, e.problem))
         return
-    kinds = [("RGB image", spec.rgb_dir, set(reader.views()), reader.rgb_path)]
+    kinds = [("RGB image", spec.rgb_dir, set(reader.views()), reader.rgb_path, image_size)]
     if reader.has_depth:
-        kinds.append(("depth image", depth_dir, set(reader.depth_views()), reader.depth_path))
-    for what, folder, available, lookup in kinds:
+        kinds.append(("depth image", depth_dir, set(reader.depth_views()), reader.depth_path, depth_size))
+    for what, folder, available, lookup, size_of in kinds:
         missing = [v for v in views if v not in available]
         if missing:
+            hint = reader.lossy_depth_hint(missing) if what == "depth image" else ""
             problems.append(Problem(str(folder), f"missing {what}s of {label} for {len(missing)} of {len(views)} "
-                                                 f"views: {_names(missing)}"))
+                                                 f"views: {_names(missing)}{'; ' + hint if hint else ''}"))
         listed: list[Problem] = []
         for v in views:
             if v not in available:
                 continue
             try:
                 path = lookup(v)
-                hw = image_size(path)
+                hw = size_of(path)
             except InputError as e:
                 listed.append(Problem(e.path, e.problem))
                 continue

@@ -19,9 +19,7 @@ from ..io.camera import Camera
 from ..io.renders import RendersReader
 from ..util.filehash import content_digest
 
-# Names of the non-method sources; a method may not use them (case-insensitive):
-# outputs and records key methods and these sources in one namespace.
-RESERVED_METHOD_NAMES = ("pre", "reference")
+from .names import RESERVED_METHOD_NAMES  # noqa: F401 (re-exported: defined where names are checked)
 SOURCE_KINDS = ("scene", "renders")
 DEPTH_MODES = ("expected", "median")
 LAYOUTS = ("scene.toml", "remove360", "group", "objects")

@@ -7,6 +7,7 @@ import numpy as np
 
 from ..errors import InputError
 from .model import Bundle, BundleOptions
+from .names import RESERVED_METHOD_NAMES, check_bundle_names, check_names
 
 
 def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, *, reference=None,
@@ -23,7 +24,18 @@ def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, 
     method_pres: {method: source} for methods scored against their own
         pre-removal source instead of ``pre`` (same kinds as ``pre``).
     """
+    check_names("scene", [name])
+    check_names("method", list(methods or {}), reserved=RESERVED_METHOD_NAMES)
+    check_names("view", list(masks or {}))
     views = sorted(masks)
+    for v in views:
+        m = np.asarray(masks[v])
+        if m.ndim != 2 or m.size == 0:
+            raise InputError(f"scene {name!r}: the mask of view {v!r} has shape {m.shape}; expected (H, W)")
+        cam = (cameras or {}).get(v)
+        if cam is not None and m.shape != (cam.height, cam.width):
+            raise InputError(f"scene {name!r}: the mask of view {v!r} is {m.shape[1]}x{m.shape[0]}, its camera "
+                             f"is {cam.width}x{cam.height}")
     if not views:
         raise InputError(f"scene {name!r}: no views (masks is empty)")
     if not methods:
@@ -34,12 +46,14 @@ def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, 
     missing = [v for v in views if cameras is not None and v not in cameras]
     if missing:
         raise InputError(f"scene {name!r}: views without a camera: {missing[:5]}")
-    return Bundle(root=Path("."), name=name, prompt=prompt, views=views,
+    bundle = Bundle(root=Path("."), name=name, prompt=prompt, views=views,
                   cameras=None if cameras is None else {v: cameras[v] for v in views},
                   masks={v: np.asarray(masks[v]) for v in views}, pre=pre, reference=reference,
                   methods=dict(methods),
                   options=BundleOptions(background=tuple(background), depth=depth, reference_free=reference_free),
                   layout="objects", method_pres=dict(method_pres or {}))
+    check_bundle_names(bundle)  # the names scene.toml and METHOD=FOLDER accept, no others
+    return bundle
 
 
 def is_from_objects(bundle: Bundle) -> bool:

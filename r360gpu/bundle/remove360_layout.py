@@ -65,7 +65,10 @@ def remove360_draft(root: Path, *, prompt: str | None, method_name: str | None,
     folders are checked later, with every other bundle."""
     root = Path(root)
     draft = Draft(root=root, layout="remove360", name=root.resolve().name)
-    draft.prompt = _prompt(root, prompt, problems)
+    from ..util.warning_log import where
+
+    with where(scene=draft.name):  # a warning about prompt.txt names the scene
+        draft.prompt = _prompt(root, prompt, problems)
     draft.masks_dir = root / "masks"
     draft.pre = _renders(root, "before", depth_required=True)
     draft.methods[method_name if method_name is not None else DEFAULT_METHOD_NAME] = _renders(
@@ -96,6 +99,11 @@ def _prompt(root: Path, prompt: str | None, problems: list[Problem]) -> str | No
         except (OSError, UnicodeDecodeError) as e:
             problems.append(Problem(str(file), f"cannot read the prompt: {getattr(e, 'strerror', None) or e}"))
             return None
+        if "\ufeff" in text:  # a byte-order mark (Windows editors) would become part of the prompt
+            from ..util.warning_log import warn
+
+            text = text.replace("\ufeff", "")
+            warn("prompt file holds a byte-order mark (U+FEFF); removed from the prompt", file=file)
         lines = [line.strip() for line in text.splitlines() if line.strip()]
         if not lines:
             problems.append(Problem(str(file), "prompt file is empty"))

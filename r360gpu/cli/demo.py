@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import time
 
-from .score import add_scoring_options, score_and_report
+from .score import add_scoring_options, options_from_args, score_and_report
 
 
 def register(sub) -> None:
@@ -32,6 +32,7 @@ def run(args) -> int:
 
     out = check_output_folder(args.out)  # before any work
     check_output_folder(out / "report")
+    options_from_args(args)  # every option checked before the benchmark is generated
     t = time.perf_counter()
     print(f"generating the synthetic benchmark in {out / 'benchmark'} ...")
     reused: list = []

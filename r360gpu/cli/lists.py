@@ -18,6 +18,8 @@ class ListAction(argparse.Action):
 
     def __call__(self, parser, namespace, values, option_string=None):
         items = list(getattr(namespace, self.dest, None) or [])
+        if not str(values).replace(",", "").strip():  # --views '' would select nothing, or (dropped) everything
+            parser.error(f"{option_string}: empty value {values!r}; give at least one item")
         for part in str(values).split(","):
             part = part.strip()
             if not part:

@@ -134,12 +134,8 @@ def executor_from_args(args):
 
 def options_from_args(args):
     from ..pipeline import EvaluateOptions
-    from ..errors import InputError
 
-    xis = args.xi or DEFAULT_XIS
-    for x in xis:
-        if not 0.0 < x <= 1.0:
-            raise InputError(f"--xi values must lie in (0, 1], got {x}")
+    xis = args.xi or DEFAULT_XIS  # checked, with every other option, by EvaluateOptions
     return EvaluateOptions(
         xis=tuple(sorted(set(xis) | {0.3})),
         compat=args.compat,
@@ -213,9 +209,9 @@ def bundles_from_args(args) -> list:
     if args.scene_name and not pairs and len(plain) != 1:
         raise InputError("--scene-name names the scene of METHOD=FOLDER folders, or of one bundle")
     if args.scene_name is not None:
-        from ..bundle.load import _bad_file_name
+        from ..bundle.names import bad_name
 
-        reason = _bad_file_name(args.scene_name)
+        reason = bad_name(args.scene_name)
         if reason:
             raise InputError(f"--scene-name {args.scene_name!r} {reason} (it names output folders)")
     views = list(args.views) if args.views else None  # validated as `check --views` does
@@ -234,6 +230,10 @@ def bundles_from_args(args) -> list:
 def run(args) -> int:
     from ..util.outdir import check_output_folder
 
+    from ..util.warning_log import collecting
+
     out = check_output_folder(args.out)  # before any work
+    options_from_args(args)  # every option checked before any work (EvaluateOptions._check)
     executor = executor_from_args(args)  # says how to install Ray before any work starts
-    return score_and_report(bundles_from_args(args), out, args, executor)
+    with collecting():  # the warnings of loading the bundles are the run's too (results.json)
+        return score_and_report(bundles_from_args(args), out, args, executor)

@@ -2,7 +2,11 @@
 
 Grey-level, RGB and 8- or 16-bit images are accepted (anything OpenCV
 decodes losslessly; the protocol uses PNG).  A pixel is target when any of
-its colour channels is non-zero; an alpha channel is ignored (a
+its colour channels is non-zero, except in a palette (indexed-colour) PNG,
+which is a label map: index 0 is background and every other index is target,
+whatever colour the palette gives it (the DAVIS / PASCAL VOC convention),
+with a warning when the colours say otherwise (index 0 not black, or another
+index black); an alpha channel is ignored (a
 transparent-background PNG would otherwise be all target), except when every
 colour channel is 0 and the alpha channel varies: then the target can only
 be in the alpha channel (a cut-out exported as black with the object opaque),
@@ -21,6 +25,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError, R360Warning
+from .paths import read_error
 
 # Masks whose aspect ratio differs from the requested one by more than this
 # (relative) are not resized but rejected: they do not belong to that view.
@@ -39,25 +44,15 @@ def load_mask(path: str | os.PathLike, shape: tuple[int, int] | None = None) -> 
     try:
         raw = np.fromfile(path, dtype=np.uint8)
     except OSError as e:
-        raise InputError(f"cannot read mask: {e.strerror or e}", path) from None
+        raise read_error(e, path, "mask") from None
     _refuse_jpeg(raw[:3].tobytes(), path)
-    img = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED) if raw.size else None
-    if img is None:
-        raise InputError("cannot decode mask image (not an image file, or corrupt)", path)
-    if img.ndim == 3:
-        channels = img.shape[2]
-        colour = img[:, :, : channels - 1] if channels in (2, 4) else img
-        mask = np.any(colour != 0, axis=2)
-        if channels in (2, 4) and not mask.any():
-            alpha = img[:, :, channels - 1]
-            if alpha.min() != alpha.max():
-                from ..util.warning_log import warn
+    from .renders import check_pixel_count
 
-                mask = alpha != 0
-                warn("mask has black colour channels and the target in its alpha channel; the alpha channel "
-                     "is read as the target (save a grey mask to silence this)", file=path)
+    check_pixel_count(raw[:1 << 16].tobytes(), path, "mask")
+    if _is_palette_png(raw[:32].tobytes()):
+        mask = _palette_mask(raw, path)
     else:
-        mask = img != 0
+        mask = _colour_mask(raw, path)
     if shape is not None and mask.shape != tuple(shape):
         h, w = int(shape[0]), int(shape[1])
         mh, mw = mask.shape
@@ -69,13 +64,67 @@ def load_mask(path: str | os.PathLike, shape: tuple[int, int] | None = None) -> 
     return mask
 
 
-_JPEG_MAGIC = b"\xff\xd8\xff"
+def _colour_mask(raw: np.ndarray, path) -> np.ndarray:
+    """Grey, RGB(A) masks: any non-zero colour channel is target (alpha: see the module docstring)."""
+    img = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED) if raw.size else None
+    if img is None:
+        raise InputError("cannot decode mask image (not an image file, or corrupt)", path)
+    if img.ndim != 3:
+        return img != 0
+    channels = img.shape[2]
+    colour = img[:, :, : channels - 1] if channels in (2, 4) else img
+    mask = np.any(colour != 0, axis=2)
+    if channels in (2, 4) and not mask.any():
+        alpha = img[:, :, channels - 1]
+        if alpha.min() != alpha.max():
+            from ..util.warning_log import warn
+
+            mask = alpha != 0
+            warn("mask has black colour channels and the target in its alpha channel; the alpha channel "
+                 "is read as the target (save a grey mask to silence this)", file=path)
+    return mask
+
+
+def _is_palette_png(head: bytes) -> bool:
+    """True for a PNG whose IHDR colour type is 3 (indexed colour)."""
+    return head.startswith(b"\x89PNG\r\n\x1a\n") and len(head) > 25 and head[12:16] == b"IHDR" and head[25] == 3
+
+
+def _palette_mask(raw: np.ndarray, path) -> np.ndarray:
+    """A palette PNG is a label map: index 0 is background, every other index is target, whatever
+    colours the palette gives them (the DAVIS / PASCAL VOC convention; the colours are for display).
+    Where that differs from the colour rule (index 0 not black, or another index black), the
+    reading is warned and recorded."""
+    import io
+
+    from PIL import Image
+
+    try:
+        with Image.open(io.BytesIO(raw.tobytes())) as im:
+            if im.mode != "P":  # e.g. a 1-bit palette PIL opens as "1": decoded by colour
+                return _colour_mask(raw, path)
+            index = np.asarray(im)
+            palette = np.asarray(im.getpalette() or [0, 0, 0], np.uint8).reshape(-1, 3)
+    except (OSError, ValueError, SyntaxError, Image.DecompressionBombError) as e:
+        raise InputError(f"cannot decode palette mask ({e})", path) from None
+    mask = index != 0
+    used = np.unique(index)
+    black = ~palette.any(axis=1)
+    colour_rule_differs = any(
+        (int(i) < len(palette) and bool(black[i])) == (i != 0) for i in used)
+    if colour_rule_differs:
+        from ..util.warning_log import warn
+
+        warn(f"palette mask whose colours disagree with its indices (index 0 is "
+             f"{'black' if black[0] else 'RGB ' + str(tuple(int(c) for c in palette[0]))}): read as a label map, "
+             f"index 0 = background, any other index = target", file=path)
+    return mask
 
 
 def _refuse_jpeg(head: bytes, path) -> None:
-    if head.startswith(_JPEG_MAGIC):
-        raise InputError("mask holds JPEG data (whatever its extension): JPEG compression adds non-zero noise "
-                         "around the target's edges; save the mask as a real (lossless) PNG", path)
+    from .renders import refuse_lossy
+
+    refuse_lossy(head, path, "mask")
 
 
 def mask_size(path: str | os.PathLike) -> tuple[int, int]:
@@ -87,6 +136,6 @@ def mask_size(path: str | os.PathLike) -> tuple[int, int]:
         with open(path, "rb") as f:
             head = f.read(3)
     except OSError as e:
-        raise InputError(f"cannot read mask: {e.strerror or e}", path) from None
+        raise read_error(e, path, "mask") from None
     _refuse_jpeg(head, path)
     return image_size(path)

@@ -53,6 +53,7 @@ import numpy as np  # noqa: E402
 
 from ..errors import InputError  # noqa: E402
 from .exr import UnsupportedExrError, read_exr, read_exr_info  # noqa: E402
+from .paths import link_problem, read_error  # noqa: E402
 
 RGB_EXTENSIONS = (".png", ".jpg", ".jpeg")
 DEPTH_EXTENSIONS = (".png", ".exr", ".npy", ".tiff", ".tif")
@@ -104,7 +105,7 @@ def read_depth(path: str | os.PathLike, depth_scale: float = 1.0) -> np.ndarray:
     elif suffix == ".npy":
         depth = _npy_depth(path)
     elif suffix in (".png", ".tif", ".tiff"):
-        img = _decode(path, "depth image")
+        img = _decode(path, "depth image", lossless=True)
         if not (np.issubdtype(img.dtype, np.integer) or np.issubdtype(img.dtype, np.floating)):
             raise InputError(f"depth image has {img.dtype} samples", path)
         if img.ndim == 3:
@@ -154,6 +155,47 @@ def image_size(path: str | os.PathLike) -> tuple[int, int]:
     return _decode(path, "image").shape[:2]
 
 
+_JPEG_MAGIC = b"\xff\xd8\xff"
+#: Decoded images larger than this many pixels are refused before decoding (a 16384 x 16384 view;
+#: a few kilobytes of PNG can claim a size whose decoding takes gigabytes).  The bundle check also
+#: bounds every rendering and mask by its view's size from the headers, before any decode.
+MAX_PIXELS = 1 << 28
+#: Extensions of lossy formats: a depth file in one is named in the "missing depth" message.
+LOSSY_EXTENSIONS = (".jpg", ".jpeg", ".webp")
+
+
+def refuse_lossy(head: bytes, path, what: str) -> None:
+    """InputError when ``head`` starts JPEG data (whatever the file's extension): lossy compression
+    changes the values a depth map or a mask is read for."""
+    if head.startswith(_JPEG_MAGIC):
+        raise InputError(f"{what} holds JPEG data (whatever its extension): JPEG compression changes the values "
+                         f"around every edge; save it in a lossless format (16-bit PNG, EXR, NPY or TIFF for "
+                         f"depth, PNG for masks)", path)
+
+
+def check_pixel_count(head: bytes, path, what: str = "image") -> None:
+    """InputError when the header in ``head`` (PNG or JPEG) claims more than :data:`MAX_PIXELS` pixels."""
+    hw = None
+    if head.startswith(_PNG_SIGNATURE) and len(head) >= 24 and head[12:16] == b"IHDR":
+        hw = struct.unpack(">II", head[16:24])[::-1]
+    elif head.startswith(b"\xff\xd8"):
+        try:
+            hw = _jpeg_size(head, path, decode=False)
+        except InputError:
+            hw = None
+    if hw is not None and hw[0] * hw[1] > MAX_PIXELS:
+        raise InputError(f"{what} claims {hw[1]}x{hw[0]} pixels, more than r360gpu decodes ({MAX_PIXELS}); "
+                         f"not a rendering of an evaluation view", path)
+
+
+def depth_size(path: str | os.PathLike) -> tuple[int, int]:
+    """(height, width) of a depth file from its header, with the refusal :func:`read_depth` makes from
+    the header (JPEG data in a .png or .tiff)."""
+    if Path(path).suffix.lower() in (".png", ".tif", ".tiff"):
+        refuse_lossy(_read_head(path)[:3], path, "depth image")
+    return image_size(path)
+
+
 class RendersReader:
     """Reads the renderings of one renders source.
 
@@ -176,6 +218,9 @@ class RendersReader:
                              getattr(spec, "path", None))
         self._rgb = _index(self.rgb_dir, RGB_EXTENSIONS, "RGB")
         self._depth = None if self.depth_dir is None else _index(self.depth_dir, DEPTH_EXTENSIONS, "depth")
+        # depth files in a lossy format are not read, but named when their view has no depth
+        self._lossy_depth = ({} if self.depth_dir is None
+                             else _index(self.depth_dir, LOSSY_EXTENSIONS, "depth"))
 
     @classmethod
     def from_dirs(cls, rgb_dir: str | os.PathLike, depth_dir: str | os.PathLike | None = None,
@@ -204,7 +249,20 @@ class RendersReader:
         """The depth file of ``view``; InputError when there is none, more than one, or no depth folder."""
         if self._depth is None:
             raise InputError(f"no depth folder, so no depth for view {view!r}", self.rgb_dir.parent)
-        return _lookup(self._depth, view, self.depth_dir, DEPTH_EXTENSIONS, "depth image")
+        try:
+            return _lookup(self._depth, view, self.depth_dir, DEPTH_EXTENSIONS, "depth image")
+        except InputError as e:
+            hint = self.lossy_depth_hint([view])
+            raise InputError(f"{e.problem}{'; ' + hint if hint else ''}", e.path) from None
+
+    def lossy_depth_hint(self, views) -> str:
+        """"" or a sentence naming the depth files of ``views`` saved in a lossy format (not read)."""
+        found = [p.name for v in views for p in self._lossy_depth.get(v, ())]
+        if not found:
+            return ""
+        listed = ", ".join(found[:5]) + (f" and {len(found) - 5} more" if len(found) > 5 else "")
+        return (f"found {listed}: depth in JPEG is not read (lossy compression changes the depth values); "
+                f"save depth as 16-bit PNG, EXR, NPY or TIFF")
 
     def rgb(self, view: str) -> np.ndarray:
         """float32 (H, W, 3) RGB in [0, 1] of ``view`` (see :func:`read_rgb`)."""
@@ -226,7 +284,8 @@ class RendersReader:
 
 def _index(folder: Path, extensions: tuple[str, ...], what: str) -> dict[str, list[Path]]:
     if not folder.is_dir():
-        problem = "is not a folder" if folder.exists() else "does not exist"
+        broken = link_problem(folder)
+        problem = "is not a folder" if folder.exists() else f"is a {broken}" if broken else "does not exist"
         raise InputError(f"{what} folder {problem}", folder)
     found: dict[str, list[Path]] = {}
     try:
@@ -235,7 +294,9 @@ def _index(folder: Path, extensions: tuple[str, ...], what: str) -> dict[str, li
         raise InputError(f"cannot list {what} folder: {e.strerror or e}", folder) from None
     for entry in entries:
         p = Path(entry.path)
-        if p.suffix.lower() in extensions and not entry.name.startswith(".") and entry.is_file():
+        # a dangling link is kept: reading it then says what it is, instead of "no image for view"
+        if p.suffix.lower() in extensions and not entry.name.startswith(".") and (
+                entry.is_file() or link_problem(p)):
             found.setdefault(p.stem, []).append(p)
     return found
 
@@ -256,7 +317,7 @@ def _read_bytes(path) -> np.ndarray:
     try:
         return np.fromfile(os.fspath(path), dtype=np.uint8)
     except OSError as e:
-        raise InputError(f"cannot read file: {e.strerror or e}", path) from None
+        raise read_error(e, path) from None
 
 
 def _read_head(path) -> bytes:
@@ -264,11 +325,14 @@ def _read_head(path) -> bytes:
         with open(path, "rb") as f:
             return f.read(_HEADER_BYTES)
     except OSError as e:
-        raise InputError(f"cannot read file: {e.strerror or e}", path) from None
+        raise read_error(e, path) from None
 
 
-def _decode(path, what: str) -> np.ndarray:
+def _decode(path, what: str, *, lossless: bool = False) -> np.ndarray:
     raw = _read_bytes(path)
+    if lossless:
+        refuse_lossy(raw[:3].tobytes(), path, what)
+    check_pixel_count(raw[:_HEADER_BYTES].tobytes(), path, what)
     img = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED) if raw.size else None
     if img is None:
         raise InputError(f"cannot decode {what} (not an image file, or corrupt)", path)
@@ -367,7 +431,7 @@ def _checked_hw(h: int, w: int, path) -> tuple[int, int]:
     return int(h), int(w)
 
 
-def _jpeg_size(head: bytes, path) -> tuple[int, int]:
+def _jpeg_size(head: bytes, path, decode: bool = True) -> tuple[int, int] | None:
     pos = 2
     while pos + 4 <= len(head):
         if head[pos] != 0xFF:
@@ -389,7 +453,7 @@ def _jpeg_size(head: bytes, path) -> tuple[int, int]:
             break
         pos += 2 + length
     # Frame header beyond the bytes read (huge metadata) or malformed: decode.
-    return _decode(path, "image").shape[:2]
+    return _decode(path, "image").shape[:2] if decode else None
 
 
 def _tiff_size(path) -> tuple[int, int] | None:

@@ -6,6 +6,8 @@ wrong number without any error:
 
 * a method whose depth is missing (0 or non-finite) over the whole view while
   pre has depth: every dD is 0 and acc_depth falls to 0;
+* the same on the pre side (pre's depth all 0, NaN or Inf in a view), checked
+  and noted the same way: every dD is 0 there too;
 * depth in another unit than pre's (a renders folder of 16-bit PNGs in
   millimetres beside a splat scene in metres): the per-view threshold is
   chosen on a histogram dominated by the unit change.
@@ -28,6 +30,7 @@ from ..util import warning_log
 UNIT_RATIO = 3.0
 MIN_PIXELS = 16
 NOTE_NO_DEPTH = "no valid post depth"
+NOTE_NO_PRE_DEPTH = "no valid pre depth"
 NOTE_UNIT = "depth unit differs from pre"
 
 
@@ -59,7 +62,7 @@ def unit_ratio(d_pre, d_post, mask) -> float | None:
 
 
 def check_view(scene: str, method: str, view: str, d_pre, d_post, mask, *, source=None,
-               label=None) -> str | None:
+               label=None, pre_source=None) -> str | None:
     """Warn about a doubtful depth pair; returns the note for the view's record (None: fine).
 
     source: the method's file or folder (named in the warning); label: how
@@ -70,7 +73,12 @@ def check_view(scene: str, method: str, view: str, d_pre, d_post, mask, *, sourc
     pre, post = _host(d_pre), _host(d_post)
     label = label or f"[methods.{method}]"
     pre_valid = int(_valid(pre).sum())
-    if pre_valid and not _valid(post).any():
+    if not pre_valid:
+        warning_log.warn(f"pre has no valid depth (all 0, NaN or Inf) in this view: {label}'s acc_depth counts "
+                         f"no pixel as changed (the reference's missing-depth rule); check pre's depth output",
+                         file=pre_source, scene=scene, method=method, view=view)
+        return NOTE_NO_PRE_DEPTH
+    if not _valid(post).any():
         warning_log.warn(f"{label} has no valid depth (all 0 or NaN) in this view while pre has depth at "
                          f"{pre_valid} pixels: its acc_depth counts no pixel as changed (the reference's "
                          f"missing-depth rule); check the method's depth output",

@@ -57,10 +57,20 @@ def evaluate(
         ``r360gpu demo`` keeps the generator's reference renders), used where
         they are exactly what would be rendered; emptied when the run ends.
     """
+    # One collector from the first file read: warnings of loading (a COLMAP model's distortion,
+    # a BOM in prompt.txt) reach results.json as the pipeline's do.
+    with warning_log.collecting():
+        return _load_and_evaluate(bundles, out, semantic_probes, structural_probes, options, ctx, adapter, device,
+                                  force, progress, log, executor, ray_address, kept)
+
+
+def _load_and_evaluate(bundles, out, semantic_probes, structural_probes, options, ctx, adapter, device, force,
+                       progress, log, executor, ray_address, kept) -> dict:
     from ..bundle import Bundle, load_bundle
     from ..gpu import get_context
 
     opts = options or EvaluateOptions()
+    opts._check()  # before any work, also when a field was changed after the options were built
     if executor is not None or ray_address is not None:
         from .distributed import open_executor
 
@@ -79,21 +89,24 @@ def evaluate(
         from ..bundle.remove360_layout import without_depth
 
         loaded = [without_depth(b) for b in loaded]
+    from ..bundle.names import check_bundle_names, name_problems
+
+    for b in loaded:  # a Bundle built by hand or by scene_from_objects gets the checks of scene.toml
+        check_bundle_names(b)
     names = [b.name for b in loaded]
-    if len(set(names)) != len(names):
-        raise InputError(f"two bundles share a scene name: {names}")
+    if len(set(names)) != len(names) or name_problems("scene", names):
+        raise InputError(f"two bundles share a scene name (names are compared ignoring case): {names}")
     for line in missing_methods(loaded):
         log(f"note: {line}")
     out = Path(out) if out is not None else None
     cache = RunCache(out, force=force)
     sink = PictureSink(out, opts.pictures, embed_cache=cache.embed)
-    with warning_log.collecting():
-        try:
-            return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,
-                             executor, kept)
-        finally:
-            if kept is not None:
-                kept.clear()
+    try:
+        return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,
+                         executor, kept)
+    finally:
+        if kept is not None:
+            kept.clear()
 
 
 def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,

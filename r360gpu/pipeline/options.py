@@ -53,6 +53,33 @@ class EvaluateOptions:
         self.compat = check_compat(self.compat)
         if isinstance(self.ght, dict):
             self.ght = GhtParams(**self.ght)
+        self._check()
+
+    def _check(self) -> None:
+        """InputError for an option no run can use: the checks of the CLI flags and of the library,
+        made when the options are built, before any view is scored."""
+        import math
+        from numbers import Integral, Real
+
+        from ..errors import InputError
+
+        xis = tuple(self.xis) if isinstance(self.xis, (list, tuple)) else None
+        if not xis:
+            raise InputError(f"xis (--xi) must be a non-empty list of thresholds, got {self.xis!r}")
+        for x in xis:
+            if isinstance(x, bool) or not isinstance(x, Real) or not math.isfinite(x) or not 0.0 < x <= 1.0:
+                raise InputError(f"xi (--xi) values must lie in (0, 1], got {x!r}")
+        for flag, value, low in (("n_boot (--n-boot)", self.n_boot, 1), ("n_perm (--n-perm)", self.n_perm, 1),
+                                 ("fit_views", self.fit_views, 1), ("seed (--seed)", self.seed, 0)):
+            if isinstance(value, bool) or not isinstance(value, Integral) or value < low:
+                raise InputError(f"{flag} must be an integer >= {low}, got {value!r}")
+        if self.depth not in (None, "expected", "median"):
+            raise InputError(f"depth (--depth) must be 'expected' or 'median', got {self.depth!r}")
+        if self.views is not None:
+            views = tuple(self.views) if isinstance(self.views, (list, tuple)) else None
+            if not views or not all(isinstance(v, str) and v.strip() for v in views):
+                raise InputError(f"views (--views) must be a non-empty list of view names or patterns, "
+                                 f"got {self.views!r}")
 
     def scoring_key(self) -> dict:
         """The options that change per-view values (part of the view cache key).

@@ -199,7 +199,8 @@ def _check_depth(run, data: ViewData, method: str, record, pre, post) -> None:
     d_pre, d_post = host_depth(pre.depth, run.ctx), host_depth(post.depth, run.ctx)  # the run's own device
     depth_checks.annotate(record, depth_checks.check_view(
         run.bundle.name, method, data.view, d_pre, d_post, data.mask, source=getattr(source, "path", None),
-        label=None if is_method else f"[{method}]"))
+        label=None if is_method else f"[{method}]",
+        pre_source=getattr(run.bundle.pre_of(method) if is_method else run.bundle.pre, "path", None)))
 
 
 def measure(run, data: ViewData, sink) -> tuple[dict, dict]:

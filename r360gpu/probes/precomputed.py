@@ -669,7 +669,8 @@ class PrecomputedSemanticProbe(_Importer, SemanticProbe):
         out = []
         for view in views:
             source = self._source_for(view)
-            pred = source.read(view.name, prompt, self.name)
+            with rle.size_limit(_MASK_SIZE_FACTOR * view.height * view.width):  # bounded before decoding
+                pred = source.read(view.name, prompt, self.name)
             if pred is None:
                 self._note_missing(view, source)
                 out.append(SemanticPrediction.empty(view.height, view.width, self.name))
@@ -698,13 +699,19 @@ class PrecomputedStructuralProbe(_Importer, StructuralProbe):
         out = []
         for view in views:
             source = self._source_for(view)
-            found = source.read(view.name, self.name)
+            with rle.size_limit(_MASK_SIZE_FACTOR * view.height * view.width):
+                found = source.read(view.name, self.name)
             if found is None:
                 self._note_missing(view, source)
                 out.append(MaskSet.empty(view.height, view.width, self.name))
                 continue
             out.append(MaskSet(self._fit(found.masks, view, source), found.scores, self.name))
         return out
+
+
+#: An imported mask may have up to this many times the view's pixels (masks of a 2x larger image
+#: are resized to the view); an RLE claiming more is refused before it is decoded.
+_MASK_SIZE_FACTOR = 4
 
 
 def _semantic_source(directory: str | os.PathLike, format: str) -> Gsam2JsonDir | PngMaskDir:

@@ -23,8 +23,10 @@ in pycocotools' ``rleToString`` / ``rleFrString``.
 """
 from __future__ import annotations
 
+import contextvars
 import os
 from collections.abc import Mapping, Sequence
+from contextlib import contextmanager
 from numbers import Integral
 
 import numpy as np
@@ -41,6 +43,27 @@ __all__ = [
 ]
 
 _PathLike = str | os.PathLike | None
+
+#: Largest decoded mask (pixels) without a view to compare with (a 16384 x 16384 image).
+MAX_PIXELS = 1 << 28
+_limit: contextvars.ContextVar[int | None] = contextvars.ContextVar("r360gpu_rle_limit", default=None)
+
+
+@contextmanager
+def size_limit(max_pixels: int):
+    """Within the block, :func:`decode` refuses an RLE whose size claims more than ``max_pixels``
+    pixels (the probes set it from the view's size): a 100-byte file can claim 50000 x 50000."""
+    token = _limit.set(int(max_pixels))
+    try:
+        yield
+    finally:
+        _limit.reset(token)
+
+
+def max_pixels() -> int:
+    """The size bound in force (:func:`size_limit`, else :data:`MAX_PIXELS`)."""
+    limit = _limit.get()
+    return MAX_PIXELS if limit is None else min(limit, MAX_PIXELS)
 
 
 def mask_to_counts(mask: np.ndarray) -> np.ndarray:
@@ -149,6 +172,9 @@ def _size(rle: Mapping, path: _PathLike) -> tuple[int, int]:
     h, w = int(size[0]), int(size[1])
     if h < 1 or w < 1:
         raise InputError(f"RLE 'size' must be positive, got {[h, w]}", path)
+    if h * w > max_pixels():  # checked before the counts are decoded or a pixel allocated
+        raise InputError(f"RLE 'size' {h}x{w} is larger than the view allows ({max_pixels()} pixels); "
+                         f"not a mask of this view", path)
     return h, w
 
 

@@ -57,11 +57,16 @@ class OutputLock:
 
 def check_output_folder(out: str | os.PathLike) -> Path:
     """``out`` as a Path, refusing what cannot be an output folder before any work is done."""
+    if not os.fspath(out).strip():  # Path("") is ".": the outputs would land in the current folder
+        raise InputError("--out is empty; give the output folder (e.g. --out results)")
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError("--out must be a folder, but this is an existing file", out)
     for parent in [out, *out.parents]:
+        if parent.is_symlink() and not parent.exists():  # mkdir would say "File exists"
+            raise InputError(f"--out: {parent} is a symbolic link to {os.readlink(parent)!r}, which does not "
+                             f"exist (or is a link loop)", out)
         if parent.exists():
+            if parent == out and not out.is_dir():
+                raise InputError("--out must be a folder, but this is an existing file", out)
             if not parent.is_dir():
                 raise InputError(f"--out: {parent} is a file, not a folder", out)
             break
