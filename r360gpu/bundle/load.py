@@ -19,11 +19,12 @@ What is checked:
 * views: the selection is not empty, explicit names and patterns match;
 * splat scenes: the file exists and its header is a 3DGS PLY / compressed
   PLY with Gaussians and a size that matches the header, or a ``.splat`` of
-  whole 32-byte records; the Gaussians themselves are not decoded (big
-  scenes take seconds to minutes);
+  whole 32-byte records; ``check_bundle`` (``deep``) also loads the Gaussians
+  with the loader ``score`` uses (big scenes take seconds);
 * renderings: an RGB (and, for pre and the methods, a depth) file for every
-  evaluation view, whose header gives the view's size; pixel data are not
-  decoded.
+  evaluation view, whose header gives the view's size; ``check_bundle`` also
+  decodes each with the reader ``score`` uses, so ``check`` OK means
+  ``score`` reads every input it validates.
 """
 from __future__ import annotations
 
@@ -47,11 +48,11 @@ from ..util import warning_log
 from ..io.camera import Camera
 from ..io.compressed_ply import check_compressed_header, is_compressed_ply
 from ..io.inria_ply import check_inria_header, is_inria_ply
-from ..io.load import _latest_inria_iteration, load_cameras
+from ..io.load import _latest_inria_iteration, load_cameras, load_gaussians
 from ..io.masks import load_mask, mask_size
 from ..io.paths import link_problem
 from ..io.ply import read_ply_header
-from ..io.renders import RendersReader, depth_size, image_size
+from ..io.renders import RendersReader, depth_size, image_size, read_depth, read_rgb
 from .names import bad_name, name_problems
 from .model import (DEPTH_MODES, PRINCIPAL_POINTS, RENDER_KEYS, RESERVED_METHOD_NAMES, Bundle, BundleError,
                     BundleOptions, Draft, Problem, RenderSettings, SourceSpec)
@@ -409,10 +410,10 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
     for role, name, spec in entries:
         label = _label(draft, role, name)
         if spec.kind == "scene":
-            resolved[role, name] = _check_scene(spec, label, problems)
+            resolved[role, name] = _check_scene(spec, label, problems, deep=deep)
         else:
             _check_renders(spec, label, views, sizes, depth_required=role != "reference", where=where,
-                           problems=problems)
+                           problems=problems, deep=deep)
             resolved[role, name] = spec
     if problems or draft.prompt is None or draft.pre is None:
         return None
@@ -499,6 +500,17 @@ def _list_masks(folder: Path, problems: list[Problem]) -> dict[str, Path] | None
     return masks
 
 
+def _near_miss(names: list[str], others: set[str]) -> str:
+    """Why a mask's view has no camera when a camera's view name is nearly the same: the two names
+    shown with their differences visible (spaces, case, Unicode forms)."""
+    for n in names:
+        close = difflib.get_close_matches(n, sorted(others), n=1, cutoff=0.8)
+        if close:
+            return (f" (the mask {n!r} and the camera view {close[0]!r} differ only slightly: view names are "
+                    f"compared exactly, spaces, case and accents included)")
+    return ""
+
+
 def _has_glob(pattern: str) -> bool:
     return any(c in pattern for c in "*?[")
 
@@ -536,7 +548,8 @@ def _select_views(draft: Draft, where: str, cameras: dict[str, Camera] | None, m
         orphans = sorted(v for v in selected if v in masks and v not in cameras)
         if orphans:
             problems.append(Problem(str(draft.masks_dir), f"masks for {len(orphans)} view(s) with no camera in "
-                                                          f"{draft.cameras_path}: {_names(orphans)}"))
+                                                          f"{draft.cameras_path}: {_names(orphans)}"
+                                                          f"{_near_miss(orphans, set(cameras) - set(masks))}"))
     views = sorted(v for v in selected if v in masks and (cameras is None or v in cameras))
     if not views and masks:  # (an empty masks folder is reported by _list_masks)
         why = (f"no view matches {draft.patterns_origin}" if draft.view_patterns is not None
@@ -603,7 +616,7 @@ def _add_capped(problems: list[Problem], listed: list[Problem], folder: str, wha
         problems.append(Problem(folder, f"... and {len(listed) - _MAX_LISTED} more {what} with problems"))
 
 
-def _check_scene(spec: SourceSpec, label: str, problems: list[Problem]) -> SourceSpec | None:
+def _check_scene(spec: SourceSpec, label: str, problems: list[Problem], *, deep: bool = False) -> SourceSpec | None:
     p = Path(spec.path)
     try:
         if not p.exists():
@@ -618,6 +631,8 @@ def _check_scene(spec: SourceSpec, label: str, problems: list[Problem]) -> Sourc
         else:
             raise InputError("unknown Gaussian-splat format; expected an INRIA 3DGS .ply, a .compressed.ply "
                              "or a .splat file", p)
+        if deep:  # the loader score uses, with its checks (e.g. every Gaussian NaN): check OK = score loads it
+            load_gaussians(p)
     except InputError as e:
         problems.append(Problem(e.path or str(p), f"{e.problem} (scene of {label})"))
         return None
@@ -669,7 +684,7 @@ def _check_ply(p: Path) -> None:
 
 
 def _check_renders(spec: SourceSpec, label: str, views: list[str], sizes: dict[str, tuple[int, int]], *,
-                   depth_required: bool, where: str, problems: list[Problem]) -> None:
+                   depth_required: bool, where: str, problems: list[Problem], deep: bool = False) -> None:
     rgb_ok = spec.rgb_dir is not None and spec.rgb_dir.is_dir()
     if not rgb_ok:
         folder = spec.rgb_dir or spec.path
@@ -693,9 +708,13 @@ def _check_renders(spec: SourceSpec, label: str, views: list[str], sizes: dict[s
     except InputError as e:
         problems.append(Problem(e.path, e.problem))
         return
-    kinds = [("RGB image", spec.rgb_dir, set(reader.views()), reader.rgb_path, image_size)]
+    def decoded(header_size, read):  # deep: also decoded by the reader score uses (check OK = score reads it)
+        return lambda path: (header_size(path), read(path))[0] if deep else header_size(path)
+
+    kinds = [("RGB image", spec.rgb_dir, set(reader.views()), reader.rgb_path, decoded(image_size, read_rgb))]
     if reader.has_depth:
-        kinds.append(("depth image", depth_dir, set(reader.depth_views()), reader.depth_path, depth_size))
+        kinds.append(("depth image", depth_dir, set(reader.depth_views()), reader.depth_path,
+                      decoded(depth_size, lambda path: read_depth(path, reader.depth_scale))))
     for what, folder, available, lookup, size_of in kinds:
         missing = [v for v in views if v not in available]
         if missing:

@@ -46,6 +46,10 @@ def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, 
     missing = [v for v in views if cameras is not None and v not in cameras]
     if missing:
         raise InputError(f"scene {name!r}: views without a camera: {missing[:5]}")
+    sources = [("pre", pre), ("reference", reference), *methods.items(),
+               *((f"pre of {m}", s) for m, s in (method_pres or {}).items())]
+    for role, source in sources:
+        _check_device_views(name, role, source, masks, views)
     bundle = Bundle(root=Path("."), name=name, prompt=prompt, views=views,
                   cameras=None if cameras is None else {v: cameras[v] for v in views},
                   masks={v: np.asarray(masks[v]) for v in views}, pre=pre, reference=reference,
@@ -63,3 +67,27 @@ def is_from_objects(bundle: Bundle) -> bool:
     specs = [bundle.pre, bundle.reference, *bundle.methods.values(), *bundle.method_pres.values()]
     return not (all(s is None or isinstance(s, SourceSpec) for s in specs)
                 and not any(isinstance(m, np.ndarray) for m in bundle.masks.values()))
+
+
+def _check_device_views(scene: str, role: str, source, masks: dict, views: list) -> None:
+    """Renders handed over in memory (a DeviceViewsSource) must have every view, at its mask's size:
+    said here, by view, rather than by a kernel's index later."""
+    if getattr(source, "kind", None) != "device":
+        return
+    missing = [v for v in views if v not in source.views]
+    if missing:
+        raise InputError(f"scene {scene!r}: {role} has no render for view(s) {missing[:5]}")
+    for v in views:
+        h, w = np.asarray(masks[v]).shape
+        item = source.views[v]
+        if hasattr(item, "height"):
+            shapes = {"render": (item.height, item.width)}
+        else:
+            rgb, depth = item
+            shapes = {"rgb": tuple(np.shape(rgb)[:2]) if np.ndim(rgb) == 3 and np.shape(rgb)[2] == 3 else np.shape(rgb)}
+            if depth is not None:
+                shapes["depth"] = (depth.height, depth.width) if hasattr(depth, "height") else np.shape(depth)
+        for what, shape in shapes.items():
+            if tuple(shape) != (h, w):
+                raise InputError(f"scene {scene!r}: {role}'s {what} of view {v!r} has shape {tuple(shape)}; its "
+                                 f"mask is ({h}, {w}) (rgb must be (H, W, 3), depth (H, W))")

@@ -20,8 +20,9 @@ def register(subparsers) -> argparse.ArgumentParser:
         description=(
             "Validate scene bundles (folders with scene.toml, or public Remove360 evaluation folders) and "
             "list every problem found: missing or unknown keys, missing or unreadable files, views "
-            "without a mask, camera or rendering, size mismatches, bad method names. Cameras are "
-            "loaded and masks decoded; splat files and renderings are checked from their headers."
+            "without a mask, camera or rendering, size mismatches, bad method names. Cameras, masks, "
+            "splat files and renderings are read with the readers score uses, so OK means score accepts "
+            "the inputs."
         ),
     )
     p.add_argument("bundles", nargs="+", metavar="BUNDLE", help="bundle folder (or its scene.toml)")

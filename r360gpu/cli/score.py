@@ -107,6 +107,9 @@ def add_ray_options(p) -> None:
                    help="CPUs each task asks for (default 1)")
     g.add_argument("--ray-chunk", type=int, metavar="N", default=None,
                    help="views per task (default: ceil(views / (2 x workers)), at most 16)")
+    g.add_argument("--ray-timeout", type=float, metavar="SECONDS", default=None,
+                   help="seconds a cluster address has to answer before the run stops with an error "
+                        "(default 30)")
 
 
 def executor_from_args(args):
@@ -118,17 +121,20 @@ def executor_from_args(args):
         given = [flag for flag, unset in (("--ray-cpus", args.ray_cpus is None),
                                           ("--ray-gpus-per-task", args.ray_gpus_per_task is None),
                                           ("--ray-cpus-per-task", args.ray_cpus_per_task == 1.0),
-                                          ("--ray-chunk", args.ray_chunk is None)) if not unset]
+                                          ("--ray-chunk", args.ray_chunk is None),
+                                          ("--ray-timeout", args.ray_timeout is None)) if not unset]
         if given:
             raise InputError(f"{', '.join(given)} need(s) --ray")
         return None
-    from ..pipeline.distributed import RayExecutor, RayOptions, import_ray
+    from ..pipeline.distributed import DEFAULT_CONNECT_TIMEOUT, RayExecutor, RayOptions, import_ray, probe_cluster
 
+    timeout = DEFAULT_CONNECT_TIMEOUT if args.ray_timeout is None else args.ray_timeout
     import_ray()  # says how to install it before any work starts
     if args.ray_cpus is not None and address != "local":
         raise InputError("--ray-cpus sizes the instance --ray local starts; a cluster has its own size")
     opts = RayOptions(address=address, cpus=args.ray_cpus, gpus_per_task=args.ray_gpus_per_task,
-                      cpus_per_task=args.ray_cpus_per_task, chunk=args.ray_chunk)
+                      cpus_per_task=args.ray_cpus_per_task, chunk=args.ray_chunk, connect_timeout=timeout)
+    probe_cluster(address, opts.connect_timeout)  # an unreachable cluster is said before any work
     return RayExecutor(opts, adapter=args.adapter)
 
 

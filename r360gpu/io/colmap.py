@@ -35,6 +35,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from .paths import read_error
 from ..errors import InputError, R360Warning
 from ..util.atomic import write_bytes, write_text
 from .camera import Camera, make_camera
@@ -142,7 +143,7 @@ def read_cameras_text(path: str | os.PathLike) -> dict[int, ColmapCamera]:
 
 def read_images_text(path: str | os.PathLike) -> list[ColmapImage]:
     """Registered images from ``images.txt`` in file order."""
-    lines = _read(path).decode("utf-8", errors="replace").splitlines()
+    lines = _text(path).splitlines()
     out = []
     i = 0
     while i < len(lines):
@@ -150,12 +151,12 @@ def read_images_text(path: str | os.PathLike) -> list[ColmapImage]:
         i += 1
         if not line or line.startswith("#"):
             continue
-        words = line.split()
+        words = line.split(None, 9)  # the name is the rest of the line, its own spaces kept as written
         try:
             image_id = int(words[0])
             vals = [float(w) for w in words[1:8]]
             cam_id = int(words[8])
-            name = " ".join(words[9:])
+            name = words[9] if len(words) > 9 else ""
         except (ValueError, IndexError):
             raise InputError(f"line {i}: malformed image line {line!r}", path) from None
         if len(vals) != 7 or not name:
@@ -229,11 +230,20 @@ def _read(path: str | os.PathLike) -> bytes:
     try:
         return Path(path).read_bytes()
     except OSError as e:
-        raise InputError(f"cannot read file: {e.strerror or e}", path) from None
+        raise read_error(e, path) from None
+
+
+def _text(path: str | os.PathLike) -> str:
+    """A COLMAP text file as text: UTF-8 (a BOM is dropped); other bytes are an InputError, since an
+    image name decoded wrongly would silently match no mask."""
+    try:
+        return _read(path).decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise InputError(f"not UTF-8 text (byte {e.start}); COLMAP text models are UTF-8", path) from None
 
 
 def _data_lines(path: str | os.PathLike):
-    for lineno, raw in enumerate(_read(path).decode("utf-8", errors="replace").splitlines(), 1):
+    for lineno, raw in enumerate(_text(path).splitlines(), 1):
         line = raw.strip()
         if line and not line.startswith("#"):
             yield lineno, line

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 import os
+import socket
 import sys
 import time
 from dataclasses import dataclass
@@ -56,6 +57,39 @@ def import_ray():
     return ray
 
 
+DEFAULT_CONNECT_TIMEOUT = 30.0
+
+
+def cluster_endpoint(address: str) -> tuple[str, int] | None:
+    """(host, port) of a cluster address ``HOST:PORT`` or ``ray://HOST:PORT`` (for "auto": of
+    RAY_ADDRESS when set); None when it names none (a local instance, "auto" without RAY_ADDRESS)."""
+    if address == "auto":
+        address = os.environ.get("RAY_ADDRESS", "")
+    if address in ("", "local", "auto"):
+        return None
+    rest = address.split("://", 1)[1] if "://" in address else address
+    host, sep, port = rest.rstrip("/").rpartition(":")
+    if not sep or not port.isdigit():
+        raise InputError(f"--ray {address!r} is not a cluster address (HOST:PORT or ray://HOST:PORT), "
+                         f"'local' or 'auto'")
+    return host.strip("[]") or "127.0.0.1", int(port)
+
+
+def probe_cluster(address: str, timeout: float) -> None:
+    """InputError naming ``address`` unless it accepts a TCP connection within ``timeout`` seconds."""
+    endpoint = cluster_endpoint(address)
+    if endpoint is None:
+        return
+    try:
+        with socket.create_connection(endpoint, timeout=timeout):
+            pass
+    except socket.timeout:
+        raise InputError(f"cannot join the Ray cluster at {address!r}: no answer within {timeout:g} s "
+                         f"(--ray-timeout); is the head node running and reachable?") from None
+    except OSError as e:
+        raise InputError(f"cannot join the Ray cluster at {address!r}: {e.strerror or e}") from None
+
+
 @dataclass
 class RayOptions:
     """How the work goes onto Ray.
@@ -69,6 +103,9 @@ class RayOptions:
         GPUs, else 0).  cpus_per_task: CPUs each task asks for.
     chunk: views per task (None: ceil(views / (2 x workers)), at most 16).
     max_retries: how often Ray reruns a task whose worker died.
+    connect_timeout: seconds a cluster address has to accept a connection
+        before the run stops with an error naming it (Ray itself retries
+        for minutes without a word).
     """
 
     address: str = "local"
@@ -77,8 +114,12 @@ class RayOptions:
     cpus_per_task: float = 1.0
     chunk: int | None = None
     max_retries: int = 3
+    connect_timeout: float = DEFAULT_CONNECT_TIMEOUT
 
     def __post_init__(self):
+        if not (isinstance(self.connect_timeout, (int, float)) and math.isfinite(self.connect_timeout)
+                and self.connect_timeout > 0):
+            raise InputError(f"--ray-timeout must be a positive number of seconds, got {self.connect_timeout!r}")
         if self.cpus is not None and self.cpus < 1:
             raise InputError(f"--ray-cpus must be at least 1, got {self.cpus}")
         if self.gpus_per_task is not None and self.gpus_per_task < 0:
@@ -161,6 +202,7 @@ class RayExecutor:
                 kw["num_cpus"] = self.options.cpus
                 ray.init(**kw)
             else:
+                probe_cluster(address, self.options.connect_timeout)  # Ray would retry for minutes
                 try:
                     ray.init(address=address, **kw)
                 except ConnectionError as e:
