@@ -204,6 +204,26 @@ class Bundle:
         file is hashed as missing.  Paths are taken relative to the bundle
         root when inside it.
         """
+        return self.fingerprint_of(self.file_digests())
+
+    def file_digests(self) -> dict[str, str | None]:
+        """{path: content digest, None when missing} of every file the bundle reads
+        (:meth:`fingerprint`); a run keeps them to check that what it decoded is what it keyed."""
+        out: dict[str, str | None] = {}
+        for f in self._referenced_files():
+            key = os.fspath(f)
+            try:
+                out[key] = content_digest(f, Path(f).stat())
+            except OSError:
+                out[key] = None
+        return out
+
+    def file_digests_paths(self) -> list[str]:
+        """The paths :meth:`file_digests` hashes, without hashing them."""
+        return [os.fspath(f) for f in self._referenced_files()]
+
+    def fingerprint_of(self, digests: dict[str, str | None]) -> str:
+        """:meth:`fingerprint` from digests taken before (:meth:`file_digests`)."""
         h = hashlib.sha256()
 
         def add(*item) -> None:
@@ -222,13 +242,29 @@ class Bundle:
                 add("config", hashlib.sha256(self.config.read_bytes()).hexdigest())
             except OSError:
                 add("config", None)
-        for f in self._referenced_files():
-            try:
-                st = f.stat()
-                add("file", self._rel(f), st.st_size, content_digest(f, st))
-            except OSError:
-                add("file", self._rel(f), None, None)
+        for path, digest in digests.items():
+            add("file", self._rel(Path(path)), digest)
         return h.hexdigest()
+
+    def view_files(self, view: str, readers: dict | None = None) -> list[str]:
+        """The paths (as keyed by :meth:`file_digests`) of the files the scores of ``view`` are decoded from: its mask, the
+        renderings of every renders source and every splat file (a subset of :meth:`file_digests`)."""
+        files = [self.masks[view]] if isinstance(self.masks.get(view), (str, os.PathLike)) else []
+        readers = {} if readers is None else readers  # {source name: RendersReader}, kept by the caller
+        for name, spec in self.sources().items():
+            if not isinstance(spec, SourceSpec):
+                continue
+            if spec.kind == "scene":
+                files.append(spec.path)
+                continue
+            try:
+                reader = readers.get(name) or readers.setdefault(name, spec.reader())
+                files.append(reader.rgb_path(view))
+                if reader.has_depth:
+                    files.append(reader.depth_path(view))
+            except InputError:
+                continue
+        return [os.fspath(f) for f in files]
 
     def _rel(self, p: Path) -> str:
         try:

@@ -34,6 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..util.filehash import read_file
+from .paths import read_error
 
 _MAGIC = b"\x76\x2f\x31\x01"
 _TILED, _DEEP, _MULTIPART = 0x200, 0x800, 0x1000
@@ -96,9 +98,9 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """
     path = os.fspath(path)
     try:
-        data = Path(path).read_bytes()
+        data = read_file(path)  # hashed as read (util.filehash): the cache key is what was decoded
     except OSError as e:
-        raise InputError(f"cannot read file: {e.strerror or e}", path) from None
+        raise read_error(e, path) from None
     info = _parse_header(data, path)
     if info.compression not in _LINES_PER_CHUNK:
         raise UnsupportedExrError(

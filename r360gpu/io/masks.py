@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError, R360Warning
+from ..util.filehash import read_file
 from .paths import read_error
 
 # Masks whose aspect ratio differs from the requested one by more than this
@@ -42,7 +43,7 @@ def load_mask(path: str | os.PathLike, shape: tuple[int, int] | None = None) -> 
     """
     path = os.fspath(path)
     try:
-        raw = np.fromfile(path, dtype=np.uint8)
+        raw = np.frombuffer(read_file(path), dtype=np.uint8)  # hashed as read (util.filehash)
     except OSError as e:
         raise read_error(e, path, "mask") from None
     _refuse_jpeg(raw[:3].tobytes(), path)

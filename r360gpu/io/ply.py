@@ -20,6 +20,8 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..util.filehash import read_file
+from .paths import read_error
 from ..util.atomic import atomic_open
 
 # PLY scalar type names (both the classic and the sized spellings) -> numpy type code.
@@ -174,9 +176,9 @@ def read_ply(path: str | os.PathLike) -> PlyData:
     """Parse a whole PLY file; see :class:`PlyData`."""
     path = os.fspath(path)
     try:
-        data = Path(path).read_bytes()
+        data = read_file(path)  # hashed as read (util.filehash): the cache key is what was decoded
     except OSError as e:
-        raise InputError(f"cannot read file: {e.strerror or e}", path) from None
+        raise read_error(e, path) from None
     fmt, elements, comments, offset = _parse_header(data, path)
     ply = PlyData(path, fmt, elements, comments)
     if fmt == "ascii":

@@ -39,6 +39,7 @@ first used, since OpenCV reads the variable at that first use.
 """
 from __future__ import annotations
 
+import io
 import os
 import struct
 from pathlib import Path
@@ -52,6 +53,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ..errors import InputError  # noqa: E402
+from ..util.filehash import read_file  # noqa: E402
 from .exr import UnsupportedExrError, read_exr, read_exr_info  # noqa: E402
 from .paths import link_problem, read_error  # noqa: E402
 
@@ -315,7 +317,7 @@ def _lookup(index: dict[str, list[Path]], view: str, folder: Path, extensions: t
 
 def _read_bytes(path) -> np.ndarray:
     try:
-        return np.fromfile(os.fspath(path), dtype=np.uint8)
+        return np.frombuffer(read_file(path), dtype=np.uint8)  # hashed as read (util.filehash)
     except OSError as e:
         raise read_error(e, path) from None
 
@@ -374,9 +376,9 @@ def _exr_depth_opencv(path, unsupported: UnsupportedExrError) -> np.ndarray:
     hint = ("OpenCV could not read it either: it reads EXR only when built with OpenEXR and with "
             "OPENCV_IO_ENABLE_OPENEXR=1 in the environment when r360gpu starts. Re-save the depth as a "
             "scanline EXR with ZIP or no compression, or as .npy or float32 .tiff")
-    try:
-        img = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
-    except cv2.error:
+    try:  # decoded from the bytes read_file hashed (util.filehash), as every other input
+        img = cv2.imdecode(np.frombuffer(read_file(path), np.uint8), cv2.IMREAD_UNCHANGED)
+    except (cv2.error, OSError):
         img = None
     if img is None:
         raise InputError(f"{unsupported.problem}. {hint}", path) from None
@@ -412,7 +414,7 @@ def _npy_hw(shape: tuple[int, ...], path) -> tuple[int, int]:
 
 def _npy_depth(path) -> np.ndarray:
     try:
-        arr = np.load(os.fspath(path), allow_pickle=False)
+        arr = np.load(io.BytesIO(read_file(path)), allow_pickle=False)  # hashed as read (util.filehash)
     except OSError as e:
         raise InputError(f"cannot read file: {e.strerror or e}", path) from None
     except ValueError as e:

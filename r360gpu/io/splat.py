@@ -32,6 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, R360Warning
+from ..util.filehash import read_file
+from .paths import read_error
 from ..util.atomic import write_bytes
 from .gaussians import Gaussians, build_gaussians
 from .sh import C0
@@ -49,9 +51,9 @@ def load_splat(path: str | os.PathLike) -> Gaussians:
     """Read a .splat file; see the module docstring (drop policy of :func:`build_gaussians`)."""
     path = os.fspath(path)
     try:
-        data = Path(path).read_bytes()
+        data = read_file(path)  # hashed as read (util.filehash): the cache key is what was decoded
     except OSError as e:
-        raise InputError(f"cannot read file: {e.strerror or e}", path) from None
+        raise read_error(e, path) from None
     if len(data) == 0:
         raise InputError("empty .splat file (contains no Gaussians)", path)
     if len(data) % RECORD_DTYPE.itemsize:

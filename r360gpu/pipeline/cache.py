@@ -122,6 +122,22 @@ class ViewCache:
         ctl = self.load_view(controls, view, pictures=False)
         return None if ctl is None else {**cells, **ctl}
 
+    def store_view(self, view: str, cells: dict, changed: list) -> bool:
+        """Store every cell of ``view`` unless ``changed`` names an input whose decoded bytes are not
+        those the key was computed from (:func:`changed_inputs`); then warn and store nothing.
+        True when stored."""
+        if changed:
+            from ..util import warning_log
+
+            for f in changed:
+                warning_log.warn(f"changed while the run read it: view {view!r} was scored from other bytes "
+                                 f"than the run's cache key says, so its result is not cached (the next run "
+                                 f"scores it again)", file=f, view=view)
+            return False
+        for m, cell in cells.items():
+            self.store(m, view, cell)
+        return True
+
     def store(self, method: str, view: str, cell: dict) -> None:
         from ..util.atomic import write_json
 
@@ -130,16 +146,17 @@ class ViewCache:
         write_json(self._path(method, view), cell, allow_nan=False, sync=False, indent=None)
 
 
-def fingerprint(bundle, sources) -> str:
+def fingerprint(bundle, sources, digests: dict | None = None) -> str:
     """The bundle's file fingerprint, or for scenes built from objects a hash
     of the sources' descriptions and the target masks.
 
     sources: [pre, reference or None, *methods], the opened sources.
+    digests: the bundle's :meth:`~r360gpu.bundle.Bundle.file_digests`, when the run keeps them.
     """
     from ..bundle import is_from_objects
 
     if not is_from_objects(bundle):
-        return bundle.fingerprint()
+        return bundle.fingerprint() if digests is None else bundle.fingerprint_of(digests)
     h = hashlib.sha256()
     for s in sources:
         h.update(json.dumps(None if s is None else s.describe(), sort_keys=True, default=str).encode())
@@ -147,3 +164,22 @@ def fingerprint(bundle, sources) -> str:
         m = bundle.masks[v]
         h.update(np.ascontiguousarray(m).tobytes() if isinstance(m, np.ndarray) else str(m).encode())
     return h.hexdigest()
+
+
+def changed_inputs(keyed: dict | None, files: list, decoded: dict | None = None) -> list[str]:
+    """The files among ``files`` whose bytes, as decoded in this run, differ from those the cache key
+    was computed from.
+
+    keyed: {path: digest} of the key (:meth:`~r360gpu.bundle.Bundle.file_digests`; None: scenes
+    from objects, nothing to check).  decoded: {absolute path: digest} of what was decoded (default:
+    what :func:`r360gpu.util.filehash.read_file` read in this process; a Ray worker sends its own).
+    """
+    if keyed is None:
+        return []
+    import os
+
+    from ..util.filehash import decoded_digests
+
+    absolute = {f: os.path.abspath(f) for f in files}
+    decoded = decoded_digests(absolute.values()) if decoded is None else decoded
+    return [f for f, a in absolute.items() if a in decoded and decoded[a] != keyed.get(f)]

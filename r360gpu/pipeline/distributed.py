@@ -308,8 +308,7 @@ class RayExecutor:
                 write_bytes(sink.out / rel, data)
         if view_cache is not None:
             for v, cells in result["cells"].items():
-                for m, cell in cells.items():
-                    view_cache.store(m, v, cell)
+                view_cache.store_view(v, cells, run.changed_inputs(v, result.get("decoded", {}).get(v)))
         warning_log.replay(result["warnings"])
         for stage, s in result["timing"].items():
             run.timer.totals[stage] = run.timer.totals.get(stage, 0.0) + s
@@ -377,6 +376,7 @@ def _score_chunk(common, views, ctx, timer, node) -> dict:
     from .cache import RunCache
     from .pictures import PictureSink
     from .run import SceneRun, WarningLog
+    from ..util.filehash import decoded_digests
     from .stages import score_view
 
     run = SceneRun(common["bundle"], common["opts"], ctx, common["sem"], common["stru"], cache=RunCache(None),
@@ -396,6 +396,8 @@ def _score_chunk(common, views, ctx, timer, node) -> dict:
                 run.done(v)
             pictures = {c["picture"]: (Path(tmp) / c["picture"]).read_bytes()
                         for vc in cells.values() for c in vc.values() if c.get("picture")}
+            # what each view was decoded from here, for the driver's check against its cache key
+            decoded = {v: decoded_digests(run.view_files(v)) for v in views}
     finally:
         run.release()
     try:
@@ -404,7 +406,7 @@ def _score_chunk(common, views, ctx, timer, node) -> dict:
         node_id = ray.get_runtime_context().get_node_id()
     except Exception:  # outside Ray (a direct call)
         node_id = node
-    return {"cells": cells, "pictures": pictures, "timing": dict(timer.totals),
+    return {"cells": cells, "pictures": pictures, "timing": dict(timer.totals), "decoded": decoded,
             "warnings": {"records": warning_log.records(), "counts": warning_log.counts()},
             "node": node_id, "adapter": ctx.describe().get("name", "?")}
 

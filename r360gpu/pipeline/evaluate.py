@@ -449,8 +449,7 @@ def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, cells:
     if jobs:
         run.timer.add("pictures", t)
     if view_cache is not None:
-        for m, cell in cells.items():
-            view_cache.store(m, view, cell)
+        view_cache.store_view(view, cells, run.changed_inputs(view))
 
 
 def _progress(views, desc, enabled):

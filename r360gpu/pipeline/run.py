@@ -122,6 +122,11 @@ class SceneRun:
                                                 else bundle.options.reference_free)
         self.mode = "reference_free" if ref_free else "reference"
         t0 = time.perf_counter()
+        from ..bundle import is_from_objects
+        from ..util.filehash import forget_decoded
+
+        if not is_from_objects(bundle):  # what an earlier run in this process decoded is not this run's
+            forget_decoded(bundle.file_digests_paths())
 
         def src(spec):
             return open_source(spec, ctx=ctx, background=bundle.options.background, depth=self.depth_mode)
@@ -146,7 +151,12 @@ class SceneRun:
         from .cache import digest, fingerprint
 
         require_target(self.views, self.mask, bundle.masks)
-        self.fingerprint = fingerprint(bundle, [*self.pres.values(), self.reference, *self.methods.values()])
+        # The digests the key is made of, kept to check, before a view's cells are stored, that the
+        # bytes decoded for it are these (cache.changed_inputs: hash while reading, util.filehash).
+        self.file_digests = None if is_from_objects(bundle) else bundle.file_digests()
+        self._view_readers: dict = {}
+        self.fingerprint = fingerprint(bundle, [*self.pres.values(), self.reference, *self.methods.values()],
+                                       digests=self.file_digests)
         # Probes that learn from the scene are fitted as copies, one per scene: the caller's
         # objects stay as given, so the fit record's key (their description) is the same every run.
         learns = lambda p: getattr(p, "learns_from_scene", False)  # noqa: E731 (probes.base.Probe.fit)
@@ -178,6 +188,18 @@ class SceneRun:
 
     def camera(self, view: str):
         return self.bundle.cameras.get(view) if self.bundle.cameras else None
+
+    def view_files(self, view: str) -> list[str]:
+        """The input files the scores of ``view`` are decoded from (none for scenes from objects)."""
+        if self.file_digests is None:
+            return []
+        return self.bundle.view_files(view, self._view_readers)
+
+    def changed_inputs(self, view: str, decoded: dict | None = None) -> list[str]:
+        """Inputs of ``view`` decoded from other bytes than the cache key's (see cache.changed_inputs)."""
+        from .cache import changed_inputs
+
+        return changed_inputs(self.file_digests, self.view_files(view), decoded)
 
     def mask(self, view: str) -> np.ndarray:
         """The view's target mask (bool, H x W), read once."""

@@ -11,6 +11,17 @@ remembered digest is reused only for a file nobody has touched since.
 The memory lives in the process and, within :func:`memo_file`, in a JSON
 file (``r360gpu score`` keeps it in ``OUT/.r360cache``), so nothing is
 written outside the output folder.
+
+Hash while reading: the readers of every input r360gpu decodes (renderings,
+depth, masks, splat files) get the bytes through :func:`read_file`, which
+hashes exactly the bytes it returns and remembers that digest
+(:func:`decoded_digest`).  A result is cached only when the bytes decoded
+for it are the bytes its cache key was computed from
+(:func:`r360gpu.pipeline.cache.ViewCache.store_view`): a file replaced
+while a run reads it, and even restored afterwards, cannot leave a result
+of the other bytes under the original bytes' key.  A file that did not
+change while it was read also has its digest remembered for the next
+run's key, so an input read for scoring is not read again to be hashed.
 """
 from __future__ import annotations
 
@@ -18,17 +29,31 @@ import contextvars
 import hashlib
 import json
 import os
+import threading
+import time
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
 _CHUNK = 1 << 20
 _memo: dict[str, list] = {}
+_decoded: dict[str, str] = {}  # absolute path -> digest of the bytes read_file last returned
+_lock = threading.Lock()
 _memo_path: contextvars.ContextVar[Path | None] = contextvars.ContextVar("r360gpu_hash_memo", default=None)
 
 
 def _stamp(st: os.stat_result) -> list:
     return [st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns]
+
+
+# A digest is remembered only for a file whose ctime is older than this: file systems stamp times
+# from a coarse clock (a few ms), so two writes of the same size in one tick leave the same stamp
+# (git's "racily clean" entries, handled the same way).
+_SETTLED_NS = 2_000_000_000
+
+
+def _settled(st: os.stat_result) -> bool:
+    return time.time_ns() - st.st_ctime_ns > _SETTLED_NS
 
 
 def content_digest(path: str | os.PathLike, st: os.stat_result | None = None) -> str:
@@ -44,13 +69,60 @@ def content_digest(path: str | os.PathLike, st: os.stat_result | None = None) ->
         while chunk := f.read(_CHUNK):
             h.update(chunk)
     digest = h.hexdigest()
-    _memo[path] = [stamp, digest]
+    if _settled(st):
+        _memo[path] = [stamp, digest]
     return digest
+
+
+def read_file(path: str | os.PathLike) -> bytes:
+    """Every byte of the file, read once and hashed as read (OSError when it cannot be read).
+
+    The digest of the bytes returned is what :func:`decoded_digest` gives for the path afterwards
+    (the last read wins); when the file's identity and times are the same after the read as before,
+    it is also remembered as the file's content digest (:func:`content_digest`)."""
+    key = os.path.abspath(os.fspath(path))
+    with open(key, "rb") as f:
+        before = os.fstat(f.fileno())
+        data = f.read()
+    digest = hashlib.blake2b(data, digest_size=16).hexdigest()
+    with _lock:
+        _decoded[key] = digest
+    try:
+        after = os.stat(key)
+    except OSError:
+        return data
+    if _stamp(before) == _stamp(after) and after.st_size == len(data) and _settled(after):
+        _memo[key] = [_stamp(after), digest]
+    return data
+
+
+def decoded_digest(path: str | os.PathLike) -> str | None:
+    """The digest of the bytes :func:`read_file` last returned for ``path`` in this process (None: not
+    read through it)."""
+    with _lock:
+        return _decoded.get(os.path.abspath(os.fspath(path)))
+
+
+def decoded_digests(paths) -> dict[str, str]:
+    """{absolute path: digest} of those of ``paths`` read through :func:`read_file` in this process."""
+    with _lock:
+        found = ((os.path.abspath(os.fspath(p)), None) for p in paths)
+        return {k: _decoded[k] for k, _ in found if k in _decoded}
+
+
+def forget_decoded(paths) -> None:
+    """Drop what :func:`read_file` remembered of ``paths`` (a new run: what an earlier one decoded
+    is not what this one decodes)."""
+    with _lock:
+        for p in paths:
+            _decoded.pop(os.path.abspath(os.fspath(p)), None)
 
 
 def forget() -> None:
     """Drop the remembered digests (tests)."""
     _memo.clear()
+    with _lock:
+        _decoded.clear()
 
 
 @contextmanager
