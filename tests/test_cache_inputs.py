@@ -23,8 +23,16 @@ from hypothesis import strategies as st
 
 from badinput_cases import SCORE_FLAGS, _depth_pre, renders_bundle
 from bundle_factory import H, VIEWS, W, write_rgb
+import r360gpu.io.exr
+import r360gpu.io.masks
+import r360gpu.io.ply
+import r360gpu.io.renders
+import r360gpu.io.splat
 from r360gpu import cli
 from r360gpu.util import filehash
+
+# Every module that reads input bytes (through filehash.read_file, the one place they are hashed).
+READERS = [r360gpu.io.exr, r360gpu.io.masks, r360gpu.io.ply, r360gpu.io.renders, r360gpu.io.splat]
 
 EXAMPLES = int(os.environ.get("R360_FUZZ_EXAMPLES", "8"))
 
@@ -69,10 +77,9 @@ def _readers_patched(monkeypatch, on_read):
     def patched(path):
         return on_read(path, real)
 
-    for mod in list(sys.modules.values()):
-        if mod is not None and getattr(mod, "__name__", "").startswith("r360gpu") and \
-                getattr(mod, "read_file", None) is real:
-            monkeypatch.setattr(mod, "read_file", patched)
+    for mod in READERS:  # imported above, so none imports the patched function and keeps it
+        assert mod.read_file is real, mod
+        monkeypatch.setattr(mod, "read_file", patched)
 
 
 @settings(max_examples=EXAMPLES, deadline=None, derandomize=True,
@@ -163,3 +170,10 @@ def test_read_file_hashes_the_bytes_it_returns(tmp_path):
     assert filehash.content_digest(p) != filehash.decoded_digest(p)
     with pytest.raises(OSError):
         filehash.read_file(tmp_path / "missing")
+
+
+def test_the_patched_readers_are_every_module_that_reads_through_read_file():
+    root = Path(r360gpu.io.__file__).resolve().parents[1]
+    users = sorted(".".join(("r360gpu", *p.relative_to(root).with_suffix("").parts))
+                   for p in root.rglob("*.py") if "filehash import read_file" in p.read_text(encoding="utf-8"))
+    assert users == sorted(m.__name__ for m in READERS)
