@@ -63,3 +63,13 @@ def test_readme_links_resolve(site):
 
 def test_readme_is_short():
     assert len((ROOT / "README.md").read_text(encoding="utf-8").splitlines()) <= 150
+
+
+def test_viewer_page_lists_the_viewer_key_bindings():
+    """The key table of docs/viewer.md is the viewer's own KEY_BINDINGS (its help panel), row for row."""
+    from r360gpu.viewer.state import KEY_BINDINGS
+
+    page = (ROOT / "docs" / "viewer.md").read_text(encoding="utf-8")
+    table = page[page.index("| Keys | Action |"):].split("\n\n")[0].splitlines()[2:]
+    rows = [tuple(c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line)[1:-1]) for line in table]
+    assert rows == [tuple(kb) for kb in KEY_BINDINGS]
