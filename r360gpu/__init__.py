@@ -4,12 +4,17 @@ Data flows one way through the sub-packages:
 ``io`` (load) -> ``render`` -> ``probes`` -> ``metrics`` (measure)
 -> ``aggregate`` -> ``report``; ``pipeline`` runs the stages per view.  ``gpu`` and ``kernels`` are the device layer
 used by ``render`` and ``metrics``; ``cli`` drives everything.
+
+The names exported here: :func:`evaluate` with :class:`EvaluateOptions` (score scenes),
+:func:`load_bundle` / :func:`check_bundle` (read or validate a scene folder),
+:func:`scene_from_objects` and :class:`DeviceViewsSource` (scenes held in memory or on a GPU).
 """
 from __future__ import annotations
 
 __version__ = "0.1.0"
 
-__all__ = ["evaluate", "scene_from_objects", "EvaluateOptions", "DeviceViewsSource", "__version__"]
+__all__ = ["evaluate", "scene_from_objects", "EvaluateOptions", "DeviceViewsSource", "load_bundle", "check_bundle",
+           "__version__"]
 
 
 def __getattr__(name):
@@ -18,10 +23,10 @@ def __getattr__(name):
         from . import pipeline
 
         return getattr(pipeline, name)
-    if name == "scene_from_objects":
-        from .bundle import scene_from_objects
+    if name in ("scene_from_objects", "load_bundle", "check_bundle"):
+        from . import bundle
 
-        return scene_from_objects
+        return getattr(bundle, name)
     if name == "DeviceViewsSource":
         from .render.sources import DeviceViewsSource
 

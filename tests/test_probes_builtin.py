@@ -2,7 +2,7 @@
 graph-segmentation / SLIC (structural) probe.
 
 The demonstration tests run the synthetic room of bench/demo_builtin_probes.py
-at 320x180 and check the claims the README makes from that script's output."""
+at 320x180 and check the claims docs/probes.md makes from that script's output."""
 from __future__ import annotations
 
 import importlib.util
@@ -403,7 +403,7 @@ def test_builtin_probes_through_the_cache(room, tmp_path):
     assert cache.misses == 2 and cache.hits == 2
 
 
-# --- demonstration (numbers quoted in the README) -------------------------------------
+# --- demonstration (numbers quoted in docs/probes.md) -------------------------------------
 
 
 def test_demo_appearance_detects_residuals_not_clean_removal(room):

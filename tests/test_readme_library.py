@@ -1,4 +1,6 @@
-"""The README's "Library use" samples, run as written (the code blocks are read from README.md)."""
+"""The scoring samples of docs/library.md, run as written (the code blocks are read from the page).
+
+The second sample's inputs are a pipeline's own; here they are made from a small demo bundle."""
 from __future__ import annotations
 
 import re
@@ -6,13 +8,13 @@ from pathlib import Path
 
 import pytest
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "library.md"
 OPTS = dict(n_boot=200, n_perm=100)
 
 
 def _samples() -> list[str]:
-    text = README.read_text(encoding="utf-8")
-    section = text[text.index("## Library use"):]
+    text = PAGE.read_text(encoding="utf-8")
+    section = text[text.index("## Scoring"):]
     section = section[:section.index("\n## ", 5)]
     blocks = re.findall(r"```python\n(.*?)```", section, re.S)
     return [b for b in blocks if "r360gpu.evaluate(" in b]
@@ -23,12 +25,12 @@ def scenes(tmp_path_factory, ctx):
     from r360gpu.synthetic import generate_benchmark
 
     root = tmp_path_factory.mktemp("readme")
-    generate_benchmark(root / "scenes", seed=0, n_views=2, width=96, height=72, detail=0.25,
+    generate_benchmark(root / "r360-demo" / "benchmark", seed=0, n_views=2, width=96, height=72, detail=0.25,
                        methods=["clean", "recoloured"], ctx=ctx)
     return root
 
 
-def test_the_readme_has_both_samples():
+def test_the_page_has_both_samples():
     samples = _samples()
     assert len(samples) == 2
     assert "DeviceViewsSource" in samples[1] and "device=my_wgpu_device" in samples[1]
@@ -41,7 +43,7 @@ def test_bundles_on_disk_sample(scenes, monkeypatch):
     # The sample's own options with the statistics shortened (the sample names xis only).
     real = r360gpu.EvaluateOptions
     monkeypatch.setattr(r360gpu, "EvaluateOptions", lambda **kw: real(**{**OPTS, **kw}), raising=False)
-    exec(compile(_samples()[0], "README.md", "exec"), {})
+    exec(compile(_samples()[0], "docs/library.md", "exec"), {})
     for f in ("results.json", "results.csv", "tables.md", "tables.tex", "report.html"):
         assert (scenes / "out" / f).is_file(), f  # evaluate(out=...) writes what the CLI writes
     assert any((scenes / "out" / "pictures" / "room").rglob("*.png"))
@@ -49,13 +51,13 @@ def test_bundles_on_disk_sample(scenes, monkeypatch):
 
 def test_device_sharing_sample(scenes, monkeypatch, ctx):
     """On a device of its own (not r360gpu's shared one), with DeviceViewsSource made without ctx, pictures
-    written: the two failures of the README's earlier sample."""
+    written."""
     from r360gpu.bundle import load_bundle
     from r360gpu.gpu import get_context
     from r360gpu.io import load_gaussians, load_mask
     from r360gpu.render import Renderer
 
-    b = load_bundle(scenes / "scenes" / "room")
+    b = load_bundle(scenes / "r360-demo" / "benchmark" / "room")
     v = b.views[0]
     adapter = ctx.device.adapter if hasattr(ctx.device, "adapter") else None
     if adapter is None:
@@ -87,7 +89,7 @@ def test_device_sharing_sample(scenes, monkeypatch, ctx):
         return runs[-1]
 
     monkeypatch.setattr(r360gpu, "evaluate", evaluate, raising=False)
-    exec(compile(_samples()[1], "README.md", "exec"), ns)
+    exec(compile(_samples()[1], "docs/library.md", "exec"), ns)
     in_memory, on_device = runs
     a = in_memory["scenes"]["room"]["methods"]["mine"]["axes"]
     d = on_device["scenes"]["room"]["methods"]["mine"]["axes"]

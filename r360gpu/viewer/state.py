@@ -36,7 +36,7 @@ OPACITY_STEP = 0.1
 #: Field-of-view change per - / = press (degrees).
 FOV_STEP = 5.0
 
-#: (keys, what they do), for the help panel and the README.
+#: (keys, what they do), for the help panel and docs/viewer.md (checked equal by tests/test_docs_build.py).
 KEY_BINDINGS = (
     ("1 .. 9", "show scene n as A (1 = pre, then reference if any, then the methods)"),
     ("Shift + 1 .. 9", "make scene n the B side of the comparison (default: the reference, else pre)"),
