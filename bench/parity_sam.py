@@ -167,36 +167,48 @@ def build_sam(seed: int):
     return sam
 
 
-def export_onnx(sam, work: Path) -> tuple[Path, Path]:
-    """Encoder and decoder exported as samexporter's export_encoder.py / export_decoder.py do."""
+def export_onnx(sam, work: Path, batched_decoder: bool = False, reuse: bool = False) -> tuple[Path, Path]:
+    """Encoder and decoder exported as samexporter's export_encoder.py / export_decoder.py do.
+
+    batched_decoder: the decoder's prompt-batch axis (point_coords / point_labels
+    axis 0) exported dynamic too, so one run decodes many prompts; samexporter
+    fixes it at 1.  reuse: keep files already in ``work`` (the caller vouches
+    they come from the same seed; the export of the encoder takes minutes).
+    """
     import torch
     from samexporter.onnx_utils import ImageEncoderOnnxModel
     from segment_anything.utils.onnx import SamOnnxModel
 
     work.mkdir(parents=True, exist_ok=True)
-    enc_path, dec_path = work / "sam_vit_b_random.encoder.onnx", work / "sam_vit_b_random.decoder.onnx"
+    enc_path = work / "sam_vit_b_random.encoder.onnx"
+    dec_path = work / ("sam_vit_b_random.decoder_batched.onnx" if batched_decoder else "sam_vit_b_random.decoder.onnx")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        enc = ImageEncoderOnnxModel(sam, use_preprocess=False,
-                                    pixel_mean=[123.675, 116.28, 103.53], pixel_std=[58.395, 57.12, 57.375])
-        size = sam.image_encoder.img_size
-        torch.onnx.export(enc, (torch.randn(1, 3, size, size),), str(enc_path), export_params=True,
-                          opset_version=17, do_constant_folding=True, input_names=["input_image"],
-                          output_names=["image_embeddings"], dynamo=False)
+        if not (reuse and enc_path.is_file()):
+            enc = ImageEncoderOnnxModel(sam, use_preprocess=False,
+                                        pixel_mean=[123.675, 116.28, 103.53], pixel_std=[58.395, 57.12, 57.375])
+            size = sam.image_encoder.img_size
+            torch.onnx.export(enc, (torch.randn(1, 3, size, size),), str(enc_path), export_params=True,
+                              opset_version=17, do_constant_folding=True, input_names=["input_image"],
+                              output_names=["image_embeddings"], dynamo=False)
+        if reuse and dec_path.is_file():
+            return enc_path, dec_path
         dec = SamOnnxModel(sam, return_single_mask=False)
         embed = sam.prompt_encoder.image_embedding_size
+        batch = 3 if batched_decoder else 1
         dummy = {
             "image_embeddings": torch.randn(1, sam.prompt_encoder.embed_dim, *embed),
-            "point_coords": torch.randint(0, 1024, (1, 5, 2)).float(),
-            "point_labels": torch.randint(0, 4, (1, 5)).float(),
+            "point_coords": torch.randint(0, 1024, (batch, 5, 2)).float(),
+            "point_labels": torch.randint(0, 4, (batch, 5)).float(),
             "mask_input": torch.randn(1, 1, 4 * embed[0], 4 * embed[1]),
             "has_mask_input": torch.tensor([1.0]),
             "orig_im_size": torch.tensor([1500.0, 2250.0]),
         }
+        points_axes = {0: "prompts", 1: "num_points"} if batched_decoder else {1: "num_points"}
         torch.onnx.export(dec, tuple(dummy.values()), str(dec_path), export_params=True, opset_version=17,
                           do_constant_folding=True, input_names=list(dummy),
                           output_names=["masks", "iou_predictions", "low_res_masks"],
-                          dynamic_axes={"point_coords": {1: "num_points"}, "point_labels": {1: "num_points"}},
+                          dynamic_axes={"point_coords": points_axes, "point_labels": points_axes},
                           dynamo=False)
     return enc_path, dec_path
 

@@ -826,3 +826,82 @@ def test_grounded_spec_resize_and_vocab(tmp_path, grounded_files):
     assert probe.dino.tokenizer.format == "vocab.txt" and probe.grounding.resize_policy() == ("fixed", 800, 1200)
     with pytest.raises(InputError, match="resize"):
         parse_probe_spec(f"grounded:dino={dino},tokenizer={vocab},sam-encoder={enc},sam-decoder={dec},resize=huge")
+
+
+# ============================================================ work on outputs nobody reads / shared encodings
+
+
+def test_sam_decoder_pruned_to_the_outputs_read(sam_pair):
+    import pickle
+
+    from r360gpu.probes.onnx_models import pruned_model_bytes
+
+    full = OnnxModel(sam_pair[1], role="SAM prompt decoder")
+    assert set(full.outputs) == {"masks", "iou_predictions", "low_res_masks"}
+    models = SamModels(*sam_pair)
+    # The 'masks' branch (Resize to orig_im_size) is cut: the session only has what the AMG reads.
+    assert set(models.decoder.outputs) == {"iou_predictions", "low_res_masks"}
+    assert set(pickle.loads(pickle.dumps(models.decoder)).outputs) == {"iou_predictions", "low_res_masks"}
+    emb = models.embed(np.zeros((40, 60, 3), np.uint8))
+    points = np.array([[10.0, 20.0], [55.0, 3.0]])
+    pruned = models.predict_points(emb, points)
+    models.decoder = full
+    whole = models.predict_points(emb, points)
+    np.testing.assert_array_equal(pruned.logits, whole.logits)
+    np.testing.assert_array_equal(pruned.iou, whole.iou)
+    # Nothing to cut, or an output the model lacks: the file is used as it is.
+    assert pruned_model_bytes(sam_pair[1], ("masks", "iou_predictions", "low_res_masks")) is None
+    assert pruned_model_bytes(sam_pair[1], ("iou_predictions", "no_such_output")) is None
+
+
+def test_pruning_keeps_what_subgraphs_read(tmp_path):
+    from r360gpu.probes.onnx_models import pruned_model_bytes
+
+    # y = If(cond, then: x + k, else: x - k); z = x * 2 is not read.  k is read only inside the branches.
+    then_g = helper.make_graph([helper.make_node("Add", ["x", "k"], ["t"])], "then", [], [value_info("t", F, [3])])
+    else_g = helper.make_graph([helper.make_node("Sub", ["x", "k"], ["e"])], "else", [], [value_info("e", F, [3])])
+    nodes = [
+        helper.make_node("Identity", ["k0"], ["k"]),
+        helper.make_node("If", ["cond"], ["y"], then_branch=then_g, else_branch=else_g),
+        helper.make_node("Mul", ["x", "two"], ["z"]),
+    ]
+    path = save_model(
+        tmp_path / "if.onnx",
+        nodes,
+        [value_info("x", F, [3]), value_info("cond", onnx.TensorProto.BOOL, [])],
+        [value_info("y", F, [3]), value_info("z", F, [3])],
+        [const("k0", [1.0, 2.0, 3.0]), const("two", 2.0)],
+    )
+    cut = onnx.load_from_string(pruned_model_bytes(path, ("y",)))
+    assert [n.op_type for n in cut.graph.node] == ["Identity", "If"]
+    assert [t.name for t in cut.graph.initializer] == ["k0"]
+    model = OnnxModel(path, outputs_read=("y",))
+    assert list(model.outputs) == ["y"]
+    x = np.array([1.0, 1.0, 1.0], np.float32)
+    np.testing.assert_array_equal(model.run({"x": x, "cond": np.array(True)})["y"], [2.0, 3.0, 4.0])
+    np.testing.assert_array_equal(model.run({"x": x, "cond": np.array(False)})["y"], [0.0, -1.0, -2.0])
+
+
+def test_embedding_shared_by_models_on_the_same_encoder(tmp_path, sam_pair):
+    from r360gpu.probes.onnx_models import EMBEDDINGS
+
+    first, second = SamModels(*sam_pair), SamModels(*sam_pair)
+    runs_first, runs_second = record(first.encoder), record(second.encoder)
+    image = np.random.default_rng(1).integers(0, 256, (30, 40, 3), dtype=np.uint8)
+    a = first.embed(image)
+    b = second.embed(image)
+    assert len(runs_first) == 1 and len(runs_second) == 0 and b is a
+    assert second.embed(image / 255.0) is a  # the same pixels as float 0..1: the same encoder input
+    other = image.copy()
+    other[0, 0, 0] ^= 1
+    second.embed(other)  # one pixel changed: encoded again
+    assert len(runs_second) == 1
+    # Another encoder file (even with the same content) is another model.
+    copy = tmp_path / "copy.encoder.onnx"
+    copy.write_bytes(sam_pair[0].read_bytes())
+    third = SamModels(copy, sam_pair[1])
+    runs_third = record(third.encoder)
+    third.embed(image)
+    assert len(runs_third) == 1
+    np.testing.assert_array_equal(third.embed(image).features["image_embeddings"], a.features["image_embeddings"])
+    EMBEDDINGS.clear()

@@ -51,8 +51,11 @@ files it names (large encoders keep their weights beside the graph).
 
 from __future__ import annotations
 
+import hashlib
 import os
+import threading
 import warnings
+from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NoReturn
@@ -77,9 +80,11 @@ __all__ = [
     "TensorInfo",
     "OnnxModel",
     "external_data_files",
+    "pruned_model_bytes",
     "SamEmbedding",
     "Decoded",
     "SamModels",
+    "EMBEDDINGS",
 ]
 
 #: device name -> onnxruntime execution provider.
@@ -115,6 +120,8 @@ _SAM2_DECODER_INPUTS = frozenset(
     }
 )
 _SAM2_FEATURES = ("image_embed", "high_res_feats_0", "high_res_feats_1")
+# What SamModels reads from a SAM decoder that has low-resolution logits.
+_SAM_DECODER_READS = ("iou_predictions", "low_res_masks")
 
 
 def _ort():
@@ -228,26 +235,97 @@ def external_data_files(path: str | os.PathLike) -> list[Path]:
     return out
 
 
+def pruned_model_bytes(path: str | os.PathLike, outputs: tuple[str, ...]) -> bytes | None:
+    """The model at ``path`` cut down to the nodes that ``outputs`` depend on, serialised; None
+    when nothing would be cut, when a named output is missing, when the model keeps weights in
+    external-data files, or when the ``onnx`` package is not installed.
+
+    onnxruntime runs every node of a graph whatever outputs are asked for, so an output nobody
+    reads still costs its full computation: segment-anything's SAM decoder upsamples every mask
+    to 1024 x 1024 and then to the image size for its ``masks`` output, which the automatic mask
+    generator never reads (it upsamples ``low_res_masks`` itself, for the masks it keeps).  Graph
+    inputs are all kept (feeds stay the same); a node is kept when one of its outputs is needed,
+    including names its subgraphs (If / Loop bodies) read from the enclosing graph.
+    """
+    try:
+        import onnx
+    except ImportError:
+        return None
+    try:
+        model = onnx.load(str(path), load_external_data=False)
+    except Exception:  # noqa: BLE001 - the session that follows reports an unloadable file
+        return None
+    graph = model.graph
+    names = {o.name for o in graph.output}
+    if not set(outputs) <= names or set(outputs) == names:
+        return None
+    if any(t.data_location == onnx.TensorProto.EXTERNAL for t in graph.initializer):
+        return None
+    needed = set(outputs)
+    kept = []
+    for node in reversed(graph.node):
+        if any(o in needed for o in node.output):
+            kept.append(node)
+            needed.update(i for i in node.input if i)
+            needed.update(_subgraph_reads(node))
+    kept.reverse()
+    del graph.node[:]
+    graph.node.extend(kept)
+    for field, keep in (
+        (graph.output, lambda v: v.name in outputs),
+        (graph.initializer, lambda t: t.name in needed),
+        (graph.value_info, lambda v: v.name in needed),
+    ):
+        survivors = [v for v in field if keep(v)]
+        del field[:]
+        field.extend(survivors)
+    return model.SerializeToString()
+
+
+def _subgraph_reads(node) -> set[str]:
+    """Names read by the subgraphs in ``node``'s attributes (at any depth)."""
+    out: set[str] = set()
+    for attr in node.attribute:
+        for sub in list(attr.g.node if attr.HasField("g") else []) + [n for g in attr.graphs for n in g.node]:
+            out.update(i for i in sub.input if i)
+            out.update(_subgraph_reads(sub))
+    return out
+
+
 class OnnxModel:
     """One ONNX model file opened in an onnxruntime session.
 
     path: the ``.onnx`` file; device: see :func:`providers_for`; role: what
     the model is, for messages (e.g. "SAM image encoder").  A file that does
     not exist or that onnxruntime cannot load raises InputError naming it.
+    outputs_read: the outputs the caller will ask for, when it never reads
+    the others: the session then runs only the nodes those need (see
+    :func:`pruned_model_bytes`; the whole graph where that returns None).
+    ``outputs`` lists the outputs the session has.
     """
 
-    def __init__(self, path: str | os.PathLike, device: str = "cpu", role: str = "model"):
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        device: str = "cpu",
+        role: str = "model",
+        outputs_read: tuple[str, ...] | None = None,
+    ):
         self.path = Path(path)
         self.role = role
         self.device = device
+        self.outputs_read = None if outputs_read is None else tuple(outputs_read)
         if not self.path.is_file():
             raise InputError(f"{role} model file does not exist", self.path)
         providers = providers_for(device)
         ort = _ort()
         options = ort.SessionOptions()
         options.log_severity_level = 3
+        source = str(self.path)
+        if self.outputs_read is not None:
+            source = pruned_model_bytes(self.path, self.outputs_read) or source
         try:
-            self.session = ort.InferenceSession(str(self.path), sess_options=options, providers=providers)
+            self.session = ort.InferenceSession(source, sess_options=options, providers=providers)
         except Exception as exc:  # noqa: BLE001 - onnxruntime raises several unrelated types
             raise InputError(f"cannot load the {role} as an ONNX model ({_first_line(exc)})", self.path) from None
         active = self.session.get_providers()
@@ -265,7 +343,7 @@ class OnnxModel:
     def __reduce__(self):
         # A session cannot be pickled: another process (a Ray worker) opens the
         # same file again, so every node must see the model at this path.
-        return (OnnxModel, (self.path, self.device, self.role))
+        return (OnnxModel, (self.path, self.device, self.role, self.outputs_read))
 
     def signature(self) -> str:
         """ "inputs: ...; outputs: ..." with names, types and shapes (for error messages)."""
@@ -364,6 +442,58 @@ class Decoded:
         return self.logits[rows, best], self.iou[rows, best]
 
 
+class _EmbeddingMemo:
+    """Encoder outputs of the last few images, shared by every SamModels in the process.
+
+    A view's rendering goes through the structural probe (SAM automatic masks)
+    and the semantic one (GroundingDINO boxes -> SAM); when both name the same
+    SAM encoder file the second encode (seconds on a CPU) would recompute what
+    the first returned.  Keyed by the encoder's identity (resolved path, size,
+    modification time, execution provider) and the exact tensor fed to it
+    (shape, dtype, BLAKE2b of its bytes), plus the image size the embedding
+    describes: an entry is returned only for an input the encoder has already
+    mapped to it.  Least recently used entries go first.
+    """
+
+    def __init__(self, capacity: int = 8):
+        self.capacity = capacity
+        self._store: OrderedDict = OrderedDict()
+        self._lock = threading.Lock()
+        self.hits = 0
+
+    @staticmethod
+    def key(model: "OnnxModel", tensor: np.ndarray, image_size) -> tuple:
+        st = model.path.stat()
+        arr = np.ascontiguousarray(tensor)
+        digest = hashlib.blake2b(arr.view(np.uint8).reshape(-1), digest_size=20).hexdigest()
+        identity = (str(model.path.resolve()), st.st_size, st.st_mtime_ns, model.provider)
+        return identity + (arr.shape, str(arr.dtype), digest, tuple(image_size))
+
+    def get(self, key):
+        with self._lock:
+            found = self._store.get(key)
+            if found is not None:
+                self._store.move_to_end(key)
+                self.hits += 1
+            return found
+
+    def put(self, key, value) -> None:
+        with self._lock:
+            self._store[key] = value
+            self._store.move_to_end(key)
+            while len(self._store) > self.capacity:
+                self._store.popitem(last=False)
+
+    def clear(self) -> None:
+        with self._lock:
+            self._store.clear()
+            self.hits = 0
+
+
+#: The process-wide memo of :meth:`SamModels.embed`.
+EMBEDDINGS = _EmbeddingMemo()
+
+
 class SamModels:
     """A SAM-family image encoder + prompt decoder pair (see module docstring).
 
@@ -375,7 +505,10 @@ class SamModels:
 
     def __init__(self, encoder: str | os.PathLike, decoder: str | os.PathLike, device: str = "cpu"):
         self.encoder = OnnxModel(encoder, device, "SAM image encoder")
-        self.decoder = OnnxModel(decoder, device, "SAM prompt decoder")
+        # A SAM decoder's 'masks' output (every mask upsampled to the image, about half of a
+        # one-point decoder run) is never read when it has 'low_res_masks': cut it out of the graph.
+        reads = None if set(_SAM2_FEATURES) <= set(self.encoder.outputs) else _SAM_DECODER_READS
+        self.decoder = OnnxModel(decoder, device, "SAM prompt decoder", outputs_read=reads)
         self.device = device
         self._detect()
 
@@ -424,7 +557,7 @@ class SamModels:
                     f"a SAM2 encoder needs a SAM2 decoder with inputs {sorted(_SAM2_DECODER_INPUTS)} "
                     "(and optionally 'orig_im_size')",
                 )
-        for needed in ("masks", "iou_predictions"):
+        for needed in ("masks" if "low_res_masks" not in dec.outputs else "low_res_masks", "iou_predictions"):
             if needed not in dec.outputs:
                 self._reject(dec, f"the decoder has no output {needed!r}")
         self.variant = variant
@@ -466,7 +599,10 @@ class SamModels:
         }
 
     def embed(self, image) -> SamEmbedding:
-        """Encode one RGB (H, W, 3) image, uint8 0..255 or float 0..1."""
+        """Encode one RGB (H, W, 3) image, uint8 0..255 or float 0..1.
+
+        The encoding is shared with every SamModels of this process on the same
+        encoder file (:data:`EMBEDDINGS`): the same input is encoded once."""
         image01 = as_rgb01(image)
         h, w = image01.shape[:2]
         image_name = next(iter(self.encoder.inputs))
@@ -476,12 +612,19 @@ class SamModels:
                 model_size = tensor.shape[:2]
             else:
                 tensor, model_size = sam_encoder_input(image01, self.input_size[0])
-            out = self.encoder.run({image_name: tensor}, ["image_embeddings"])
+            wanted = ["image_embeddings"]
         else:
             tensor = sam2_encoder_input(image01, self.input_size)
             model_size = self.input_size
-            out = self.encoder.run({image_name: tensor}, list(_SAM2_FEATURES))
-        return SamEmbedding(out, (int(h), int(w)), (int(model_size[0]), int(model_size[1])))
+            wanted = list(_SAM2_FEATURES)
+        key = EMBEDDINGS.key(self.encoder, tensor, (h, w))
+        found = EMBEDDINGS.get(key)
+        if found is not None:
+            return found
+        out = self.encoder.run({image_name: tensor}, wanted)
+        embedding = SamEmbedding(out, (int(h), int(w)), (int(model_size[0]), int(model_size[1])))
+        EMBEDDINGS.put(key, embedding)
+        return embedding
 
     def to_model_coords(self, embedding: SamEmbedding, xy: np.ndarray) -> np.ndarray:
         """float32 (..., 2): image pixel (x, y) -> the decoder's coordinate frame.
@@ -553,13 +696,16 @@ class SamModels:
         feeds["has_mask_input"] = np.zeros(1, np.float32)
         if "orig_im_size" in self.decoder.inputs:
             feeds["orig_im_size"] = np.array([h, w])
-        wanted = ["masks", "iou_predictions"]
         if self.variant == "sam" and "low_res_masks" in self.decoder.outputs:
-            wanted.append("low_res_masks")
+            wanted = ["iou_predictions", "low_res_masks"]
+        else:
+            wanted = ["masks", "iou_predictions"]
         out = self.decoder.run(feeds, wanted)
         iou = np.asarray(out["iou_predictions"], np.float32)
         low = out.get("low_res_masks")
-        if low is not None and low.ndim == 4:
+        if low is not None:
+            if low.ndim != 4:
+                self._bad_output(f"'low_res_masks' of shape {low.shape} is not (B, M, h, w)")
             logits, low_res = low, True
         else:
             logits = out["masks"]
