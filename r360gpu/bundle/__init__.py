@@ -7,6 +7,9 @@ A bundle is a folder with a ``scene.toml`` (paths relative to the folder)::
     cameras = "cameras"      # anything r360gpu.io.load_cameras accepts; required when a source is a splat scene
     masks = "masks"          # folder of target masks <view>.png, any non-zero pixel = target (required)
     views = ["frame_0*"]     # optional glob patterns selecting the evaluation views
+    frame = "auto"           # optional: the world frame of every splat scene (docs/your-scene.md): "auto"
+                             #   (dataparser_transforms.json beside the scene, else the cameras'), "cameras",
+                             #   "gsplat", "gsplat-noflip" or a dataparser_transforms.json; also per source
 
     [pre]                    # the original reconstruction (required): exactly one of
     scene = "pre.ply"        #   a splat file (.ply, .compressed.ply, .splat) or INRIA output folder,
