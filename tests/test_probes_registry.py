@@ -133,9 +133,10 @@ def test_explicit_rendering_dirs(tmp_path):
 def test_sam_json_spec(tmp_path):
     (tmp_path / "sam" / "after").mkdir(parents=True)
     (tmp_path / "sam" / "after" / "00001.json").write_text("[]")
+    (tmp_path / "sam" / "before").mkdir(parents=True)
     probe = parse_probe_spec(f"sam-json:{tmp_path / 'sam'}")
     assert isinstance(probe, PrecomputedStructuralProbe)
-    assert probe.params()["paths"] == {"post": str(tmp_path / "sam" / "after")}
+    assert probe.params()["paths"] == {"post": str(tmp_path / "sam" / "after"), "pre": str(tmp_path / "sam" / "before")}
     named = parse_probe_spec(f"sam-json:ref={tmp_path / 'sam' / 'after'}")
     assert named.params()["paths"] == {"ref": str(tmp_path / "sam" / "after")}
 

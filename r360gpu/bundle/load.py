@@ -59,8 +59,9 @@ from .model import (DEPTH_MODES, PRINCIPAL_POINTS, RENDER_KEYS, RESERVED_METHOD_
 from .remove360_layout import is_remove360_folder, remove360_draft
 
 CONFIG_NAME = "scene.toml"
-TOP_KEYS = ("name", "prompt", "cameras", "masks", "views", "pre", "reference", "methods", "options", "expected")
-SOURCE_KEYS = ("scene", "renders", "rgb", "depth", "depth_scale") + RENDER_KEYS
+TOP_KEYS = ("name", "prompt", "cameras", "masks", "views", "frame", "pre", "reference", "methods", "options",
+            "expected")
+SOURCE_KEYS = ("scene", "renders", "rgb", "depth", "depth_scale", "frame") + RENDER_KEYS
 OPTION_KEYS = ("background", "depth", "reference_free")
 # Extensions stripped from camera image names to get view names.
 _IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".bmp", ".webp")
@@ -196,6 +197,8 @@ def _draft_from_config(root: Path, config: Path, problems: list[Problem], *, vie
             d.cameras_path = root / data["cameras"]
         else:
             bad("'cameras' must be a path (a non-empty string)")
+    if "frame" in data:
+        d.frame = _frame_value(data["frame"], "", bad)
     if "masks" not in data:
         bad("missing required key 'masks': the folder of target-mask PNGs, e.g. masks = \"masks\"")
     elif isinstance(data["masks"], str) and data["masks"].strip():
@@ -289,10 +292,18 @@ def _parse_source(table, label: str, root: Path, bad, *, depth_required: bool,
             f"sub-folder and a splat scene's depth is rendered")
         ok = False
     render = _parse_render_settings(table, label, bad, scene=key == "scene")
+    frame = None
+    if "frame" in table:
+        if key != "scene":
+            bad(f"{label} 'frame' applies to splat scenes only (renders are images already)")
+            ok = False
+        else:
+            frame = _frame_value(table["frame"], f"{label} ", bad)
+            ok = ok and frame is not None
     if not ok or render is None:
         return None
     if key == "scene":
-        return SourceSpec("scene", root / value, render=render)
+        return SourceSpec("scene", root / value, render=render, frame=frame)
     if key == "renders":
         folder = root / value
         depth = folder / "depth"
@@ -335,6 +346,17 @@ def _parse_render_settings(table: dict, label: str, bad, *, scene: bool) -> Rend
     if not ok:
         return None
     return RenderSettings(**{k: (float(table[k]) if k in ("near", "no_coverage_alpha") else table[k]) for k in given})
+
+
+def _frame_value(value, label: str, bad) -> str | None:
+    """A ``frame`` key's value (None after reporting a problem); resolved once the cameras are known."""
+    from ..io.frames import FRAME_KEYWORDS
+
+    if isinstance(value, str) and value.strip():
+        return value.strip()
+    bad(f"{label}'frame' must be {', '.join(map(repr, FRAME_KEYWORDS))} or the path of a nerfstudio "
+        f"dataparser_transforms.json, got {value!r}")
+    return None
 
 
 def _parse_options(table, bad) -> BundleOptions:
@@ -407,10 +429,12 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
     sizes = _check_masks(views, cameras, masks or {}, draft, problems, deep=deep)
 
     resolved: dict[tuple[str, str | None], SourceSpec | None] = {}
+    frames: dict = {}  # a frame recomputed once per value (gsplat's reads the whole COLMAP model)
     for role, name, spec in entries:
         label = _label(draft, role, name)
         if spec.kind == "scene":
-            resolved[role, name] = _check_scene(spec, label, problems, deep=deep)
+            resolved[role, name] = _with_frame(_check_scene(spec, label, problems, deep=deep), spec, draft, label,
+                                               frames, problems)
         else:
             _check_renders(spec, label, views, sizes, depth_required=role != "reference", where=where,
                            problems=problems, deep=deep)
@@ -637,6 +661,29 @@ def _check_scene(spec: SourceSpec, label: str, problems: list[Problem], *, deep:
         problems.append(Problem(e.path or str(p), f"{e.problem} (scene of {label})"))
         return None
     return replace(spec, path=p)
+
+
+def _with_frame(checked: SourceSpec | None, declared: SourceSpec, draft: Draft, label: str, frames: dict,
+                problems: list[Problem]) -> SourceSpec | None:
+    """The checked scene source with its frame resolved (:func:`r360gpu.io.frames.resolve_frame`):
+    its own ``frame``, else scene.toml's top-level one, else "auto"."""
+    if checked is None:
+        return None
+    from ..io.frames import find_dataparser_transforms, resolve_frame
+
+    value = declared.frame if declared.frame is not None else draft.frame
+    # "auto" depends on the scene's folder (the declared path: an INRIA folder, not its PLY)
+    key = (value, str(find_dataparser_transforms(declared.path)) if value in (None, "auto") else None)
+    if key not in frames:
+        try:
+            frames[key] = resolve_frame(value, scene=declared.path, cameras=draft.cameras_path, root=draft.root)
+        except InputError as e:
+            frames[key] = e
+    frame = frames[key]
+    if isinstance(frame, InputError):
+        problems.append(Problem(frame.path, f"{frame.problem} (frame of {label})"))
+        return None
+    return replace(checked, frame=frame)
 
 
 def _starts_with(p: Path, prefixes: tuple[bytes, ...]) -> bool:

@@ -64,6 +64,8 @@ class SourceSpec:
     ``<view>.png|jpg`` and ``depth_dir`` (None: no depth) ``<view>.png|exr|npy|tiff``,
     depth values multiplied by ``depth_scale`` (see :mod:`r360gpu.io.renders`).
     render: how a scene source is rendered (:class:`RenderSettings`).
+    frame: the world frame of a scene's Gaussians (:class:`r360gpu.io.frames.Frame`;
+    None: the cameras' frame); while a bundle is drafted, the ``frame`` value of scene.toml.
     """
 
     kind: str
@@ -72,6 +74,7 @@ class SourceSpec:
     rgb_dir: Path | None = None
     depth_dir: Path | None = None
     render: RenderSettings = RenderSettings()
+    frame: object = None
 
     def reader(self) -> RendersReader:
         """A :class:`RendersReader` for a renders source (ValueError for a scene source)."""
@@ -275,7 +278,7 @@ class Bundle:
     def _source_settings(self, s: SourceSpec) -> dict:
         return {"kind": s.kind, "path": self._rel(s.path), "depth_scale": s.depth_scale,
                 "rgb_dir": s.rgb_dir and self._rel(s.rgb_dir), "depth_dir": s.depth_dir and self._rel(s.depth_dir),
-                "render": s.render.given()}
+                "render": s.render.given(), **({"frame": s.frame.describe()} if hasattr(s.frame, "describe") else {})}
 
     def _referenced_files(self) -> list[Path]:
         files: list[Path] = []
@@ -344,3 +347,4 @@ class Draft:
     method_pres: dict[str, SourceSpec | None] = field(default_factory=dict)
     options: BundleOptions = field(default_factory=BundleOptions)
     expected: dict = field(default_factory=dict)
+    frame: str | None = None  # scene.toml's top-level frame: the default of every scene source

@@ -6,8 +6,10 @@ along -z).  The conversion to the OpenCV axes of :class:`Camera` negates the
 camera's y and z axes: ``c2w_cv = c2w_gl @ diag(1, -1, -1, 1)``; this module
 is the only place that does it.  The world frame is used as it is (nerfstudio's
 ``applied_transform`` and instant-ngp's ``scale``/``offset`` describe how
-that world relates to others and are not applied: the cameras must share the
-world frame of the Gaussians they render).
+that world relates to others and are not applied here).  A splat scene
+exported in another frame (nerfstudio's dataparser frame, gsplat's
+normalised world) is rendered with the cameras moved into its frame by the
+bundle's ``frame`` key: :mod:`r360gpu.io.frames`.
 
 Intrinsics, each looked up in the frame first and then at the top level:
 

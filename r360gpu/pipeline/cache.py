@@ -62,20 +62,21 @@ class RunCache:
 
         return cached(probe, self.probes)
 
-    def load_fit(self, key: str):
-        """The probe descriptions recorded after a fit with inputs ``key``, or None."""
+    def load_fit(self, key: str, kind: str = "fits"):
+        """The probe descriptions recorded after a fit with inputs ``key``, or None (``kind``:
+        the record's sub-folder, e.g. "frames" for the frame check's verdicts)."""
         if self.root is None:
             return None
         try:
-            return json.loads((self.root / "fits" / f"{key}.json").read_text(encoding="utf-8"))
+            return json.loads((self.root / kind / f"{key}.json").read_text(encoding="utf-8"))
         except (OSError, ValueError):
             return None
 
-    def store_fit(self, key: str, probes_desc: dict) -> None:
+    def store_fit(self, key: str, probes_desc: dict, kind: str = "fits") -> None:
         if self.root is not None:
             from ..util.atomic import write_json
 
-            write_json(self.root / "fits" / f"{key}.json", probes_desc)
+            write_json(self.root / kind / f"{key}.json", probes_desc)
 
     def views(self, scene: str, key_parts: dict) -> "ViewCache | None":
         if self.root is None:

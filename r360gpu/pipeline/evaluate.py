@@ -76,10 +76,8 @@ def _load_and_evaluate(bundles, out, semantic_probes, structural_probes, options
 
         executor = open_executor(executor, ray_address=ray_address, adapter=adapter, device=device, log=log)
     ctx = ctx or get_context(adapter, device=device)
-    if semantic_probes is None or structural_probes is None:
-        d_sem, d_str = default_probes()
-        semantic_probes = d_sem if semantic_probes is None else semantic_probes
-        structural_probes = d_str if structural_probes is None else structural_probes
+    # None: not given; each scene then takes its folder's probe outputs or the defaults (probes.registry.scene_probes)
+    defaults = default_probes() if semantic_probes is None or structural_probes is None else None
     if isinstance(bundles, (str, Path, Bundle)):
         bundles = [bundles]
     sel = list(opts.views) if opts.views else None  # validated as `check --views` does
@@ -101,16 +99,16 @@ def _load_and_evaluate(bundles, out, semantic_probes, structural_probes, options
     out = Path(out) if out is not None else None
     cache = RunCache(out, force=force)
     sink = PictureSink(out, opts.pictures, embed_cache=cache.embed)
-    try:
-        return _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,
-                         executor, kept)
-    finally:
-        if kept is not None:
-            kept.clear()
+    with warning_log.collecting():
+        try:
+            return _evaluate(loaded, opts, ctx, (semantic_probes, structural_probes, defaults), cache, sink, out,
+                             progress, log, executor, kept)
+        finally:
+            if kept is not None:
+                kept.clear()
 
 
-def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink, out, progress, log,
-              executor=None, kept=None) -> dict:
+def _evaluate(loaded, opts, ctx, probes, cache, sink, out, progress, log, executor=None, kept=None) -> dict:
     from ..aggregate.pooling import aggregate_results
     from ..util.imports import ImportAhead
 
@@ -131,15 +129,20 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
     n_views_done = 0
     views_of: dict = {}
 
+    from ..probes.registry import scene_probes
+
     def open_run(bundle) -> SceneRun:
+        sem, stru, selection = scene_probes(bundle, probes[0], probes[1], compat=opts.compat, defaults=probes[2])
         with warning_log.where(scene=bundle.name):
-            return SceneRun(bundle, opts, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
-                            warnings=warnings, kept=kept)
+            run = SceneRun(bundle, opts, ctx, sem, stru, cache=cache, timer=timer, warnings=warnings, kept=kept)
+        run.probe_selection = selection
+        return run
 
     scenes, plots = _ScenesAhead(loaded, open_run), _PlotsAhead(enabled=out is not None)
     try:
         for i, bundle in enumerate(loaded):
             run = scenes.take(i)
+            _say_probes(run, log)
             with warning_log.where(scene=bundle.name):
                 try:
                     scene_res = evaluate_scene(run, cache, sink, progress, executor, rendered=scenes.opener(i + 1))
@@ -151,7 +154,7 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
 
                 apply_compat(scene_res, bundle, opts.compat, xis=opts.xis, ght=opts.ght)
             results["scenes"][bundle.name] = scene_res
-            results["probes"] = run.probes_desc
+            _add_probes(results["probes"], bundle.name, run)
             n_views_done += len(run.views)
             plots.draw(bundle.name, scene_res)
         results["timing"] = {"stages_s": {k: round(v, 3) for k, v in timer.totals.items()},
@@ -172,6 +175,29 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
         scenes.close()
         plots.close()
     return results
+
+
+def _add_probes(entry: dict, scene: str, run: SceneRun) -> None:
+    """The scene's probe descriptions joined into results["probes"] (each probe once), and which
+    probes it ran and why in results["probes"]["selection"][scene]."""
+    import json
+
+    for axis in ("semantic", "structural"):
+        have = entry.setdefault(axis, [])
+        for d in run.probes_desc.get(axis, []):
+            if json.dumps(d, sort_keys=True, default=str) not in {json.dumps(h, sort_keys=True, default=str)
+                                                                    for h in have}:
+                have.append(d)
+    if getattr(run, "probe_selection", None):
+        entry.setdefault("selection", {})[scene] = run.probe_selection
+
+
+def _say_probes(run: SceneRun, log) -> None:
+    """On the console: which probes a public folder's scene runs and why (its own outputs or not)."""
+    if getattr(run.bundle, "layout", None) != "remove360":
+        return
+    for axis, sel in (getattr(run, "probe_selection", None) or {}).items():
+        log(f"probes: {run.bundle.name} {axis}: {', '.join(sel['probes'])} ({sel['source']}) -- {sel['why']}")
 
 
 class _ScenesAhead:
@@ -318,6 +344,8 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
         "sources": run.describe_sources(),
         "methods": {},
     }
+    if getattr(run, "frame_check", None):  # do pre's cameras see its splats (r360gpu.metrics.frame_check)
+        scene["frame_check"] = run.frame_check
     if getattr(bundle, "expected", None):  # scene.toml [expected.METHOD]: known failures, checked by the report
         scene["expected"] = bundle.expected
     for m in bundle.methods:

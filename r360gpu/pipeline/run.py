@@ -157,6 +157,8 @@ class SceneRun:
         self._view_readers: dict = {}
         self.fingerprint = fingerprint(bundle, [*self.pres.values(), self.reference, *self.methods.values()],
                                        digests=self.file_digests)
+        # the driver checks that pre's cameras see its splats (workers score what the driver accepted)
+        self.frame_check = self.check_frames(cache) if fit else {}
         # Probes that learn from the scene are fitted as copies, one per scene: the caller's
         # objects stay as given, so the fit record's key (their description) is the same every run.
         learns = lambda p: getattr(p, "learns_from_scene", False)  # noqa: E731 (probes.base.Probe.fit)
@@ -260,7 +262,9 @@ class SceneRun:
         """
         t0 = time.perf_counter()
         pick = self._fit_views()
-        self._fit_renders = {(name, v): self.images(src, v) for name, src in self.pres.items() for v in pick}
+        kept = self._fit_renders  # (the frame check's renders are these views' too, where they meet)
+        self._fit_renders = {(name, v): kept[name, v] if (name, v) in kept else self.images(src, v)
+                             for name, src in self.pres.items() for v in pick}
         for p in self._to_fit:
             p.fit([r.rgb for r in self._fit_renders.values()], [self.mask(v) for _, v in self._fit_renders])
         self.timer.add("fit probes", t0)
@@ -268,6 +272,50 @@ class SceneRun:
         stale = getattr(self, "probes_desc", desc) != desc
         self.probes_desc, self.fit_pending = desc, False
         return stale
+
+    def check_frames(self, cache) -> dict:
+        """Render each splat-scene pre source at a few evaluation views with a target and check
+        that it covers the image and the target (:mod:`r360gpu.metrics.frame_check`): an
+        InputError when it renders nothing there, a warning when it renders little; the renders
+        are kept for scoring.  The verdict is cached with the bundle's fingerprint (a rerun
+        renders nothing for it).  Returns {pre name: verdict dict} of the sources checked."""
+        from ..metrics import frame_check
+        from .cache import digest
+
+        with_target = [v for v in self.views if self.mask(v).any()]
+        if not with_target:
+            return {}
+        idx = np.linspace(0, len(with_target) - 1, min(frame_check.CHECK_VIEWS, len(with_target)))
+        pick = list(dict.fromkeys(with_target[i] for i in idx.round().astype(int)))
+        out = {}
+        for name, src in self.pres.items():
+            if getattr(src, "kind", None) != "scene" or self.camera(pick[0]) is None:
+                continue  # renders made elsewhere are images already: no frame to get wrong
+            key = digest({"frame_check": self.fingerprint, "views": pick, "source": src.describe()})
+            recorded = cache.load_fit(key, "frames")
+            if recorded is not None:
+                verdict = frame_check.FrameVerdict.from_dict(recorded)
+            else:
+                t0 = time.perf_counter()
+                seen = []
+                for v in pick:
+                    img = self.images(src, v)
+                    self._fit_renders[name, v] = img  # render_pre takes it when the view is scored
+                    seen.append(frame_check.view_coverage(v, img.alpha, self.mask(v)))
+                self.timer.add("frame check", t0)
+                verdict = frame_check.frame_verdict(seen)
+                cache.store_fit(key, verdict.to_dict(), "frames")
+            out[name] = verdict.to_dict()
+            if verdict.level == "ok":
+                continue
+            frame = getattr(src, "frame", None)
+            message = frame_check.mismatch_message(
+                verdict, source=str(src.path), frame=None if frame is None else frame.origin,
+                cameras=None if self.bundle.cameras_path is None else str(self.bundle.cameras_path))
+            if verdict.level == "refuse":
+                raise InputError(f"scene {self.bundle.name}: {message}")
+            self.warnings.add(message, scene=self.bundle.name, file=str(src.path))
+        return out
 
     def describe_sources(self) -> dict:
         out = {"pre": self.pre.describe(),

@@ -597,7 +597,9 @@ class _Importer:
         if source is None:
             source = self.sources.get(view.rendering)
         if source is None:
-            raise InputError(f"probe {self.name!r} has no precomputed masks for the {view.rendering!r} rendering")
+            have = ", ".join(f"{r}={getattr(s, 'directory', s)}" for r, s in sorted(self.sources.items()))
+            raise InputError(f"probe {self.name!r} has no precomputed masks for the {view.rendering!r} rendering "
+                             f"(it has {have}); give them, e.g. {view.rendering}=DIR in the probe spec")
         return source
 
     def _note_missing(self, view: ProbeView, source) -> None:

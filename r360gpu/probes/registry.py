@@ -31,6 +31,19 @@ command-line spec names for one axis.
   go in ``post/METHOD/`` (a sub-folder of the post folder named like the
   method) or ``post/METHOD=DIR`` in the explicit form; plain ``post``
   serves the methods without their own folder.
+  DIRS may also be the root of a folder in the public Remove360 layout
+  (:data:`PUBLIC_LAYOUT`): ``png:ROOT`` / ``gsam2-json:ROOT`` read
+  ``ROOT/gsam2/{before,after}`` (``mask/`` inside for png), ``sam-json:ROOT``
+  reads ``ROOT/sam/after`` for post and ``ROOT/sam/before`` for pre when it
+  exists, else the SAM JSON the public download keeps in ``ROOT/masks``
+  (SAM on the captured pre-removal photos, the public scripts' "GT" side).
+
+Public folders' own outputs are the default probes of such a folder
+(:func:`scene_probes`): without probes given and without ``--compat``, a
+Remove360-layout bundle with ``gsam2/`` uses its GSAM2 masks on the
+semantic axis and one with ``sam/after`` (and pre-side SAM JSON) its SAM
+masks on the structural axis; what was chosen and why is returned for the
+console and results.json.
 
 Keys may use '-' or '_'.  Values cannot contain ','.  device is one of
 cpu (default), cuda, directml, coreml, auto.  Booleans: true/false, yes/no,
@@ -78,6 +91,13 @@ PROBE_SPEC_HELP = (
 )
 
 _RENDERING_DIRS = {"pre": ("pre", "before"), "post": ("post", "after"), "ref": ("ref", "reference")}
+#: Where a public Remove360-layout folder keeps the scripts' probe outputs, per spec kind and
+#: rendering (candidates in order; the first existing one is used).
+PUBLIC_LAYOUT = {
+    "png": {"pre": ("gsam2/before/mask",), "post": ("gsam2/after/mask",), "ref": ("gsam2/reference/mask",)},
+    "gsam2-json": {"pre": ("gsam2/before",), "post": ("gsam2/after",), "ref": ("gsam2/reference",)},
+    "sam-json": {"pre": ("sam/before", "masks"), "post": ("sam/after",), "ref": ("sam/reference",)},
+}
 _TRUE = {"true", "yes", "1", "on"}
 _FALSE = {"false", "no", "0", "off"}
 
@@ -252,7 +272,9 @@ def _rendering_dirs(spec: str, kind: str, body: str) -> tuple[dict[str, Path], s
         return dirs, name
     root = Path(body.strip())
     if not root.is_dir():
-        raise InputError(f"probe spec {spec!r}: mask directory does not exist", root)
+        raise InputError(f"probe spec {spec!r}: mask directory does not exist; give a folder with pre/ and post/ "
+                         f"(or before/ and after/) sub-folders, a public Remove360 folder's root, or name them: "
+                         f"{kind}:pre=DIR,post=DIR", root)
     dirs: dict[str, Path] = {}
     for rendering, names in _RENDERING_DIRS.items():
         for sub in names:
@@ -260,10 +282,20 @@ def _rendering_dirs(spec: str, kind: str, body: str) -> tuple[dict[str, Path], s
                 dirs[rendering] = root / sub
                 break
     if not dirs:
+        dirs = public_dirs(root, kind)
+        if dirs:
+            return dirs, None
         wanted = ", ".join("/".join(n) for n in _RENDERING_DIRS.values())
+        public = ", ".join(sorted({c for cs in PUBLIC_LAYOUT[kind].values() for c in cs}))
         raise InputError(
-            f"probe spec {spec!r}: no per-rendering sub-folder ({wanted}); or name them: {kind}:pre=DIR,post=DIR", root
-        )
+            f"probe spec {spec!r}: no per-rendering sub-folder ({wanted}) and not a public Remove360 folder "
+            f"({public}); a spec that works: {_working_spec(root, kind)}", root)
+    if "pre" not in dirs and "ref" not in dirs:  # post masks alone are compared with nothing
+        parent = root.parent
+        works = (f"{kind}:{parent} (the public folder's root)" if public_dirs(parent, kind)
+                 else f"{kind}:pre=DIR,post={dirs['post']}" if "post" in dirs else _working_spec(root, kind))
+        raise InputError(f"probe spec {spec!r}: only {', '.join(f'{r} masks ({d})' for r, d in dirs.items())}; the "
+                         f"axes compare them with pre (or ref) masks; a spec that works: {works}", root)
     # A bundle with several methods keeps each method's post masks in a
     # sub-folder of the post folder named like the method (post/<method>/).
     post = dirs.get("post")
@@ -279,10 +311,110 @@ def _rendering_dirs(spec: str, kind: str, body: str) -> tuple[dict[str, Path], s
     return dirs, None
 
 
+def public_dirs(root: Path, kind: str) -> dict[str, Path]:
+    """{rendering: folder} of the probe outputs a public Remove360-layout folder holds for spec
+    ``kind`` (:data:`PUBLIC_LAYOUT`); {} unless both pre and post are there."""
+    root = Path(root)
+    found = {}
+    for rendering, candidates in PUBLIC_LAYOUT[kind].items():
+        for rel in candidates:
+            d = root / rel
+            if d.is_dir() and (kind != "sam-json" or any(d.glob("*.json")) or _has_amg_folders(d)):
+                found[rendering] = d
+                break
+    return found if "pre" in found and "post" in found else {}
+
+
+def _has_amg_folders(d: Path) -> bool:
+    from r360gpu.probes.precomputed import is_amg_view_folder
+
+    return any(p.is_dir() and is_amg_view_folder(p) for p in d.iterdir())
+
+
+def _working_spec(root: Path, kind: str) -> str:
+    """A spec of ``kind`` naming folders under ``root`` that hold mask files (for error messages)."""
+    suffix = "*.png" if kind == "png" else "*.json"
+    holders = sorted({p.parent for p in root.rglob(suffix)}, key=lambda p: (len(p.parts), str(p)))[:2]
+    if len(holders) == 2:
+        return f"{kind}:pre={holders[0]},post={holders[1]} (check which folder is which rendering)"
+    return f"{kind}:pre=DIR,post=DIR (folders of <view>{suffix[1:]} files)"
+
+
 def _precomputed(spec: str, kind: str, body: str) -> Probe:
     from r360gpu.probes.precomputed import PrecomputedSemanticProbe, PrecomputedStructuralProbe
 
     dirs, name = _rendering_dirs(spec, kind, body)
+    for rendering, d in dirs.items():
+        if not Path(d).is_dir():
+            raise InputError(f"probe spec {spec!r}: the {rendering} mask folder does not exist; a spec that works: "
+                             f"{kind}:pre=DIR,post=DIR with existing folders", d)
     if kind == "sam-json":
         return PrecomputedStructuralProbe.from_dirs(dirs, **({"name": name} if name else {}))
     return PrecomputedSemanticProbe.from_dirs(dirs, format=kind, **({"name": name} if name else {}))
+
+
+# --- the probes of one scene -----------------------------------------------------------------------
+
+#: What a public folder's outputs are, per axis (for the console and results.json).
+_FOLDER_OUTPUTS = {"semantic": ("png", "GSAM2 masks"), "structural": ("sam-json", "SAM masks")}
+
+
+def scene_probes(bundle, semantic: list | None, structural: list | None, *, compat=None, defaults=None):
+    """The probes one scene is scored with, and why: ``(semantic, structural, selection)``.
+
+    semantic / structural: the probes the caller gave (None: not given).
+    Not given, a bundle in the public Remove360 layout (without ``compat``)
+    uses the probe outputs it holds (:func:`public_dirs`), else the axis
+    default (``defaults``: ([semantic], [structural]) already built, else
+    :func:`default_probes`).  selection: {axis: {"probes": [names],
+    "source": "command line" | "folder" | "default", "why": str}}.
+    """
+    given = {"semantic": semantic, "structural": structural}
+    fallback = dict(zip(("semantic", "structural"), defaults or default_probes()))
+    out, selection = {}, {}
+    for axis in ("semantic", "structural"):
+        if given[axis] is not None:
+            out[axis] = list(given[axis])
+            selection[axis] = {"source": "command line", "why": "given by the caller"}
+            continue
+        probe, why = _folder_probe(bundle, axis, compat)
+        if probe is not None:
+            out[axis] = [probe]
+            selection[axis] = {"source": "folder", "why": why}
+        else:
+            out[axis] = list(fallback[axis])
+            selection[axis] = {"source": "default", "why": why}
+    for axis in out:
+        selection[axis] = {"probes": [p.name for p in out[axis]], **selection[axis]}
+    return out["semantic"], out["structural"], selection
+
+
+def _folder_probe(bundle, axis: str, compat) -> tuple[Probe | None, str]:
+    """The probe built from a public folder's outputs for ``axis`` (or None) and why."""
+    kind, what = _FOLDER_OUTPUTS[axis]
+    default = f"the weight-free default ({DEFAULT_PROBES[axis]})"
+    if getattr(bundle, "layout", None) != "remove360":
+        return None, f"{default}: no probe given"
+    root = Path(bundle.root)
+    dirs = public_dirs(root, kind)
+    if not dirs:
+        wanted = " and ".join(f"{r} {'/'.join(c)}" for r, c in PUBLIC_LAYOUT[kind].items() if r != "ref")
+        return None, f"{default}: the folder has no {what} ({wanted})"
+    spec = f"--{axis}-probe {kind}:{root}"
+    if compat:
+        return None, (f"{default}: with --compat the public scripts' numbers replace the axes, and the probes stay "
+                      f"as without the folder's outputs so --compat results do not change ({spec} uses them)")
+    if bundle.reference is not None and "ref" not in dirs:  # (the reference control reads it in every mode)
+        return None, (f"{default}: the folder has a reference (rgb/reference) but no {what} for it "
+                      f"({PUBLIC_LAYOUT[kind]['ref'][0]})")
+    from r360gpu.probes.precomputed import PrecomputedSemanticProbe, PrecomputedStructuralProbe
+
+    if axis == "semantic":
+        probe = PrecomputedSemanticProbe.from_dirs(dirs, format=kind, name="gsam2-folder")
+    else:
+        probe = PrecomputedStructuralProbe.from_dirs(dirs, name="sam-folder")
+    shown = ", ".join(f"{r}={Path(d).relative_to(root).as_posix()}" for r, d in sorted(dirs.items()))
+    if Path(dirs["pre"]).name == "masks":
+        shown += ": pre is SAM on the captured pre-removal photos, the side the public scripts compare with"
+    return probe, (f"the folder's {what} found in {root} ({shown}); the public scripts' own probe outputs are "
+                   f"used by default (--{axis}-probe builtin for the weight-free probe)")

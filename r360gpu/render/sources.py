@@ -29,12 +29,15 @@ class SceneSource:
     ``scene``: a splat file path, or a :class:`~r360gpu.io.Gaussians` already in memory.
     ``render``: keywords of :class:`~r360gpu.render.conventions.RenderOptions`
     (a bundle source's ``render`` settings); absent keys keep the defaults.
+    ``frame``: the world frame the Gaussians are in (:class:`~r360gpu.io.frames.Frame`,
+    None: the cameras'): each camera is moved into it before rendering and the
+    depth divided by its scale, so depth stays in the cameras' units.
     """
 
     kind = "scene"
 
     def __init__(self, scene, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "expected",
-                 render: dict | None = None):
+                 render: dict | None = None, frame=None):
         from .conventions import RenderOptions
 
         from ..io import Gaussians, load_gaussians
@@ -45,6 +48,7 @@ class SceneSource:
         in_memory = isinstance(scene, Gaussians)
         self.path = "<in memory>" if in_memory else scene
         self.depth_mode = depth
+        self.frame = frame
         self.background = tuple(float(c) for c in background)
         self.gaussians = scene if in_memory else load_gaussians(scene)
         self.render_options = RenderOptions(**(render or {}))
@@ -60,16 +64,23 @@ class SceneSource:
     def images(self, view: str, camera) -> ViewImages:
         if camera is None:
             raise InputError(f"view {view!r} has no camera, so scene {self.path} cannot be rendered there")
+        if self.frame is not None:
+            camera = self.frame.camera(camera)
         r = self.renderer.render(camera)
         depth = r.depth if self.depth_mode == "expected" else r.median_depth
+        if self.frame is not None and self.frame.scale != 1.0:
+            depth = depth / np.float32(self.frame.scale)  # splat units -> the cameras' units (0 stays 0)
         return ViewImages(np.clip(r.rgb, 0.0, 1.0), depth, r.alpha)
 
     def describe(self) -> dict:
         from dataclasses import asdict
 
-        return {"kind": "scene", "path": str(self.path), "n_gaussians": int(self.gaussians.n),
-                "sh_degree": int(self.gaussians.sh_degree), "depth": self.depth_mode,
-                "render": asdict(self.render_options)}
+        out = {"kind": "scene", "path": str(self.path), "n_gaussians": int(self.gaussians.n),
+               "sh_degree": int(self.gaussians.sh_degree), "depth": self.depth_mode,
+               "render": asdict(self.render_options)}
+        if self.frame is not None:
+            out["frame"] = self.frame.describe()
+        return out
 
     def release(self) -> None:
         self.renderer.release()
@@ -192,8 +203,10 @@ def open_source(spec, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "exp
         return spec
     if spec.kind == "scene":
         settings = getattr(spec, "render", None)
+        frame = getattr(spec, "frame", None)
         return SceneSource(spec.path, ctx=ctx, background=background, depth=depth,
-                           render=settings.given() if settings is not None else None)
+                           render=settings.given() if settings is not None else None,
+                           frame=frame if hasattr(frame, "camera") else None)
     if spec.kind == "renders":
         return RendersSource(spec)
     raise InputError(f"unknown source kind {spec.kind!r} for {spec.path}")

@@ -1,0 +1,213 @@
+"""Scoring your own output in the right frame (docs/your-scene.md): a gsplat-normalised scene, a
+nerfstudio-layout folder and an INRIA output folder, built from the synthetic generator; and the
+frame check's verdict on aligned and misaligned scenes."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gsplat_oracle import normalize_world
+from r360gpu.bundle import load_bundle
+from r360gpu.cli import main
+from r360gpu.errors import InputError
+from r360gpu.io import Gaussians, load_cameras, load_gaussians, save_cameras_json, save_ply, save_transforms_json
+from r360gpu.io.colmap_points import save_points3d
+from r360gpu.io.frames import Frame
+from r360gpu.io.rotation import rotmat_to_quat
+from r360gpu.pipeline import EvaluateOptions, evaluate
+from r360gpu.render.sources import open_source
+from r360gpu.synthetic import make_scene, write_bundle
+
+OPTS = dict(n_boot=200, n_perm=100, boundary=False, pictures=False, controls=False)
+FAST = ["--no-pictures", "--no-boundary", "--no-controls", "--n-boot", "200", "--n-perm", "100", "--quiet"]
+# ns-process-data's applied_transform (COLMAP world -> transforms.json world)
+APPLIED = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0], [0, -1.0, 0, 0]])
+
+
+def moved_gaussians(g: Gaussians, frame: Frame) -> Gaussians:
+    """``g`` as a trainer working in ``frame`` holds it (SH degree 0: a rotated world would need
+    rotated SH coefficients, which is why r360gpu moves cameras, not Gaussians)."""
+    g = g.with_sh_degree(0)
+    q = rotmat_to_quat(frame.rotation)
+    w1, v1 = q[0], q[1:]
+    w2, v2 = g.quats[:, 0].astype(np.float64), g.quats[:, 1:].astype(np.float64)
+    quats = np.concatenate([(w1 * w2 - v2 @ v1)[:, None], w1 * v2 + w2[:, None] * v1 + np.cross(v1, v2)], axis=1)
+    return Gaussians(frame.points(g.means), g.scales * frame.scale, quats, g.opacities, g.sh)
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory, ctx):
+    """A small synthetic room (COLMAP cameras) with its pre and 'clean' method at SH degree 0."""
+    root = tmp_path_factory.mktemp("synthetic")
+    scene = make_scene("room", seed=0, n_views=5, width=96, height=72, detail=0.1)
+    folder = write_bundle(scene, root / "room", methods=["clean"], ctx=ctx)
+    for name in ("pre.ply", "methods/clean.ply"):
+        save_ply(folder / name, load_gaussians(folder / name).with_sh_degree(0))
+    return folder
+
+
+def _toml(folder: Path, pre: str, clean: str, *, cameras: str = "cameras", extra: str = "") -> Path:
+    (folder / "scene.toml").write_text(f'name = "room"\nprompt = "sofa"\ncameras = "{cameras}"\nmasks = "masks"\n'
+                                       f'{extra}\n[pre]\nscene = "{pre}"\n\n[methods.clean]\nscene = "{clean}"\n')
+    return folder
+
+
+def _copy(synthetic: Path, dest: Path) -> Path:
+    shutil.copytree(synthetic / "masks", dest / "masks")
+    return dest
+
+
+def _axes(res):
+    return res["scenes"]["room"]["methods"]["clean"]["axes"]
+
+
+@pytest.fixture(scope="module")
+def plain(synthetic, tmp_path_factory, ctx):
+    """The synthetic scene scored as it is (its splats in its cameras' frame)."""
+    folder = _copy(synthetic, tmp_path_factory.mktemp("plain"))
+    shutil.copytree(synthetic / "cameras", folder / "cameras")
+    shutil.copy(synthetic / "pre.ply", folder / "pre.ply")
+    shutil.copy(synthetic / "methods" / "clean.ply", folder / "clean.ply")
+    _toml(folder, "pre.ply", "clean.ply")
+    return folder, evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+
+
+def _same_renders(a: Path, b: Path, ctx, depth_rtol=1e-3):
+    """pre of bundles a and b renders the same images, and the same depth in the cameras' units."""
+    ba, bb = load_bundle(a), load_bundle(b)
+    sa, sb = open_source(ba.pre, ctx=ctx), open_source(bb.pre, ctx=ctx)
+    for v in ba.views[:2]:
+        ia, ib = sa.images(v, ba.cameras[v]), sb.images(v, bb.cameras[v])
+        assert np.abs(ia.rgb - ib.rgb).mean() < 2e-3
+        assert np.abs(ia.alpha - ib.alpha).mean() < 2e-3
+        both = (ia.alpha > 0.5) & (ib.alpha > 0.5)
+        np.testing.assert_allclose(ib.depth[both], ia.depth[both], rtol=depth_rtol, atol=1e-3)
+    return sb
+
+
+def test_gsplat_normalised_scene_is_scored_with_frame_gsplat(synthetic, plain, tmp_path, ctx):
+    """gsplat's simple_trainer (normalize_world_space=True) trains in the normalised world and saves its
+    PLY there; frame = "gsplat" recomputes that world from the COLMAP model and its points3D."""
+    folder = _copy(synthetic, tmp_path / "gsplat")
+    shutil.copytree(synthetic / "cameras", folder / "colmap" / "sparse" / "0")
+    cams = load_cameras(folder / "colmap")
+    pre = load_gaussians(synthetic / "pre.ply")
+    pts = pre.means[np.random.default_rng(0).choice(pre.n, 3000, replace=False)]  # the "sparse points"
+    save_points3d(folder / "colmap" / "sparse" / "0", pts)
+    c2w = np.stack([c.camera_to_world for c in sorted(cams, key=lambda c: c.name)])
+    _, _, transform = normalize_world(c2w, pts.astype(np.float32))  # gsplat's own steps (tests/gsplat_oracle.py)
+    frame = Frame.from_matrix(transform, "gsplat (oracle)")
+    assert abs(frame.scale - 1.0) > 0.05  # the normalisation rescales the world: depth units change
+    (folder / "results" / "ply").mkdir(parents=True)
+    save_ply(folder / "results" / "ply" / "point_cloud_29999.ply", moved_gaussians(pre, frame))
+    save_ply(folder / "results" / "clean.ply", moved_gaussians(load_gaussians(synthetic / "methods/clean.ply"), frame))
+    _toml(folder, "results/ply/point_cloud_29999.ply", "results/clean.ply", cameras="colmap", extra='frame = "gsplat"')
+    b = load_bundle(folder)
+    np.testing.assert_allclose(b.pre.frame.m, transform, atol=1e-9)
+    _same_renders(plain[0], folder, ctx)
+    res = evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    assert res["scenes"]["room"]["frame_check"]["pre"]["level"] == "ok"
+    for k in ("s_sem", "s_geo", "s_str", "iou_pre"):
+        assert _axes(res)[k] == pytest.approx(_axes(plain[1])[k], abs=0.02), k
+    assert not [w for w in res["warnings"] if "world frames" in w["message"]]
+    # the same PLYs with the cameras as they are: warned about, naming the cause
+    _toml(folder, "results/ply/point_cloud_29999.ply", "results/clean.ply", cameras="colmap")
+    res = evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    assert res["scenes"]["room"]["frame_check"]["pre"]["level"] == "warn"
+    warned = [w["message"] for w in res["warnings"] if "different world frames" in w["message"]]
+    assert warned and 'frame = "gsplat"' in warned[0]
+
+
+def test_cameras_that_see_nothing_are_refused(synthetic, tmp_path, ctx, capsys):
+    """A dataparser_transforms.json that belongs to another export sends the cameras far off:
+    pre renders nothing at any checked view -> exit 2, one line naming the cause."""
+    folder = _copy(synthetic, tmp_path / "far")
+    shutil.copytree(synthetic / "cameras", folder / "cameras")
+    shutil.copy(synthetic / "pre.ply", folder / "pre.ply")
+    shutil.copy(synthetic / "methods" / "clean.ply", folder / "clean.ply")
+    (folder / "dataparser_transforms.json").write_text(json.dumps(
+        {"transform": [[1, 0, 0, 500.0], [0, 1, 0, 0], [0, 0, 1, 0]], "scale": 1.0}))
+    _toml(folder, "pre.ply", "clean.ply")
+    assert main(["score", str(folder), "--out", str(tmp_path / "out"), *FAST]) == 2
+    err = capsys.readouterr().err
+    assert "renders nothing" in err and "dataparser_transforms.json" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "out" / "results.json").exists()
+    with pytest.raises(InputError, match="different world frames"):
+        evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+
+
+def test_nerfstudio_layout_applies_dataparser_transforms_beside_the_export(synthetic, plain, tmp_path, ctx,
+                                                                           capsys):
+    """ns-process-data -> data/transforms.json (applied_transform), ns-train splatfacto ->
+    dataparser_transforms.json, ns-export gaussian-splat -> exports/splat/splat.ply in the dataparser frame."""
+    folder = _copy(synthetic, tmp_path / "ns")
+    cams = load_cameras(synthetic / "cameras")
+    applied = Frame.from_matrix(APPLIED, "applied_transform")
+    save_transforms_json(folder / "data" / "transforms.json", [applied.camera(c) for c in cams])
+    doc = json.loads((folder / "data" / "transforms.json").read_text())
+    doc["applied_transform"] = APPLIED.tolist()
+    (folder / "data" / "transforms.json").write_text(json.dumps(doc))
+    orient = np.eye(4)  # auto_orient_and_center_poses: a rotation and a shift of the transforms.json world
+    a = np.radians(30.0)
+    orient[:3, :3] = [[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]
+    orient[:3, 3] = [0.3, -0.2, 0.5]
+    scale = 0.4
+    a4 = np.eye(4)
+    a4[:3] = APPLIED
+    to_ns = Frame.from_matrix(np.diag([scale] * 3 + [1.0]) @ orient @ a4, "nerfstudio")  # COLMAP world -> ns
+    for name, src in (("splat", "pre.ply"), ("clean", "methods/clean.ply")):
+        (folder / "exports" / name).mkdir(parents=True)
+        save_ply(folder / "exports" / name / "splat.ply", moved_gaussians(load_gaussians(synthetic / src), to_ns))
+        (folder / "exports" / name / "dataparser_transforms.json").write_text(
+            json.dumps({"transform": (orient @ a4)[:3].tolist(), "scale": scale}))
+    _toml(folder, "exports/splat/splat.ply", "exports/clean/splat.ply", cameras="data/transforms.json")
+    b = load_bundle(folder)
+    assert b.pre.frame is not None and b.methods["clean"].frame.scale == pytest.approx(scale)
+    _same_renders(plain[0], folder, ctx)
+    out = tmp_path / "out"
+    assert main(["score", str(folder), "--out", str(out), *FAST]) == 0
+    res = json.loads((out / "results.json").read_text())
+    assert res["scenes"]["room"]["frame_check"]["pre"]["level"] == "ok"
+    assert res["scenes"]["room"]["sources"]["pre"]["frame"]["scale"] == pytest.approx(scale)
+    for k in ("s_sem", "s_geo", "s_str"):
+        assert _axes(res)[k] == pytest.approx(_axes(plain[1])[k], abs=0.02), k
+    # "frame = cameras" switches the file off: the cameras (inside the room) see walls at the wrong
+    # places, and mostly not the target: scored, with the likely cause on the console and in results.json
+    (folder / "scene.toml").write_text((folder / "scene.toml").read_text().replace(
+        'masks = "masks"\n', 'masks = "masks"\nframe = "cameras"\n'))
+    capsys.readouterr()
+    assert main(["score", str(folder), "--out", str(tmp_path / "out2"), *FAST]) == 0
+    err = capsys.readouterr().err
+    assert "renders little where the target masks are" in err and "dataparser_transforms" in err
+    res = json.loads((tmp_path / "out2" / "results.json").read_text())
+    assert res["scenes"]["room"]["frame_check"]["pre"]["level"] == "warn"
+    assert [w for w in res["warnings"] if "different world frames" in w["message"]]
+
+
+def test_inria_output_folder_scored_as_the_walkthrough_says(synthetic, tmp_path, ctx):
+    """docs/your-scene.md, INRIA output folder: point_cloud/iteration_N/point_cloud.ply and cameras.json
+    as train.py writes them, scene.toml naming the folders."""
+    folder = _copy(synthetic, tmp_path / "inria")
+    cams = load_cameras(synthetic / "cameras")
+    for name, src in (("pre", "pre.ply"), ("clean", "methods/clean.ply")):
+        run = folder / "output" / name
+        (run / "point_cloud" / "iteration_7000").mkdir(parents=True)
+        (run / "point_cloud" / "iteration_30000").mkdir(parents=True)
+        shutil.copy(synthetic / src, run / "point_cloud" / "iteration_30000" / "point_cloud.ply")
+        (run / "point_cloud" / "iteration_7000" / "point_cloud.ply").write_bytes(b"not read: older iteration")
+        save_cameras_json(run / "cameras.json", cams)
+        (run / "cfg_args").write_text("Namespace(sh_degree=3)")
+    (folder / "scene.toml").write_text(
+        'name = "room"\nprompt = "sofa"\ncameras = "output/pre/cameras.json"\nmasks = "masks"\n\n'
+        '[pre]\nscene = "output/pre"\n\n[methods.clean]\nscene = "output/clean"\n')
+    assert main(["check", str(folder)]) == 0
+    out = tmp_path / "out"
+    assert main(["score", str(folder), "--out", str(out), *FAST]) == 0
+    res = json.loads((out / "results.json").read_text())
+    assert res["scenes"]["room"]["frame_check"]["pre"]["level"] == "ok"
+    assert res["scenes"]["room"]["sources"]["pre"]["path"].endswith("iteration_30000/point_cloud.ply")
+    assert 0.0 <= _axes(res)["rqs"] <= 1.0

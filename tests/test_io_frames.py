@@ -1,0 +1,245 @@
+"""r360gpu.io.frames: similarity frames, nerfstudio's dataparser transform, gsplat's normalisation
+(against tests/gsplat_oracle.py), COLMAP points3D; and the frame check's verdicts."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from gsplat_oracle import normalize_world
+from r360gpu.errors import InputError
+from r360gpu.io import Camera, load_cameras, save_colmap, save_transforms_json
+from r360gpu.io.colmap_points import read_points3d, save_points3d
+from r360gpu.io.frames import Frame, gsplat_frame, gsplat_normalization, nerfstudio_frame, resolve_frame
+from r360gpu.io.rotation import quat_to_rotmat
+from r360gpu.metrics.frame_check import FrameVerdict, frame_verdict, mismatch_message, view_coverage
+
+
+def look_at(centre, target=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), name="v", w=40, h=30) -> Camera:
+    centre, target, up = (np.asarray(a, float) for a in (centre, target, up))
+    z = target - centre
+    z /= np.linalg.norm(z)
+    x = np.cross(z, -up)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    c2w = np.eye(4)
+    c2w[:3, :3] = np.stack([x, y, z], axis=1)
+    c2w[:3, 3] = centre
+    return Camera.from_camera_to_world(c2w, 30.0, 31.0, w / 2, h / 2, w, h, name)
+
+
+def ring(n=12, seed=0, up=(0.0, 0.0, 1.0)) -> list[Camera]:
+    rng = np.random.default_rng(seed)
+    cams = []
+    for i in range(n):
+        a = 2 * np.pi * i / n + rng.normal(0, 0.1)
+        c = np.array([4 * np.cos(a), 4 * np.sin(a), 1.5 + rng.normal(0, 0.3)]) + rng.normal(0, 0.2, 3)
+        cams.append(look_at(c, rng.normal(0, 0.3, 3), up=up, name=f"img_{i:03d}.png"))
+    return cams
+
+
+def random_similarity(seed=1) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    r = quat_to_rotmat(rng.normal(size=4))
+    m = np.eye(4)
+    m[:3, :3], m[:3, 3] = 0.37 * r, rng.normal(size=3)
+    return m
+
+
+def test_a_moved_camera_sees_the_moved_world_with_depth_times_the_scale():
+    m = random_similarity()
+    frame = Frame.from_matrix(m, "test")
+    assert frame.scale == pytest.approx(0.37)
+    pts = np.random.default_rng(2).normal(0, 0.5, (50, 3))
+    for cam in ring(5):
+        uv, z = cam.project(pts)
+        uv2, z2 = frame.camera(cam).project(frame.points(pts))
+        np.testing.assert_allclose(uv2, uv, atol=1e-9)
+        np.testing.assert_allclose(z2, 0.37 * z, rtol=1e-12)
+        assert (frame.camera(cam).fx, frame.camera(cam).cy) == (cam.fx, cam.cy)
+
+
+@pytest.mark.parametrize("bad, why", [
+    (np.diag([1.0, 1.0, -1.0, 1.0]), "reflects"),
+    (np.diag([1.0, 2.0, 1.0, 1.0]), "uniform scale"),
+    (np.full((4, 4), np.nan), "finite"),
+    (np.eye(3), "3x4 or 4x4"),
+])
+def test_a_frame_is_a_similarity(bad, why):
+    with pytest.raises(InputError, match=why):
+        Frame.from_matrix(bad, "test", "x.json")
+
+
+def _c2w(cams):
+    return np.stack([c.camera_to_world for c in sorted(cams, key=lambda c: c.name)])
+
+
+@pytest.mark.parametrize("flip", [True, False])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_gsplat_normalisation_equals_gsplats_own_functions(seed, flip):
+    rng = np.random.default_rng(seed)
+    # a ground plane with clutter above it (points' median height below the mean: no turn) or a
+    # ceiling-heavy cloud (median above the mean: gsplat turns the world)
+    pts = np.concatenate([rng.normal(0, [2, 2, 0.05], (400, 3)), rng.normal([0, 0, 1], 0.6, (100 + 300 * seed, 3))])
+    pts = pts.astype(np.float32)
+    cams = ring(10, seed, up=(0.0, 0.0, 1.0) if seed != 2 else (0.3, -0.2, 1.0))
+    c2w, moved, want = normalize_world(_c2w(cams), pts, flip=flip)
+    frame = gsplat_normalization(cams, pts, flip=flip)
+    np.testing.assert_allclose(frame.m, want, atol=1e-9)
+    np.testing.assert_allclose(frame.points(pts), moved, atol=1e-6)
+    got = np.stack([frame.camera(c).camera_to_world for c in sorted(cams, key=lambda c: c.name)])
+    np.testing.assert_allclose(got, c2w, atol=1e-9)
+
+
+def test_gsplat_frame_reads_the_colmap_model_and_its_points(tmp_path):
+    rng = np.random.default_rng(5)
+    cams = ring(9, 5)
+    pts = rng.normal(0, [1.5, 1.0, 0.4], (300, 3))
+    save_colmap(tmp_path / "sparse" / "0", cams)
+    save_points3d(tmp_path / "sparse" / "0", pts)
+    frame = gsplat_frame(tmp_path)
+    _, _, want = normalize_world(_c2w(cams), pts.astype(np.float32))
+    np.testing.assert_allclose(frame.m, want, atol=1e-9)
+    assert "9 cameras, 300 points" in frame.origin
+    assert resolve_frame("gsplat", scene=tmp_path / "x.ply", cameras=tmp_path).matrix == frame.matrix
+    save_points3d(tmp_path / "sparse" / "0", pts[:0])  # save_colmap's empty file: nothing to align to
+    (tmp_path / "sparse" / "0" / "points3D.bin").write_bytes((0).to_bytes(8, "little"))
+    with pytest.raises(InputError, match="needs the COLMAP sparse points"):
+        gsplat_frame(tmp_path)
+    (tmp_path / "sparse" / "0" / "points3D.bin").unlink()
+    with pytest.raises(InputError, match="no points3D.bin"):
+        gsplat_frame(tmp_path)
+    save_transforms_json(tmp_path / "transforms.json", cams)
+    with pytest.raises(InputError, match="COLMAP model gsplat trained on"):
+        gsplat_frame(tmp_path / "transforms.json")
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_points3d_round_trip_and_errors(tmp_path, binary):
+    pts = np.random.default_rng(0).normal(size=(7, 3))
+    f = save_points3d(tmp_path, pts, binary=binary)
+    np.testing.assert_array_equal(read_points3d(f), pts)
+    data = f.read_bytes()
+    f.write_bytes(data[:-5] if binary else data + b"8 1 2\n")
+    with pytest.raises(InputError, match="truncated|line 9: expected"):
+        read_points3d(f)
+
+
+def test_points3d_are_ordered_by_id(tmp_path):
+    f = tmp_path / "points3D.txt"
+    f.write_text("# c\n5 5 5 5 1 2 3 0.1 1 2\n2 2 2 2 1 2 3 0.1\n")
+    np.testing.assert_array_equal(read_points3d(f), [[2, 2, 2], [5, 5, 5]])
+
+
+# --- nerfstudio ------------------------------------------------------------------------------------
+
+# ns-process-data's applied_transform (colmap_utils.colmap_to_json): COLMAP world -> transforms.json world
+APPLIED = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0], [0, -1.0, 0, 0]])
+
+
+def _dataparser(tmp_path, orient: np.ndarray, scale: float, applied=APPLIED):
+    """dataparser_transforms.json as nerfstudio writes it: transform = orient @ applied (original -> ns)."""
+    a = np.eye(4)
+    a[:3] = applied
+    doc = {"transform": (orient @ a)[:3].tolist(), "scale": scale}
+    path = tmp_path / "dataparser_transforms.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_nerfstudio_frame_is_the_same_for_colmap_and_transforms_json_cameras(tmp_path):
+    cams = ring(6, 3)
+    save_colmap(tmp_path / "colmap", cams)
+    # transforms.json as ns-process-data writes it: the COLMAP world moved by applied_transform
+    moved = Frame.from_matrix(APPLIED, "applied")
+    save_transforms_json(tmp_path / "data" / "transforms.json", [moved.camera(c) for c in cams])
+    doc = json.loads((tmp_path / "data" / "transforms.json").read_text())
+    doc["applied_transform"] = APPLIED.tolist()
+    (tmp_path / "data" / "transforms.json").write_text(json.dumps(doc))
+    orient = random_similarity(7)
+    orient[:3, :3] /= 0.37  # auto_orient_and_center_poses: rigid
+    dp = _dataparser(tmp_path, orient, 0.25)
+    from_colmap = nerfstudio_frame(dp, tmp_path / "colmap")
+    from_transforms = nerfstudio_frame(dp, tmp_path / "data" / "transforms.json")
+    assert from_colmap.scale == pytest.approx(0.25) and from_transforms.scale == pytest.approx(0.25)
+    by_name = {c.name: c for c in load_cameras(tmp_path / "data" / "transforms.json")}
+    for c in cams:
+        a, b = from_colmap.camera(c), from_transforms.camera(by_name[c.name])
+        np.testing.assert_allclose(a.camera_to_world, b.camera_to_world, atol=1e-9)
+        # and both equal nerfstudio's own: poses = orient @ c2w, translation times scale
+        ns = orient @ (moved.camera(c).camera_to_world)
+        np.testing.assert_allclose(b.center, 0.25 * ns[:3, 3], atol=1e-9)
+
+
+def test_legacy_transforms_json_without_applied_transform_beside_colmap(tmp_path):
+    legacy = np.array([[0.0, 1, 0, 0], [1.0, 0, 0, 0], [0, 0, -1.0, 0]])
+    dp = _dataparser(tmp_path, np.eye(4), 1.0, applied=legacy)
+    save_transforms_json(tmp_path / "transforms.json", ring(3))
+    plain = nerfstudio_frame(dp, tmp_path / "transforms.json")
+    np.testing.assert_allclose(plain.m[:3], legacy, atol=1e-12)  # no applied_transform: the file as it is
+    (tmp_path / "colmap" / "sparse" / "0").mkdir(parents=True)
+    np.testing.assert_allclose(nerfstudio_frame(dp, tmp_path / "transforms.json").m, np.eye(4), atol=1e-12)
+
+
+@pytest.mark.parametrize("doc, why", [
+    ({"scale": 1.0}, "expected an object"),
+    ({"transform": [[1, 0, 0]], "scale": 1.0}, "3x4 or 4x4"),
+    ({"transform": np.eye(4)[:3].tolist(), "scale": -2}, "positive"),
+    ({"transform": np.diag([1.0, 1, -1, 1])[:3].tolist(), "scale": 1}, "reflects"),
+])
+def test_bad_dataparser_transforms_name_the_file(tmp_path, doc, why):
+    f = tmp_path / "dataparser_transforms.json"
+    f.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=why) as e:
+        nerfstudio_frame(f, None)
+    assert str(f) in str(e.value)
+
+
+def test_resolve_frame_keywords_and_auto(tmp_path):
+    (tmp_path / "splat.ply").write_bytes(b"")
+    assert resolve_frame(None, scene=tmp_path / "splat.ply", cameras=None) is None
+    dp = _dataparser(tmp_path, np.eye(4), 0.5, applied=np.eye(4)[:3])
+    auto = resolve_frame("auto", scene=tmp_path / "splat.ply", cameras=None)
+    assert auto.scale == pytest.approx(0.5) and str(dp) in auto.origin
+    assert resolve_frame("cameras", scene=tmp_path / "splat.ply", cameras=None) is None
+    named = resolve_frame("dataparser_transforms.json", scene="x", cameras=None, root=tmp_path)
+    assert named.scale == pytest.approx(0.5)
+    with pytest.raises(InputError, match="neither one of auto, cameras, gsplat"):
+        resolve_frame("gsplatt", scene="x", cameras=None, root=tmp_path)
+    with pytest.raises(InputError, match="set cameras"):
+        resolve_frame("gsplat", scene="x", cameras=None)
+
+
+# --- the frame check -------------------------------------------------------------------------------
+
+def _cov(alpha_fill, target_fill, n=4):
+    mask = np.zeros((40, 40), bool)
+    mask[2:6, 2:6] = True
+    out = []
+    for i in range(n):
+        a = np.zeros((40, 40), np.float32)
+        a.flat[-int(alpha_fill * 1600):] = 1.0 if alpha_fill else 0.0
+        if target_fill:
+            a[2:6, 2:6] = 0.0
+            a[2:6, 2:2 + int(4 * target_fill)] = 1.0
+        out.append(view_coverage(f"v{i}", a, mask))
+    return out
+
+
+def test_frame_verdicts():
+    assert frame_verdict(_cov(1.0, 1.0)).level == "ok"
+    assert frame_verdict(_cov(0.0, 0.0)).level == "refuse"
+    assert frame_verdict(_cov(0.05, 1.0)).level == "warn"          # mostly empty images
+    assert frame_verdict(_cov(0.9, 0.25)).level == "warn"          # the target falls where pre renders little
+    assert frame_verdict(_cov(0.0, 0.0)[:2] + _cov(1.0, 1.0)[:2]).level == "warn"
+    assert frame_verdict([]).level == "ok"
+    faint = [view_coverage(f"v{i}", np.full((8, 8), 0.3, np.float32), np.ones((8, 8), bool)) for i in range(3)]
+    assert faint[0].coverage == 0.0 and faint[0].touched == 1.0
+    assert frame_verdict(faint).level == "warn"  # drawn, but nowhere solid: not "renders nothing"
+    v = frame_verdict(_cov(0.0, 0.0))
+    assert FrameVerdict.from_dict(json.loads(json.dumps(v.to_dict()))) == v
+    msg = mismatch_message(v, source="pre.ply", frame=None, cameras="cameras")
+    assert "renders nothing" in msg and "dataparser_transforms" in msg and "gsplat" in msg
+    nan = view_coverage("x", np.full((3, 3), np.nan, np.float32), np.zeros((3, 3), bool))
+    assert nan.coverage == 0.0 and nan.target is None
