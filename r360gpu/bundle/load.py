@@ -55,7 +55,8 @@ from .model import (DEPTH_MODES, PRINCIPAL_POINTS, RENDER_KEYS, RESERVED_METHOD_
 from .remove360_layout import is_remove360_folder, remove360_draft
 
 CONFIG_NAME = "scene.toml"
-TOP_KEYS = ("name", "prompt", "cameras", "masks", "views", "pre", "reference", "methods", "options", "expected")
+TOP_KEYS = ("name", "prompt", "cameras", "masks", "views", "pre", "reference", "methods", "options", "expected",
+            "target")
 SOURCE_KEYS = ("scene", "renders", "rgb", "depth", "depth_scale") + RENDER_KEYS
 OPTION_KEYS = ("background", "depth", "reference_free")
 # Extensions stripped from camera image names to get view names.
@@ -192,8 +193,14 @@ def _draft_from_config(root: Path, config: Path, problems: list[Problem], *, vie
             d.cameras_path = root / data["cameras"]
         else:
             bad("'cameras' must be a path (a non-empty string)")
+    if "target" in data:  # [target]: the object in 3D or by a few views' masks (bundle.target)
+        from .target import parse_target_table
+
+        d.target = parse_target_table(data["target"], root, bad)
     if "masks" not in data:
-        bad("missing required key 'masks': the folder of target-mask PNGs, e.g. masks = \"masks\"")
+        if "target" not in data:
+            bad("missing required key 'masks': the folder of target-mask PNGs, e.g. masks = \"masks\" "
+                "(or a [target] table)")
     elif isinstance(data["masks"], str) and data["masks"].strip():
         d.masks_dir = root / data["masks"]
     else:
@@ -402,8 +409,14 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
     cameras = _load_cameras(draft.cameras_path, problems) if draft.cameras_path is not None else None
     masks = _list_masks(draft.masks_dir, problems) if draft.masks_dir is not None else None
 
-    views = _select_views(draft, where, cameras, masks, problems)
-    sizes = _check_masks(views, cameras, masks or {}, draft, problems, deep=deep)
+    if getattr(draft, "target", None) is not None:  # every camera is a view; unmasked ones get rendered masks
+        from .target import target_views
+
+        views, masks = target_views(draft, where, cameras, masks, _list_masks, problems)
+        sizes = {v: (cameras[v].height, cameras[v].width) for v in views} if cameras else {}
+    else:
+        views = _select_views(draft, where, cameras, masks, problems)
+        sizes = _check_masks(views, cameras, masks or {}, draft, problems, deep=deep)
 
     resolved: dict[tuple[str, str | None], SourceSpec | None] = {}
     for role, name, spec in entries:
@@ -419,7 +432,8 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
     return Bundle(
         root=draft.root, name=draft.name, prompt=draft.prompt, views=views,
         cameras=None if cameras is None else {v: cameras[v] for v in views},
-        masks={v: masks[v] for v in views}, pre=resolved["pre", None],
+        masks={v: masks[v] for v in views if v in masks}, pre=resolved["pre", None],
+        target=getattr(draft, "target", None),
         reference=resolved.get(("reference", None)),
         methods={name: resolved["method", name] for name in draft.methods}, options=draft.options,
         layout=draft.layout, config=draft.config, cameras_path=draft.cameras_path, expected=draft.expected,

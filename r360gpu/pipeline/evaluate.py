@@ -305,6 +305,8 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
         "sources": run.describe_sources(),
         "methods": {},
     }
+    if run.target_record is not None:  # [target]: which views' masks were given, which rendered
+        scene["target"] = run.target_record
     if getattr(bundle, "expected", None):  # scene.toml [expected.METHOD]: known failures, checked by the report
         scene["expected"] = bundle.expected
     for m in bundle.methods:
