@@ -61,13 +61,26 @@ class LiftedTarget:
         return int(self.target.shape[0])
 
     def extent(self, means: np.ndarray) -> tuple[np.ndarray, float]:
-        """(centre (3,), radius): median of the target's centres and their 90th-percentile distance."""
+        """(centre (3,), radius) of the target's centres ``means`` (N, 3): their per-axis median and
+        90th-percentile distance from it, each weighted by ``w_in`` when lifted from masks (the
+        Gaussians that show the target most say where it is; background seen only through the
+        object's gaps, which the masks cannot tell from it, counts for little)."""
         pts = np.asarray(means, np.float64)[self.target]
         if len(pts) == 0:
             raise InputError("the target has no Gaussians")
-        centre = np.median(pts, axis=0)
-        radius = float(np.percentile(np.linalg.norm(pts - centre, axis=1), 90))
-        return centre, max(radius, 1e-6)
+        w = np.ones(len(pts)) if self.w_in is None else np.asarray(self.w_in, np.float64)[self.target]
+        if not w.sum() > 0:
+            w = np.ones(len(pts))
+        centre = np.array([_weighted_quantile(pts[:, k], w, 0.5) for k in range(3)])
+        radius = _weighted_quantile(np.linalg.norm(pts - centre, axis=1), w, 0.9)
+        return centre, max(float(radius), 1e-6)
+
+
+def _weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
+    """The smallest value whose cumulative weight share reaches ``q``."""
+    order = np.argsort(values, kind="stable")
+    cum = np.cumsum(weights[order])
+    return float(values[order][min(np.searchsorted(cum, q * cum[-1]), len(cum) - 1)])
 
 
 def decide(w_in: np.ndarray, w_out: np.ndarray, *, min_share: float = MIN_SHARE,
