@@ -60,7 +60,7 @@ from .remove360_layout import is_remove360_folder, remove360_draft
 
 CONFIG_NAME = "scene.toml"
 TOP_KEYS = ("name", "prompt", "cameras", "masks", "views", "frame", "pre", "reference", "methods", "options",
-            "expected")
+            "expected", "target")
 SOURCE_KEYS = ("scene", "renders", "rgb", "depth", "depth_scale", "frame") + RENDER_KEYS
 OPTION_KEYS = ("background", "depth", "reference_free")
 # Extensions stripped from camera image names to get view names.
@@ -199,8 +199,14 @@ def _draft_from_config(root: Path, config: Path, problems: list[Problem], *, vie
             bad("'cameras' must be a path (a non-empty string)")
     if "frame" in data:
         d.frame = _frame_value(data["frame"], "", bad)
+    if "target" in data:  # [target]: the object in 3D or by a few views' masks (bundle.target)
+        from .target import parse_target_table
+
+        d.target = parse_target_table(data["target"], root, bad)
     if "masks" not in data:
-        bad("missing required key 'masks': the folder of target-mask PNGs, e.g. masks = \"masks\"")
+        if "target" not in data:
+            bad("missing required key 'masks': the folder of target-mask PNGs, e.g. masks = \"masks\" "
+                "(or a [target] table)")
     elif isinstance(data["masks"], str) and data["masks"].strip():
         d.masks_dir = root / data["masks"]
     else:
@@ -421,12 +427,21 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
         cameras = _load_cameras(draft.cameras_path, problems) if draft.cameras_path is not None else None
     masks = _list_masks(draft.masks_dir, problems) if draft.masks_dir is not None else None
 
-    views = _select_views(draft, where, cameras, masks, problems)
+    if getattr(draft, "target", None) is not None:  # every camera is a view; unmasked ones get rendered masks
+        from .target import target_views
+
+        views, masks = target_views(draft, where, cameras, masks, _list_masks, problems)
+    else:
+        views = _select_views(draft, where, cameras, masks, problems)
     named = name_problems("view", views)
-    _add_capped(problems, [Problem(str(draft.masks_dir), p) for p in named], str(draft.masks_dir), "view names")
+    names_where = str(draft.masks_dir) if draft.masks_dir is not None else where
+    _add_capped(problems, [Problem(names_where, p) for p in named], names_where, "view names")
     if named:
         views = []
-    sizes = _check_masks(views, cameras, masks or {}, draft, problems, deep=deep)
+    if getattr(draft, "target", None) is not None:
+        sizes = {v: (cameras[v].height, cameras[v].width) for v in views} if cameras else {}
+    else:
+        sizes = _check_masks(views, cameras, masks or {}, draft, problems, deep=deep)
 
     resolved: dict[tuple[str, str | None], SourceSpec | None] = {}
     frames: dict = {}  # a frame recomputed once per value (gsplat's reads the whole COLMAP model)
@@ -444,7 +459,8 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
     return Bundle(
         root=draft.root, name=draft.name, prompt=draft.prompt, views=views,
         cameras=None if cameras is None else {v: cameras[v] for v in views},
-        masks={v: masks[v] for v in views}, pre=resolved["pre", None],
+        masks={v: masks[v] for v in views if v in masks}, pre=resolved["pre", None],
+        target=getattr(draft, "target", None),
         reference=resolved.get(("reference", None)),
         methods={name: resolved["method", name] for name in draft.methods}, options=draft.options,
         layout=draft.layout, config=draft.config, cameras_path=draft.cameras_path, expected=draft.expected,

@@ -153,6 +153,8 @@ class Bundle:
     #: [expected.METHOD] of scene.toml: {method: {"failure", "caught_by"}} (r360gpu.bundle.expected)
     expected: dict = field(default_factory=dict)
     method_pres: dict[str, SourceSpec] = field(default_factory=dict)
+    #: [target] of scene.toml (r360gpu.bundle.target.TargetSpec): views without a given mask get one rendered
+    target: object = None
 
     def sources(self) -> dict[str, SourceSpec]:
         """Every source by name: "pre", "reference" (when present), the methods, then each
@@ -285,6 +287,8 @@ class Bundle:
         if self.cameras_path is not None:
             files += _camera_files(self.cameras_path)
         files += [self.masks[v] for v in self.views if v in self.masks]
+        if self.target is not None and isinstance(getattr(self.target, "indices", None), Path):
+            files.append(self.target.indices)
         for spec in self.sources().values():
             if spec.kind == "scene":
                 files.append(spec.path)
@@ -348,3 +352,4 @@ class Draft:
     options: BundleOptions = field(default_factory=BundleOptions)
     expected: dict = field(default_factory=dict)
     frame: str | None = None  # scene.toml's top-level frame: the default of every scene source
+    target: object = None

@@ -12,7 +12,8 @@ from .names import RESERVED_METHOD_NAMES, check_bundle_names, check_names
 
 def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, *, reference=None,
                        cameras: dict | None = None, background=(0.0, 0.0, 0.0), depth: str = "expected",
-                       reference_free: bool = False, method_pres: dict | None = None) -> Bundle:
+                       reference_free: bool = False, method_pres: dict | None = None, target: dict | None = None
+                       ) -> Bundle:
     """A scene to pass to :func:`r360gpu.evaluate` without files.
 
     masks: {view: bool (H, W) target mask}; the keys are the evaluation views.
@@ -23,12 +24,28 @@ def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, 
     cameras: {view: Camera}, needed when any source is rendered here.
     method_pres: {method: source} for methods scored against their own
         pre-removal source instead of ``pre`` (same kinds as ``pre``).
+    target: as scene.toml's [target] (:mod:`.target`): {"masks": {view: (H, W) bool},
+        "indices": (K,) int or (N,) bool over pre's Gaussians, "box": {min, max} or
+        {centre, size, rotation}}; then ``masks`` may be empty, every camera is an
+        evaluation view and views without a mask get the target's rendered mask.
     """
     check_names("scene", [name])
     check_names("method", list(methods or {}), reserved=RESERVED_METHOD_NAMES)
-    check_names("view", list(masks or {}))
-    views = sorted(masks)
+    spec = None
+    if target is not None:
+        from .target import target_from_objects
+
+        if cameras is None:
+            raise InputError(f"scene {name!r}: a target needs cameras (every camera is an evaluation view)")
+        views = sorted(cameras)
+        spec = target_from_objects(target, views)
+        masks = {**(masks or {}), **(spec.masks or {})}
+    else:
+        views = sorted(masks or {})
+    check_names("view", views)
     for v in views:
+        if v not in masks:  # a [target] view whose mask is rendered
+            continue
         m = np.asarray(masks[v])
         if m.ndim != 2 or m.size == 0:
             raise InputError(f"scene {name!r}: the mask of view {v!r} has shape {m.shape}; expected (H, W)")
@@ -52,10 +69,10 @@ def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, 
         _check_device_views(name, role, source, masks, views)
     bundle = Bundle(root=Path("."), name=name, prompt=prompt, views=views,
                   cameras=None if cameras is None else {v: cameras[v] for v in views},
-                  masks={v: np.asarray(masks[v]) for v in views}, pre=pre, reference=reference,
+                  masks={v: np.asarray(masks[v]) for v in views if v in masks}, pre=pre, reference=reference,
                   methods=dict(methods),
                   options=BundleOptions(background=tuple(background), depth=depth, reference_free=reference_free),
-                  layout="objects", method_pres=dict(method_pres or {}))
+                  layout="objects", method_pres=dict(method_pres or {}), target=spec)
     check_bundle_names(bundle)  # the names scene.toml and METHOD=FOLDER accept, no others
     return bundle
 

@@ -346,6 +346,8 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     }
     if getattr(run, "frame_check", None):  # do pre's cameras see its splats (r360gpu.metrics.frame_check)
         scene["frame_check"] = run.frame_check
+    if run.target_record is not None:  # [target]: which views' masks were given, which rendered
+        scene["target"] = run.target_record
     if getattr(bundle, "expected", None):  # scene.toml [expected.METHOD]: known failures, checked by the report
         scene["expected"] = bundle.expected
     for m in bundle.methods:

@@ -145,6 +145,14 @@ class SceneRun:
         for src_name in self.controls.values():
             self.pre_of[src_name] = "pre"
         timer.add("load", t0)
+        self.target_record = None
+        if getattr(bundle, "target", None) is not None:  # [target]: a mask for every view (r360gpu.lift)
+            from ..lift.resolve import resolve_target
+
+            t0 = time.perf_counter()
+            bundle, self.target_record = resolve_target(bundle, self.pre, ctx=ctx, warn=warnings.add)
+            self.bundle = bundle
+            timer.add("target", t0)
         self._masks: dict = {}
         self._fit_renders: dict = {}
         from ..bundle.load import require_target

@@ -259,11 +259,8 @@ class Renderer:
         t0 = self._mark("sort", t0, ranges.buffer)
         enc = ctx.encoder()
         work = scratch.window("render.work", num_tiles * 8)
-        record_rasterize(ctx, enc, ranges=ranges, vals=vals, num_keys=k, pos_op=proj.pos_op, conic=proj.conic,
-                         rgb=proj.rgb, n=n, image=image, stride=stride, row_base=row_base,
-                         width=cam["width"], height=cam["height"], tiles_x=gx,
-                         tile_begin=window.begin, num_tiles=num_tiles, background=self.background,
-                         min_alpha=self.options.no_coverage_alpha, work=work)
+        self._record_tiles(enc, proj=proj, ranges=ranges, vals=vals, num_keys=k, image=image, stride=stride,
+                           row_base=row_base, cam=cam, tiles_x=gx, window=window, work=work)
         ctx.submit(enc)
         self._mark("rasterize", t0, image)
         if self.count_work:
@@ -271,6 +268,19 @@ class Renderer:
             self.stats.evaluated += int(counts[:, 0].sum())
             self.stats.blended += int(counts[:, 1].sum())
         return window
+
+    def _record_tiles(self, enc, *, proj: Projected, ranges, vals, num_keys: int, image, stride: int,
+                      row_base: int, cam: dict, tiles_x: int, window: TileWindow, work) -> None:
+        """Record the per-tile pass over one window's sorted tile lists (here: the rasteriser).
+
+        The one step a pass over the same tile lists replaces (target lifting,
+        :mod:`r360gpu.lift.device`); everything before it is the render's own.
+        """
+        record_rasterize(self.ctx, enc, ranges=ranges, vals=vals, num_keys=num_keys, pos_op=proj.pos_op,
+                         conic=proj.conic, rgb=proj.rgb, n=self.scene.n, image=image, stride=stride,
+                         row_base=row_base, width=cam["width"], height=cam["height"], tiles_x=tiles_x,
+                         tile_begin=window.begin, num_tiles=window.end - window.begin, background=self.background,
+                         min_alpha=self.options.no_coverage_alpha, work=work)
 
     def render(self, camera) -> Render:
         """Render ``camera`` and read the result back as numpy arrays.

@@ -1,12 +1,12 @@
-"""The target object in 3D, from pre's Gaussians and the evaluation views' target masks.
+"""The target object in 3D for the viewer: the pipeline's lifted target (:mod:`r360gpu.lift`).
 
-A Gaussian belongs to the target when its centre projects inside the target
-mask in most of the evaluation views that see it (a visual-hull vote):
-centres behind the object fall inside the mask from one side but outside
-from others, so they are voted out.  The target's centre (median of the
-voted centres) and radius (90th percentile distance) drive "focus on the
-target"; its Gaussians, rendered alone, give a target mask at viewpoints
-that are not evaluation views (:func:`projected_mask`).
+The viewer uses the same target as scoring: a bundle's ``[target]``
+(indices, box or masks) when it has one, else the evaluation views' target
+masks lifted to pre's Gaussians by alpha compositing (at most
+:data:`MAX_LIFT_VIEWS` views, evenly spaced).  The target's centre (median of
+its Gaussians' centres) and radius (90th-percentile distance) drive "focus
+on the target"; its mask at a viewpoint that is not an evaluation view is
+the lifted target rendered over pre (:class:`r360gpu.lift.TargetMaskRenderer`).
 """
 from __future__ import annotations
 
@@ -14,99 +14,63 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from r360gpu.io.camera import Camera
-
-#: A centre is target when inside the mask in at least this fraction of the views that see it...
-VOTE_FRACTION = 0.6
-#: ...and inside the mask in at least this many views (1 when there is a single view).
-MIN_VOTES = 2
-#: At most this many views vote (evenly spaced), to bound the start-up time.
-MAX_VOTING_VIEWS = 24
-#: A target pixel is visible when the target's depth is at most this factor of pre's depth.
-VISIBLE_TOLERANCE = 1.05
+#: At most this many evaluation views' masks are lifted (evenly spaced), to bound the start-up time.
+MAX_LIFT_VIEWS = 24
 
 
 @dataclass(frozen=True)
 class Target:
-    """The estimated target: ``indices`` (int64) of pre's Gaussians, ``centre`` (3,), ``radius``."""
+    """The target: ``indices`` (int64) of pre's Gaussians, ``mask`` (N,) bool, ``centre`` (3,), ``radius``."""
 
     indices: np.ndarray
+    mask: np.ndarray
     centre: np.ndarray
     radius: float
 
 
-def voting_views(n: int) -> list[int]:
-    """Indices of the at most MAX_VOTING_VIEWS views (evenly spaced) out of ``n`` that vote."""
+def lift_views(n: int) -> list[int]:
+    """Indices of the at most MAX_LIFT_VIEWS views (evenly spaced) out of ``n`` whose masks are lifted."""
     if n <= 0:
         return []
-    return [int(i) for i in np.unique(np.linspace(0, n - 1, min(MAX_VOTING_VIEWS, n)).round().astype(int))]
+    return [int(i) for i in np.unique(np.linspace(0, n - 1, min(MAX_LIFT_VIEWS, n)).round().astype(int))]
 
 
-def estimate_target(means: np.ndarray, cameras: list[Camera], masks: list[np.ndarray]) -> Target | None:
-    """Vote pre's Gaussian centres ``means`` (N, 3) into the target (see the module docstring).
+def estimate_target(gaussians, cameras: list, masks: list, *, ctx=None, options=None) -> Target | None:
+    """The target lifted from ``masks`` ((H, W) bool, one per camera) over ``gaussians`` (pre);
+    None when no mask shows the target or nothing lifts."""
+    from r360gpu.lift import lift_target
 
-    cameras[i] pairs with masks[i], an (H, W) bool target mask at that camera's
-    size; the views of :func:`voting_views` vote.  Returns None when no centre
-    collects enough votes.
-    """
     if len(cameras) != len(masks):
         raise ValueError(f"{len(cameras)} cameras but {len(masks)} masks")
-    if not cameras:
+    pairs = [(c, m) for c, m in zip(cameras, masks) if np.asarray(m).any()]
+    if not pairs:
         return None
-    pick = voting_views(len(cameras))
-    p = np.asarray(means, np.float64).reshape(-1, 3)
-    seen = np.zeros(len(p), np.int32)
-    inside = np.zeros(len(p), np.int32)
-    for i in pick:
-        cam, m = cameras[i], np.asarray(masks[i], bool)
-        uv, z = cam.project(p)
-        ok = z > 0
-        u = np.floor(np.where(ok, uv[:, 0], -1)).astype(np.int64)
-        v = np.floor(np.where(ok, uv[:, 1], -1)).astype(np.int64)
-        ok &= (u >= 0) & (v >= 0) & (u < m.shape[1]) & (v < m.shape[0])
-        seen += ok
-        hit = np.zeros(len(p), bool)
-        hit[ok] = m[v[ok], u[ok]]
-        inside += hit
-    need = min(MIN_VOTES, len(pick))
-    sel = (inside >= need) & (inside >= VOTE_FRACTION * np.maximum(seen, 1))
-    idx = np.flatnonzero(sel)
-    if idx.size == 0:
+    pairs = [pairs[i] for i in lift_views(len(pairs))]
+    lifted = lift_target(gaussians, [c for c, _ in pairs], [m for _, m in pairs], ctx=ctx, options=options)
+    return _target(lifted, gaussians.means)
+
+
+def _target(lifted, means) -> Target | None:
+    if not lifted.target.any():
         return None
-    pts = p[idx]
-    centre = np.median(pts, axis=0)
-    radius = float(np.percentile(np.linalg.norm(pts - centre, axis=1), 90))
-    return Target(idx.astype(np.int64), centre, max(radius, 1e-6))
-
-
-def projected_mask(target_alpha: np.ndarray, target_depth: np.ndarray, pre_depth: np.ndarray) -> np.ndarray:
-    """The visible target silhouette (H, W) bool at a free viewpoint.
-
-    target_alpha / target_depth: the target's Gaussians rendered alone;
-    pre_depth: pre's depth (0 = no coverage).  A pixel is target where the
-    target covers it (alpha >= 0.5) and nothing of pre lies clearly in front
-    (target depth <= VISIBLE_TOLERANCE x pre depth, or pre has no depth).
-    """
-    a = np.asarray(target_alpha, np.float32)
-    td = np.asarray(target_depth, np.float32)
-    pd = np.asarray(pre_depth, np.float32)
-    covered = (a >= 0.5) & (td > 0)
-    visible = (pd <= 0) | (td <= np.float32(VISIBLE_TOLERANCE) * pd)
-    return covered & visible
+    centre, radius = lifted.extent(means)
+    return Target(lifted.indices, lifted.target, centre, radius)
 
 
 class SceneTarget:
-    """The app's target estimate: made once on first use (pre splat + cameras + masks), then used
+    """The app's target: made once on first use (pre splat + cameras + masks or [target]), then used
     to focus the camera and to give a target mask away from the evaluation views."""
 
     def __init__(self, app):
         self.app = app
         self.target: Target | None = None
-        self.layer = None  # the target's Gaussians alone, as a SplatLayer
+        self.masks = None  # a TargetMaskRenderer over pre
         self._done = False
 
     def ensure(self) -> Target | None:
-        """Estimate the 3D target once, None when impossible."""
+        """Lift the 3D target once, None when impossible."""
+        from r360gpu.lift import TargetMaskRenderer
+
         from .layers import SplatLayer
 
         if self._done:
@@ -116,15 +80,19 @@ class SceneTarget:
         pre = app.layers.get("pre")
         if not isinstance(pre, SplatLayer) or not app.cameras:
             return None
-        pairs = [(v, c) for v, c in zip(app.views, app.view_cameras) if c is not None and v in app.bundle.masks]
-        pairs = [pairs[i] for i in voting_views(len(pairs))]
-        cams = [c for _, c in pairs]
-        masks = [app.pictures.mask_of(v, c.width, c.height) for v, c in pairs]
-        self.target = estimate_target(pre.gaussians.means, cams, masks)
+        options = getattr(getattr(pre, "renderer", None), "options", None)
+        if getattr(app.bundle, "target", None) is not None:
+            from r360gpu.lift.resolve import lifted_target
+
+            lifted, _ = lifted_target(app.bundle, pre.gaussians, ctx=app.ctx, options=options)
+            self.target = _target(lifted, pre.gaussians.means)
+        else:
+            pairs = [(v, c) for v, c in zip(app.views, app.view_cameras) if c is not None and v in app.bundle.masks]
+            cams = [c for _, c in pairs]
+            masks = [app.pictures.mask_of(v, c.width, c.height) for v, c in pairs]
+            self.target = estimate_target(pre.gaussians, cams, masks, ctx=app.ctx, options=options)
         if self.target is not None:
-            gauss = pre.gaussians.subset(self.target.indices)
-            self.layer = SplatLayer.from_gaussians("target", gauss, ctx=app.ctx,
-                                                   background=app.bundle.options.background)
+            self.masks = TargetMaskRenderer(pre.gaussians, self.target.mask, ctx=app.ctx, options=options)
         return self.target
 
     def focus(self) -> None:
@@ -135,20 +103,14 @@ class SceneTarget:
             app.camera.focus(target.centre, target.radius)
         else:
             app.camera.focus(app.camera.pivot, app.scale_length * 0.5)
-            app.notify("no target estimate (needs a splat pre scene, cameras and masks): focused on the pivot")
+            app.notify("no target (needs a splat pre scene, cameras and masks or [target]): focused on the pivot")
 
-    def projected_mask(self, cam, pre) -> np.ndarray | None:
-        """The estimated target's visible silhouette at ``cam`` against pre's image (bool (H, W)), or None."""
-        if self.ensure() is None or self.layer is None:
+    def projected_mask(self, cam, pre=None) -> np.ndarray | None:
+        """The target's mask at ``cam`` (bool (H, W)), rendered over pre; None without a target."""
+        if self.ensure() is None or self.masks is None:
             return None
-        from r360gpu.render.rasterize import planes_to_numpy
-
-        t = self.layer.image(cam)
-        tp = planes_to_numpy(self.app.ctx, t.buffer, t.width, t.height)
-        pp = planes_to_numpy(self.app.ctx, pre.buffer, pre.width, pre.height)
-        plane = "depth" if pre.depth_plane == 4 else "median_depth"
-        return projected_mask(tp["alpha"], tp[plane], pp[plane])
+        return self.masks.mask(cam)
 
     def release(self) -> None:
-        if self.layer is not None:
-            self.layer.release()
+        if self.masks is not None:
+            self.masks.release()

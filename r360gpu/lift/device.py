@@ -1,0 +1,106 @@
+"""Host side of ``shaders/lift_accumulate.wgsl``: per-Gaussian compositing weight inside / outside a mask.
+
+:class:`MaskLifter` is a :class:`~r360gpu.render.Renderer` whose per-tile pass
+is the lifting kernel instead of the rasteriser: projection, depth sort,
+binning and tile sort are the renderer's own, so a Gaussian's weight at a
+pixel is exactly the ``alpha T`` the renderer blends it with there.  The
+accumulators live on the device across views (64-bit fixed point, see the
+shader); :meth:`MaskLifter.weights` reads them back once.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..gpu.context import BufferRange
+from ..gpu.uniforms import uniform
+from ..render.conventions import ALPHA_MAX, ALPHA_MIN, T_MIN
+from ..render.pipeline import Renderer
+from ..render.project import tile_grid
+
+#: Fixed-point units per unit of compositing weight (the shader's ``scale``): a tile's sum of at most
+#: 256 pixel weights must fit 32 bits (256 x 2^20 = 2^28), and 2^-20 per thread and Gaussian is far
+#: below any weight that matters (the renderer skips alphas under 1/255).
+SCALE = float(1 << 20)
+
+#: The override constants of lift_accumulate.wgsl, the rasteriser's compositing rules.
+CONSTANTS = {"ALPHA_MAX": ALPHA_MAX, "ALPHA_MIN": ALPHA_MIN, "T_MIN": T_MIN}
+
+
+class MaskLifter(Renderer):
+    """Accumulates, per Gaussian, its compositing weight inside and outside target masks.
+
+    Parameters as :class:`~r360gpu.render.Renderer` (``background`` is
+    irrelevant: weights do not depend on it).  Call :meth:`add_view` per
+    (camera, mask), then :meth:`weights`.  ``acc`` is the device buffer of
+    N x 4 u32: (in low, in high, out low, out high) words of the 64-bit
+    fixed-point sums (:data:`SCALE` units per unit weight).
+    """
+
+    def __init__(self, scene, **kwargs):
+        super().__init__(scene, **kwargs)
+        self.acc = self.ctx.buffer(max(16, self.scene.n * 16), label="lift.acc")
+        self.views = 0
+
+    def reset(self) -> None:
+        """Zero the accumulators."""
+        enc = self.ctx.encoder()
+        enc.clear_buffer(self.acc, 0, self.acc.size)
+        self.ctx.submit(enc)
+        self.views = 0
+
+    def add_view(self, camera, mask) -> None:
+        """Add the weights of one view.
+
+        mask: (H, W) array (bool, or float in [0, 1]: the pixel's share of
+        target) at the camera's size, or a device buffer of H x W float32 in
+        the same row-major order.  InputError on a wrong size or non-finite
+        values (a device buffer is taken as is; values are clamped to [0, 1]).
+        """
+        cam = self._camera(camera)
+        width, height = cam["width"], cam["height"]
+        if width * height * 4 > self.ctx.max_binding_bytes:
+            raise InputError(f"{cam['name']}: a {width}x{height} mask exceeds one "
+                             f"{self.ctx.max_binding_bytes}-byte storage binding")
+        if isinstance(mask, np.ndarray) or not hasattr(mask, "size"):
+            m = np.asarray(mask)
+            if m.shape != (height, width):
+                raise InputError(f"{cam['name']}: mask is {m.shape[1] if m.ndim > 1 else '?'}x{m.shape[0]}"
+                                 f" ({m.shape}), the camera is {width}x{height}")
+            m = m.astype(np.float32)
+            if not np.isfinite(m).all():
+                raise InputError(f"{cam['name']}: mask has NaN or infinite values")
+            buf = self.ctx.scratch("lift.mask", np.clip(m, 0.0, 1.0))
+        else:
+            if mask.size < width * height * 4:
+                raise InputError(f"{cam['name']}: mask buffer holds {mask.size} bytes, "
+                                 f"a {width}x{height} float32 mask needs {width * height * 4}")
+            buf = mask
+        self._mask = BufferRange(buf, 0, max(4, width * height * 4))
+        proj, order, row_counts, gx, t0 = self._prepare(cam)
+        self._render_rows(proj, order, row_counts, cam, gx, 0, tile_grid(width, height)[1], buf, width * height, t0)
+        self.views += 1
+
+    def _record_tiles(self, enc, *, proj, ranges, vals, num_keys: int, image, stride: int, row_base: int,
+                      cam: dict, tiles_x: int, window, work) -> None:
+        ctx, n = self.ctx, self.scene.n
+        params = uniform(ctx, "lift_accumulate", width=cam["width"], height=cam["height"], tiles_x=tiles_x,
+                         tile_begin=window.begin, num_tiles=window.end - window.begin, row_base=row_base,
+                         scale=SCALE)
+        per_gaussian = max(16, n * 16)
+        ctx.dispatch(enc, ctx.pipeline("lift_accumulate", "main", CONSTANTS),
+                     [params, ranges, BufferRange(vals, 0, max(4, num_keys * 4)),
+                      BufferRange(proj.pos_op, 0, per_gaussian), BufferRange(proj.conic, 0, per_gaussian),
+                      self._mask, BufferRange(self.acc, 0, per_gaussian)],
+                     ctx.grid(window.end - window.begin))
+
+    def weights(self) -> tuple[np.ndarray, np.ndarray]:
+        """(w_in, w_out): (N,) float64 summed compositing weight inside / outside the masks."""
+        words = self.ctx.read(self.acc, np.uint32, 4 * self.scene.n).reshape(-1, 4).astype(np.float64)
+        w_in = (words[:, 0] + words[:, 1] * 4294967296.0) / SCALE
+        w_out = (words[:, 2] + words[:, 3] * 4294967296.0) / SCALE
+        return w_in, w_out
+
+    def release(self) -> None:
+        self.acc.destroy()
+        super().release()

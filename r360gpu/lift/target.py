@@ -1,0 +1,244 @@
+"""The target in 3D: which of pre's Gaussians are the object to remove.
+
+Three ways in, one result (:class:`LiftedTarget`, an (N,) bool over pre's
+Gaussians):
+
+* masks of a few views, lifted by alpha compositing (:func:`lift_target`):
+  per Gaussian g, ``w_in[g]`` and ``w_out[g]`` sum its compositing weight
+  ``alpha T`` over every pixel of every given view, weighted by the mask
+  value there and by one minus it.  g is target when
+  ``w_in / (w_in + w_out) >= MIN_SHARE`` and ``w_in + w_out >= MIN_WEIGHT``.
+  This is FlashSplat's closed form for two labels (Shen et al., "FlashSplat:
+  2D to 3D Gaussian Splatting Segmentation Solved Optimally", ECCV 2024): the
+  assignment that minimises the rendered-mask error is, per Gaussian, the
+  label holding the larger share of its accumulated weight.  The floor leaves
+  out Gaussians the views barely see (their label is a coin toss).
+* Gaussian indices (:func:`target_from_indices`, :func:`load_indices`: a
+  ``.npy`` of indices or booleans, or a PLY whose vertex property is non-zero
+  on the target);
+* a box (:class:`Box`, axis-aligned or oriented): Gaussians whose centre is
+  inside.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+#: A Gaussian is target when at least this share of its compositing weight falls inside the masks.
+MIN_SHARE = 0.5
+#: ...and its summed weight over all given pixels is at least this (units: one fully opaque pixel).
+MIN_WEIGHT = 0.05
+
+
+@dataclass(frozen=True)
+class LiftedTarget:
+    """The target over pre's N Gaussians.
+
+    target: (N,) bool.  source: "masks", "indices" or "box".  w_in / w_out:
+    (N,) float64 compositing weight inside / outside the masks (source
+    "masks" only, else None).  views: names of the views whose masks were
+    lifted (source "masks").
+    """
+
+    target: np.ndarray
+    source: str
+    w_in: np.ndarray | None = None
+    w_out: np.ndarray | None = None
+    views: tuple = field(default_factory=tuple)
+
+    @property
+    def indices(self) -> np.ndarray:
+        """(K,) int64 indices of the target Gaussians."""
+        return np.flatnonzero(self.target).astype(np.int64)
+
+    @property
+    def n(self) -> int:
+        return int(self.target.shape[0])
+
+    def extent(self, means: np.ndarray) -> tuple[np.ndarray, float]:
+        """(centre (3,), radius) of the target's centres ``means`` (N, 3): their per-axis median and
+        90th-percentile distance from it, each weighted by ``w_in`` when lifted from masks (the
+        Gaussians that show the target most say where it is; background seen only through the
+        object's gaps, which the masks cannot tell from it, counts for little)."""
+        pts = np.asarray(means, np.float64)[self.target]
+        if len(pts) == 0:
+            raise InputError("the target has no Gaussians")
+        w = np.ones(len(pts)) if self.w_in is None else np.asarray(self.w_in, np.float64)[self.target]
+        if not w.sum() > 0:
+            w = np.ones(len(pts))
+        centre = np.array([_weighted_quantile(pts[:, k], w, 0.5) for k in range(3)])
+        radius = _weighted_quantile(np.linalg.norm(pts - centre, axis=1), w, 0.9)
+        return centre, max(float(radius), 1e-6)
+
+
+def _weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
+    """The smallest value whose cumulative weight share reaches ``q``."""
+    order = np.argsort(values, kind="stable")
+    cum = np.cumsum(weights[order])
+    return float(values[order][min(np.searchsorted(cum, q * cum[-1]), len(cum) - 1)])
+
+
+def decide(w_in: np.ndarray, w_out: np.ndarray, *, min_share: float = MIN_SHARE,
+           min_weight: float = MIN_WEIGHT) -> np.ndarray:
+    """(N,) bool: share ``w_in / (w_in + w_out) >= min_share`` and total ``>= min_weight``."""
+    w_in = np.asarray(w_in, np.float64)
+    total = w_in + np.asarray(w_out, np.float64)
+    return (total >= min_weight) & (w_in >= min_share * total) & (total > 0)
+
+
+def lift_target(scene, cameras, masks, *, ctx=None, options=None, min_share: float = MIN_SHARE,
+                min_weight: float = MIN_WEIGHT) -> LiftedTarget:
+    """Lift target masks of some views to pre's Gaussians (see the module docstring).
+
+    scene: :class:`~r360gpu.io.gaussians.Gaussians` (N Gaussians).
+    cameras: sequence of :class:`~r360gpu.io.camera.Camera`.
+    masks: one per camera: (H, W) bool or float32 in [0, 1] at the camera's
+        size, or a wgpu buffer of H x W float32 (row-major) on ``ctx``'s device.
+    options: :class:`~r360gpu.render.conventions.RenderOptions` the scene is
+        rendered with (the weights are the renderer's own).
+    Returns a :class:`LiftedTarget` with w_in, w_out (N,) float64.
+    """
+    from .device import MaskLifter
+
+    cameras, masks = list(cameras), list(masks)
+    if len(cameras) != len(masks):
+        raise InputError(f"lift_target: {len(cameras)} cameras but {len(masks)} masks")
+    if not cameras:
+        raise InputError("lift_target: no views to lift the target from")
+    lifter = MaskLifter(scene, ctx=ctx, options=options)
+    try:
+        lifter.reset()
+        for cam, m in zip(cameras, masks):
+            lifter.add_view(cam, m)
+        w_in, w_out = lifter.weights()
+    finally:
+        lifter.release()
+    return LiftedTarget(decide(w_in, w_out, min_share=min_share, min_weight=min_weight), "masks", w_in, w_out,
+                        tuple(getattr(c, "name", "") for c in cameras))
+
+
+def target_from_indices(n: int, indices, *, where: str = "indices") -> LiftedTarget:
+    """The target given as Gaussian indices (int array, any order, duplicates allowed) or an (n,) bool mask."""
+    idx = np.asarray(indices)
+    sel = np.zeros(int(n), bool)
+    if idx.dtype == bool:
+        if idx.shape != (n,):
+            raise InputError(f"{where}: a boolean target needs one entry per Gaussian ({n}), got shape {idx.shape}")
+        sel[:] = idx
+    else:
+        if idx.size and not np.issubdtype(idx.dtype, np.integer):
+            if not np.all(np.isfinite(idx)) or np.any(idx != np.round(idx)):
+                raise InputError(f"{where}: target indices must be whole numbers")
+        idx = idx.astype(np.int64).reshape(-1)
+        bad = idx[(idx < 0) | (idx >= n)]
+        if bad.size:
+            raise InputError(f"{where}: {bad.size} target indices outside 0..{n - 1} (e.g. {int(bad[0])}); "
+                             "are they indices into pre's Gaussians?")
+        sel[idx] = True
+    if not sel.any():
+        raise InputError(f"{where}: the target has no Gaussians")
+    return LiftedTarget(sel, "indices")
+
+
+def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None) -> LiftedTarget:
+    """Target indices from a file: ``.npy`` (indices, or (n,) bool) or ``.ply`` (vertex
+    property ``prop``, default the first of "target", "label", "is_target", non-zero = target;
+    the PLY must have one vertex per pre Gaussian)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: target indices file does not exist")
+    if path.suffix.lower() == ".npy":
+        try:
+            arr = np.load(path, allow_pickle=False)
+        except (ValueError, OSError) as e:
+            raise InputError(f"{path}: not a readable .npy array ({e})") from None
+        return target_from_indices(n, arr, where=str(path))
+    if path.suffix.lower() == ".ply":
+        from ..io.ply import read_ply
+
+        ply = read_ply(path)
+        vert = ply.arrays.get("vertex")
+        if vert is None:
+            raise InputError(f"{path}: PLY has no vertex element")
+        names = vert.dtype.names or ()
+        choice = [prop] if prop else [p for p in ("target", "label", "is_target") if p in names]
+        if not choice or choice[0] not in names:
+            raise InputError(f"{path}: no target property ({prop or 'target, label or is_target'}) among "
+                             f"{', '.join(names)}")
+        if len(vert) != n:
+            raise InputError(f"{path}: {len(vert)} vertices, pre has {n} Gaussians")
+        return target_from_indices(n, np.asarray(vert[choice[0]]) != 0, where=str(path))
+    raise InputError(f"{path}: target indices must be a .npy or .ply file")
+
+
+@dataclass(frozen=True)
+class Box:
+    """An oriented box: ``centre`` (3,), ``half`` (3,) half-extents along the box's axes,
+    ``rotation`` (3, 3) whose columns are the box's axes in world coordinates."""
+
+    centre: np.ndarray
+    half: np.ndarray
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+    @classmethod
+    def from_table(cls, table: dict, *, where: str = "box") -> "Box":
+        """A box from ``{min, max}`` (axis-aligned) or ``{centre, size[, rotation]}`` where rotation is a
+        3x3 matrix (columns = box axes) or a (w, x, y, z) quaternion."""
+        def vec(key, k=3):
+            try:
+                v = np.asarray(table[key], np.float64).reshape(-1)
+            except (TypeError, ValueError):
+                raise InputError(f"{where}.{key} must be {k} numbers") from None
+            if v.shape != (k,) or not np.isfinite(v).all():
+                raise InputError(f"{where}.{key} must be {k} finite numbers, got {table[key]!r}")
+            return v
+
+        if not isinstance(table, dict):
+            raise InputError(f"{where} must be a table ({{min = [...], max = [...]}} or {{centre, size}})")
+        keys = set(table)
+        centre_key = "centre" if "centre" in keys else "center"
+        if keys == {"min", "max"}:
+            lo, hi = vec("min"), vec("max")
+            if np.any(hi < lo):
+                raise InputError(f"{where}: max must be >= min on every axis, got min={lo.tolist()} max={hi.tolist()}")
+            return cls(0.5 * (lo + hi), 0.5 * (hi - lo))
+        if centre_key in keys and "size" in keys and keys <= {centre_key, "size", "rotation"}:
+            size = vec("size")
+            if np.any(size < 0):
+                raise InputError(f"{where}.size must be >= 0, got {size.tolist()}")
+            rot = np.eye(3)
+            if "rotation" in table:
+                r = np.asarray(table["rotation"], np.float64)
+                if r.shape == (4,):
+                    if not np.isfinite(r).all() or np.linalg.norm(r) == 0:
+                        raise InputError(f"{where}.rotation quaternion must be finite and non-zero")
+                    w, x, y, z = r / np.linalg.norm(r)
+                    rot = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                                    [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                                    [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+                elif r.shape == (3, 3) and np.isfinite(r).all() and np.allclose(r.T @ r, np.eye(3), atol=1e-4):
+                    rot = r
+                else:
+                    raise InputError(f"{where}.rotation must be a 3x3 rotation matrix or a (w, x, y, z) quaternion")
+            return cls(vec(centre_key), 0.5 * size, rot)
+        raise InputError(f"{where} needs min and max, or centre and size (and optionally rotation); "
+                         f"got keys {', '.join(sorted(keys)) or 'none'}")
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """(N,) bool: points (N, 3) inside the box (boundary included)."""
+        local = (np.asarray(points, np.float64) - self.centre) @ self.rotation
+        return np.all(np.abs(local) <= self.half + 1e-12, axis=1)
+
+
+def target_from_box(means: np.ndarray, box: Box) -> LiftedTarget:
+    """The Gaussians whose centre (means (N, 3)) is inside ``box``."""
+    sel = box.contains(means)
+    if not sel.any():
+        raise InputError(f"no Gaussian centre lies in the target box (centre {box.centre.tolist()}, "
+                         f"half-size {box.half.tolist()})")
+    return LiftedTarget(sel, "box")
