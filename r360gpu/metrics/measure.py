@@ -25,7 +25,8 @@ import numpy as np
 from .fidelity import LpipsModel, fidelity_views
 from .geometric import GeometricView, GhtParams, acc_depth_views
 from .record import ViewRecord
-from .semantic import XI_DEFAULT, semantic_view
+from ..protocol import XI_DEFAULT
+from .semantic import semantic_view
 from .sensitivity import NOT_GIVEN, BoundaryInput, boundary_sensitivity, boundary_targets
 from .structural import check_mode, structural_view
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..errors import InputError
+from ..protocol import RESULTS_SCHEMA
 from ..util import warning_log
 from .cache import RunCache
 from .options import EvaluateOptions, default_probes
@@ -106,7 +107,7 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
     timer = Timer()
     warnings = WarningLog()
     results = {
-        "schema": "r360gpu.results/1",
+        "schema": RESULTS_SCHEMA,
         "r360gpu_version": __version__,
         "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "adapter": ctx.describe(),

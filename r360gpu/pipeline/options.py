@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 from ..metrics.geometric import GhtParams
-from ..metrics.semantic import XI_SWEEP
+from ..protocol import N_BOOT, N_PERM, XI_SWEEP
 
 
 @dataclass
@@ -42,8 +42,8 @@ class EvaluateOptions:
     pictures: bool = True
     fit_views: int = 8
     controls: bool = True
-    n_boot: int = 20000
-    n_perm: int = 5000
+    n_boot: int = N_BOOT
+    n_perm: int = N_PERM
     seed: int = 0
     antialiased: bool = False  # render every splat scene in the antialiased mode (score --antialiased)
 

@@ -39,6 +39,7 @@ from pathlib import Path
 from ..errors import R360Warning
 from ..metrics.semantic import SemanticView, semantic_summary
 from ..metrics.structural import StructuralView, structural_summary
+from ..protocol import AXES
 from ..util.atomic import write_text
 from ..util.warning_log import format_record
 from . import findings
@@ -295,7 +296,7 @@ def low_axis_warnings(results: dict, threshold: float = LOW_AXIS) -> list[str]:
     mode = modes.pop() if len(modes) == 1 else "mixed"
     out = []
     for m in method_names(results):
-        for axis in ("s_sem", "s_geo", "s_str"):
+        for axis in AXES:
             v = overall_value(results, m, axis)
             if v is not None and not math.isnan(v) and v < threshold:
                 out.append(f"{m}: {axis} = {v:.3f} < {threshold:g} -- {_low_axis_message(axis, mode)}.")
@@ -502,10 +503,10 @@ def verdicts_html(results: dict) -> str:
     scenes = list(dict.fromkeys(v.scene for v in verdicts))
     by = {(v.scene, v.axis): v for v in verdicts}
     t = ['<table><thead><tr><th class="lab">Scene</th>'
-         + "".join(f'<th class="lab">{a}</th>' for a in findings.AXES) + "</tr></thead><tbody>"]
+         + "".join(f'<th class="lab">{a}</th>' for a in AXES) + "</tr></thead><tbody>"]
     for s in scenes:
         cells = []
-        for a in findings.AXES:
+        for a in AXES:
             v = by.get((s, a))
             text = v.verdict if v is not None and v.verdict else "--"
             cls = f"v-{text}" if text in findings.VERDICTS else ""
@@ -613,7 +614,7 @@ def _method_section(results: dict, out_dir: Path, scene: str, method: str, probl
     rqs = number(axes.get("rqs"))
     h = [f'<details class="method" open><summary>{_e(method)} &mdash; RQS {_e(_fmt(rqs, 3))}</summary>']
     mode = structural_mode(results, scene)
-    lows = [f"{a} = {number(axes.get(a)):.3f} -- {_low_axis_message(a, mode)}" for a in ("s_sem", "s_geo", "s_str")
+    lows = [f"{a} = {number(axes.get(a)):.3f} -- {_low_axis_message(a, mode)}" for a in AXES
             if number(axes.get(a)) is not None and number(axes.get(a)) < LOW_AXIS]
     for line in lows:
         h.append(f'<div class="warn">{_e(line)}</div>')

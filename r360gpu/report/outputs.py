@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..protocol import AXES
 from ..util.atomic import write_bytes
 from .html import write_html
 from .plots import view_axes_png
@@ -114,7 +115,7 @@ def control_lines(results: dict) -> list[str]:
         for c, entry in controls.items():
             ax = entry.get("axes") or {}
             vals = "  ".join(f"{a} {ax[a]:.3f}" if isinstance(ax.get(a), (int, float)) else f"{a} -"
-                             for a in ("s_sem", "s_geo", "s_str"))
+                             for a in AXES)
             lines.append(f"  control {c:<10} {vals}")
         for note in (s.get("validity_notes") or {}).values():
             lines.append(f"  {note}")

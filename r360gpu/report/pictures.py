@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..protocol import XI_DEFAULT
 from ..util.atomic import write_bytes
 from ..util.memo import ByIdentity
 from . import png
@@ -488,7 +489,7 @@ def _num(x, decimals: int) -> str:
     return f"{v:.{decimals}f}"
 
 
-def view_numbers(record: dict | None, xi: float = 0.3) -> list[str]:
+def view_numbers(record: dict | None, xi: float = XI_DEFAULT) -> list[str]:
     """One view's numbers as short ASCII lines (per semantic / structural probe, the geometric axis,
     fidelity), from a view record (:meth:`r360gpu.metrics.record.ViewRecord.to_dict`)."""
     if not record:

@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
+from ..protocol import AXES
+
 FORMATS = ("md", "latex")
 _NONE = "--"
 
@@ -139,7 +141,7 @@ def overall_table(result: dict) -> Table:
     if has_drop:
         header.append(Cell("IoU_drop (diagnostic)", r"IoU$_{\mathrm{drop}}$ (diagnostic)"))
         columns.append(([overall[m]["iou_drop"] for m in methods], 3, True))
-    for axis in ("s_sem", "s_geo", "s_str"):
+    for axis in AXES:
         header.append(Cell(*_AXIS_HEADERS[axis]))
         columns.append(([overall[m][axis] for m in methods], 3, True))
     header.append(Cell("RQS"))
@@ -166,8 +168,8 @@ def scene_macro_table(result: dict) -> Table:
     methods = list(result["methods"])
     macro = result["scene_macro"]
     has_drop = all("iou_drop" in macro[m] for m in methods)
-    keys = ["s_sem", "s_geo", "s_str"] + (["iou_drop"] if has_drop else []) + ["mean_rqs"]
-    header = [Cell("Method")] + [Cell(*_AXIS_HEADERS[k]) for k in ("s_sem", "s_geo", "s_str")]
+    keys = [*AXES] + (["iou_drop"] if has_drop else []) + ["mean_rqs"]
+    header = [Cell("Method")] + [Cell(*_AXIS_HEADERS[k]) for k in AXES]
     if has_drop:
         header.append(Cell("IoU_drop", r"IoU$_{\mathrm{drop}}$"))
     header.append(Cell("mean RQS"))

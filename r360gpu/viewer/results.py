@@ -23,11 +23,7 @@ from pathlib import Path
 from r360gpu.errors import InputError
 from r360gpu.pipeline import CACHE_DIR  # where ``r360gpu score`` keeps its caches, beside results.json
 from r360gpu.metrics.record import ViewRecord
-from r360gpu.metrics.semantic import XI_DEFAULT
-
-SCHEMA = "r360gpu.results/1"
-#: Per-view axes in chart order.
-AXES = ("s_sem", "s_geo", "s_str")
+from r360gpu.protocol import AXES, RESULTS_SCHEMA as SCHEMA, XI_DEFAULT  # AXES: per-view axes in chart order
 
 
 @dataclass(frozen=True)
