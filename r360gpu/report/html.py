@@ -688,7 +688,7 @@ def _probes_html(results: dict) -> str:
             info = {"axis": kind,
                     "models": ", ".join(f"{f} (sha256 {str(h)[:12]})" for f, h in models.items()) or "none",
                     "weight-free": "yes" if p.get("weight_free") else "no"}
-            info.update({k: p[k] for k in ("limitations", "prompt_use", "fit") if p.get(k)})
+            info.update({k: p[k] for k in ("limitations", "prompt_use", "fit", "varies_by_scene") if p.get(k)})
             info["parameters"] = p.get("params") or {}
             out.append(f"<h4>{_e(p.get('name', '?'))} ({_e(kind)})</h4>" + _kv_table(info))
     if not out:

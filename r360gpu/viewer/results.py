@@ -125,7 +125,7 @@ def load_results(path, scene: str) -> SceneResults:
                 raise InputError(f"scene {scene!r}, method {name!r}, view record {i}: {e}", path) from None
             views[r.view] = view_axes(r)
         methods[str(name)] = MethodResults(axes=dict(m.get("axes") or {}), views=views)
-    probes = doc.get("probes") or {}
+    probes = entry.get("probes") or doc.get("probes") or {}  # the scene's own (fitted there), else the run's
     return SceneResults(path=path, scene=scene, methods=methods,
                         probes={k: list(probes.get(k) or []) for k in ("semantic", "structural")},
                         prompt=entry.get("prompt"))
