@@ -46,7 +46,7 @@ from ..errors import InputError
 from ..io.camera import Camera
 from ..io.compressed_ply import check_compressed_header, is_compressed_ply
 from ..io.inria_ply import check_inria_header, is_inria_ply
-from ..io.load import _latest_inria_iteration, load_cameras
+from ..io.load import latest_inria_iteration, load_cameras
 from ..io.masks import load_mask, mask_size
 from ..io.ply import read_ply_header
 from ..io.renders import RendersReader, image_size
@@ -171,7 +171,7 @@ def _draft_from_config(root: Path, config: Path, problems: list[Problem], *, vie
             d.name = data["name"]
         else:
             bad("'name' must be a non-empty string")
-    reason = _bad_file_name(d.name)
+    reason = bad_file_name(d.name)
     if reason:
         bad(f"scene name {d.name!r} {reason} (it names output folders); set name = \"...\"")
 
@@ -362,7 +362,7 @@ def _parse_options(table, bad) -> BundleOptions:
     return opts
 
 
-def _bad_file_name(name: str) -> str | None:
+def bad_file_name(name: str) -> str | None:
     """Why ``name`` cannot name an output folder, or None when it can."""
     if not name.strip():
         return "is empty"
@@ -432,7 +432,7 @@ def _check_method_names(draft: Draft, where: str, problems: list[Problem]) -> No
         if name.lower() in RESERVED_METHOD_NAMES:
             problems.append(Problem(where, f"method name {name!r} is reserved (the bundle's "
                                            f"{', '.join(RESERVED_METHOD_NAMES)} sources); rename it"))
-        reason = _bad_file_name(name)
+        reason = bad_file_name(name)
         if reason:
             problems.append(Problem(where, f"method name {name!r} {reason} (it names output folders)"))
         key = name.casefold()
@@ -616,7 +616,7 @@ def _check_scene(spec: SourceSpec, label: str, problems: list[Problem]) -> Sourc
         if not p.exists():
             raise InputError("no such file", p)
         if p.is_dir():
-            p = _latest_inria_iteration(p)
+            p = latest_inria_iteration(p)
         suffix = p.suffix.lower()
         if suffix == ".splat":
             _check_splat(p)

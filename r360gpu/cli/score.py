@@ -212,9 +212,9 @@ def bundles_from_args(args) -> list:
     if args.scene_name and not pairs and len(plain) != 1:
         raise InputError("--scene-name names the scene of METHOD=FOLDER folders, or of one bundle")
     if args.scene_name is not None:
-        from ..bundle.load import _bad_file_name
+        from ..bundle.load import bad_file_name
 
-        reason = _bad_file_name(args.scene_name)
+        reason = bad_file_name(args.scene_name)
         if reason:
             raise InputError(f"--scene-name {args.scene_name!r} {reason} (it names output folders)")
     views = list(args.views) if args.views else None  # validated as `check --views` does

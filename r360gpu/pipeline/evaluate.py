@@ -12,7 +12,7 @@ from .cache import RunCache
 from .options import EvaluateOptions, default_probes
 from .pictures import PictureSink
 from .results_doc import ResultsDocument
-from .run import SceneRun, Timer, WarningLog
+from .run import SceneRun, Timer
 from .stages import gather
 
 
@@ -103,7 +103,6 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
     # the cross-scene statistics (two scenes or more) use scipy.stats, first needed once every view is scored
     later = ImportAhead(*(["scipy.stats"] if len(loaded) >= 2 else []))
     timer = Timer()
-    warnings = WarningLog()
     document = ResultsDocument(adapter=ctx.describe(), options={**opts.scoring_key(), "n_boot": opts.n_boot,
                                                                 "n_perm": opts.n_perm, "seed": opts.seed})
     results = document.doc
@@ -114,7 +113,7 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
     def open_run(bundle) -> SceneRun:
         with warning_log.where(scene=bundle.name):
             return SceneRun(bundle, opts, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
-                            warnings=warnings, kept=kept)
+                            kept=kept)
 
     scenes, plots = _ScenesAhead(loaded, open_run), _PlotsAhead(enabled=out is not None)
     try:

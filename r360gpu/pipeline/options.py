@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 from ..metrics.geometric import GhtParams
+from ..probes.registry import default_probes  # noqa: F401  (the pipeline's default probes)
 from ..protocol import N_BOOT, N_PERM, XI_SWEEP
 
 
@@ -67,10 +68,3 @@ class EvaluateOptions:
         d["xis"] = [float(x) for x in self.xis]
         d["views"] = None if self.views is None else list(self.views)
         return d
-
-
-def default_probes():
-    """The weight-free built-in probes: (semantic list, structural list) (see probes.registry)."""
-    from ..probes.registry import default_probes as registry_defaults
-
-    return registry_defaults()

@@ -56,14 +56,14 @@ def write_run_outputs(results: dict, out, *, embed_cache=None, plots: dict | Non
     error (disk full, read-only) is an InputError naming the file, with nothing changed."""
     from ..errors import InputError
     from ..util.atomic import all_or_nothing
-    from ..util.outdir import _reason
+    from ..util.outdir import os_error_reason
 
     out = Path(out)
     try:
         with all_or_nothing([out / name for name in OUTPUT_DOCUMENTS]):
             return write_outputs(results, out, embed_cache=embed_cache, plots=plots)
     except OSError as e:
-        raise InputError(f"cannot write the results ({_reason(e)}): none of {', '.join(OUTPUT_DOCUMENTS)} "
+        raise InputError(f"cannot write the results ({os_error_reason(e)}): none of {', '.join(OUTPUT_DOCUMENTS)} "
                          f"was changed; per-view results are cached, rerun to finish", e.filename or out) from None
 
 

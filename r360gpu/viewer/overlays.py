@@ -86,17 +86,6 @@ def pack_mask(mask: np.ndarray) -> np.ndarray:
     return words.view(np.uint32)
 
 
-def resize_nearest(a: np.ndarray, width: int, height: int) -> np.ndarray:
-    """Nearest-neighbour resize of a (H, W, ...) array to (height, width, ...) with pixel-centre sampling."""
-    a = np.asarray(a)
-    h, w = a.shape[:2]
-    if (h, w) == (height, width):
-        return a
-    ys = np.minimum(h - 1, ((np.arange(height) + 0.5) * h / height).astype(np.int64))
-    xs = np.minimum(w - 1, ((np.arange(width) + 0.5) * w / width).astype(np.int64))
-    return a[ys][:, xs]
-
-
 class OverlayPass:
     """Records overlay dispatches on a :class:`GpuContext` (pipelines from its cache)."""
 
