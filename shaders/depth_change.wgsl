@@ -70,7 +70,7 @@ fn n_vec() -> u32 {
 const WG: u32 = 64u;
 const QV: u32 = 4u;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn delta_minmax(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                 @builtin(local_invocation_index) lid: u32) {
     let base = workgroup_index(wid, nwg) * WG * QV + lid;
@@ -99,17 +99,19 @@ fn delta_minmax(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
 
 // Histogram, GPU flavour: a workgroup-shared histogram (one shared atomic
 // per pixel, cheap on GPUs), merged into `hist` with global atomics.
-var<workgroup> wg_hist: array<atomic<u32>, 256>;
+// One invocation per bin: the workgroup has N_BINS invocations.
+const N_BINS: u32 = 256u;
+var<workgroup> wg_hist: array<atomic<u32>, N_BINS>;
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(N_BINS)
 fn histo(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
          @builtin(local_invocation_index) lid: u32) {
     atomicStore(&wg_hist[lid], 0u);
     workgroupBarrier();
     let nq = n_vec();
-    let base = workgroup_index(wid, nwg) * 256u * QV + lid;
+    let base = workgroup_index(wid, nwg) * N_BINS * QV + lid;
     for (var k = 0u; k < QV; k = k + 1u) {
-        let q = base + k * 256u;
+        let q = base + k * N_BINS;
         if (q < nq) {
             let b = bin4(delta[q]);
             let inside = lanes(q);
@@ -133,10 +135,10 @@ fn histo(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: ve
 const HWG: u32 = 16u;
 const HQ: u32 = 256u;
 
-@compute @workgroup_size(16)
+@compute @workgroup_size(HWG)
 fn histo_private(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                  @builtin(local_invocation_index) lid: u32) {
-    var h: array<u32, 256>;
+    var h: array<u32, N_BINS>;
     let nq = n_vec();
     let base = workgroup_index(wid, nwg) * HWG * HQ + lid;
     for (var k = 0u; k < HQ; k = k + 1u) {
@@ -151,18 +153,19 @@ fn histo_private(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
             }
         }
     }
-    for (var b = 0u; b < 256u; b = b + 1u) {
+    for (var b = 0u; b < N_BINS; b = b + 1u) {
         if (h[b] != 0u) {
             atomicAdd(&hist[b], h[b]);
         }
     }
 }
 
-// changed: one invocation per output word (32 pixels = 8 vec4s).
+// changed: one invocation per output word (32 pixels = 8 vec4s), CWG words per workgroup.
+const CWG: u32 = 64u;
 var<workgroup> wg_in: atomic<u32>;
 var<workgroup> wg_m: atomic<u32>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(CWG)
 fn changed(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
            @builtin(local_invocation_index) lid: u32) {
     if (lid == 0u) {
@@ -170,7 +173,7 @@ fn changed(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
         atomicStore(&wg_m, 0u);
     }
     workgroupBarrier();
-    let g = workgroup_index(wid, nwg) * 64u + lid;
+    let g = workgroup_index(wid, nwg) * CWG + lid;
     let n_words = (P.n_px + 31u) / 32u;
     if (g < n_words) {
         var v: u32 = 0u;

@@ -55,7 +55,7 @@ fn box_sum_and(oa: u32, ob: u32, r0: u32, r1: u32, c0: u32, c1: u32, lid: u32) -
     return s;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn intersect(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     // x indexes B (columns), y indexes A rows; `base` offsets A when one
     // chunk is split over several dispatches so each output fits a binding.
@@ -84,7 +84,7 @@ fn intersect(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_in
     }
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn area(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
         @builtin(local_invocation_index) lid: u32) {
     let k = workgroup_index(wid, nwg);
@@ -111,7 +111,7 @@ fn area(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec
     }
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn union_or(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let w = gid.x + gid.y * nwg.x * WG;
     let mask_words = P.n_rows * P.row_words;
@@ -134,7 +134,7 @@ fn union_or(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
 // `base` is pixel (row 0 of this chunk, column 0) of the chunk's first mask,
 // and consecutive masks are mask_px elements apart.  out_boxes holds 4
 // atomics per mask, initialised by the host to (n_rows, 0, row_words, 0).
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn pack(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let g = gid.x + gid.y * nwg.x * WG;
     let mask_words = P.n_rows * P.row_words;

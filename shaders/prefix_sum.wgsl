@@ -1,6 +1,6 @@
 // Exclusive prefix sum of a u32 array, one level of a multi-level scan.
 //
-// scan_blocks: each workgroup scans BLOCK = 256 * 8 consecutive elements in
+// scan_blocks: each workgroup scans BLOCK = WG * ITEMS consecutive elements in
 // place (exclusive) and writes the block's total to block_sums[block].  The
 // host scans block_sums the same way (recursively) and then add_block_sums
 // adds each block's exclusive offset to its elements.  No decoupled look-back
@@ -14,7 +14,7 @@ struct Params {
 
 const WG: u32 = 256u;
 const ITEMS: u32 = 8u;
-const BLOCK: u32 = 2048u;
+const BLOCK: u32 = WG * ITEMS;  // the host reads it (r360gpu.render.scan)
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read_write> data: array<u32>;
@@ -31,7 +31,7 @@ fn scan_threads(tid: u32, own: u32) -> u32 {
     return workgroup_scan(tid, v).lo.x - own;
 }
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(WG)
 fn scan_blocks(@builtin(local_invocation_index) tid: u32,
                @builtin(workgroup_id) wid: vec3<u32>,
                @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -42,7 +42,7 @@ fn scan_blocks(@builtin(local_invocation_index) tid: u32,
     // Each thread owns ITEMS consecutive elements, so a serial scan per thread
     // followed by a scan over threads keeps the order.
     let base = block * BLOCK + tid * ITEMS;
-    var vals: array<u32, 8>;
+    var vals: array<u32, ITEMS>;
     var s = 0u;
     for (var k = 0u; k < ITEMS; k++) {
         let i = base + k;
@@ -65,7 +65,7 @@ fn scan_blocks(@builtin(local_invocation_index) tid: u32,
     }
 }
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(WG)
 fn add_block_sums(@builtin(local_invocation_index) tid: u32,
                   @builtin(workgroup_id) wid: vec3<u32>,
                   @builtin(num_workgroups) nwg: vec3<u32>) {

@@ -36,8 +36,9 @@ struct Params {
 // CPU implementations (which run the slices as coroutines); 2048 per block.
 const WG: u32 = 64u;
 const ITEMS: u32 = 32u;
-const BLOCK: u32 = 2048u;
-const RADIX: u32 = 16u;
+const BLOCK: u32 = WG * ITEMS;
+const DIGIT_BITS: u32 = 4u;
+const RADIX: u32 = 1u << DIGIT_BITS;
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> keys_in: array<u32>;
@@ -99,7 +100,7 @@ fn count_items(base: u32) -> vec4<u32> {
     return c;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn histogram(@builtin(local_invocation_index) tid: u32,
              @builtin(workgroup_id) wid: vec3<u32>,
              @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -116,7 +117,7 @@ fn histogram(@builtin(local_invocation_index) tid: u32,
     }
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn scatter(@builtin(local_invocation_index) tid: u32,
            @builtin(workgroup_id) wid: vec3<u32>,
            @builtin(num_workgroups) nwg: vec3<u32>) {

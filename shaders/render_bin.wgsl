@@ -28,6 +28,9 @@ struct Params {
     tile_end: u32,
 }
 
+// Invocations per workgroup, one per element; the host reads it (gpu.shaders.workgroup_threads).
+const WG: u32 = 256u;
+
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> order: array<u32>;
 @group(0) @binding(2) var<storage, read> rect: array<vec4<u32>>;
@@ -96,11 +99,11 @@ fn row_ids(r: vec4<u32>, row: u32) -> vec2<u32> {
     return vec2<u32>(begin, max(begin, end));
 }
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(WG)
 fn count(@builtin(local_invocation_index) lidx: u32,
          @builtin(workgroup_id) wid: vec3<u32>,
          @builtin(num_workgroups) nwg: vec3<u32>) {
-    let j = workgroup_index(wid, nwg) * 256u + lidx;
+    let j = workgroup_index(wid, nwg) * WG + lidx;
     if (j >= p.n) {
         return;
     }
@@ -120,11 +123,11 @@ fn count(@builtin(local_invocation_index) lidx: u32,
     counts[j] = c;
 }
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(WG)
 fn emit(@builtin(local_invocation_index) lidx: u32,
         @builtin(workgroup_id) wid: vec3<u32>,
         @builtin(num_workgroups) nwg: vec3<u32>) {
-    let j = workgroup_index(wid, nwg) * 256u + lidx;
+    let j = workgroup_index(wid, nwg) * WG + lidx;
     if (j >= p.n) {
         return;
     }

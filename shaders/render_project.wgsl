@@ -66,6 +66,9 @@ const SH_C3_4: f32 = -0.4570457994644658;
 const SH_C3_5: f32 = 1.445305721320277;
 const SH_C3_6: f32 = -0.5900435899266435;
 
+// Invocations per workgroup, one per element; the host reads it (gpu.shaders.workgroup_threads).
+const WG: u32 = 256u;
+
 @group(0) @binding(0) var<uniform> p: Params;
 // Per Gaussian: (mx, my, mz, opacity), (sx, sy, sz, 0), (qw, qx, qy, qz).
 @group(0) @binding(1) var<storage, read> params: array<vec4<f32>>;
@@ -131,11 +134,11 @@ fn cull(g: u32) {
     depth_key[g] = 0xffffffffu;
 }
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(WG)
 fn main(@builtin(local_invocation_index) lidx: u32,
         @builtin(workgroup_id) wid: vec3<u32>,
         @builtin(num_workgroups) nwg: vec3<u32>) {
-    let i = workgroup_index(wid, nwg) * 256u + lidx;
+    let i = workgroup_index(wid, nwg) * WG + lidx;
     if (i >= p.n) {
         return;
     }

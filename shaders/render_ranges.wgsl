@@ -8,15 +8,18 @@ struct Params {
     n: u32,  // keys
 }
 
+// Invocations per workgroup, one per element; the host reads it (gpu.shaders.workgroup_threads).
+const WG: u32 = 256u;
+
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> keys: array<u32>;
 @group(0) @binding(2) var<storage, read_write> ranges: array<u32>;
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(WG)
 fn main(@builtin(local_invocation_index) lidx: u32,
         @builtin(workgroup_id) wid: vec3<u32>,
         @builtin(num_workgroups) nwg: vec3<u32>) {
-    let k = workgroup_index(wid, nwg) * 256u + lidx;
+    let k = workgroup_index(wid, nwg) * WG + lidx;
     if (k >= p.n) {
         return;
     }

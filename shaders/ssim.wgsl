@@ -124,7 +124,7 @@ fn moments(x0: f32, x1: f32, x2: f32, x3: f32, x4: f32, x5: f32, x6: f32, x7: f3
     return m;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn ssim_h(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
           @builtin(local_invocation_index) lid: u32) {
     let g = lin(wid, nwg, lid);
@@ -165,7 +165,7 @@ fn wsum_a(v: array<f32, 11>) -> f32 {
     return wsum(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9], v[10]);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn ssim_v(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
           @builtin(local_invocation_index) lid: u32) {
     let g = lin(wid, nwg, lid);
@@ -196,7 +196,7 @@ fn ssim_v(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
     partial[g] = s;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn sqdiff(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
           @builtin(local_invocation_index) lid: u32) {
     let g = lin(wid, nwg, lid);

@@ -138,10 +138,13 @@ fn overlay(@builtin(global_invocation_id) gid: vec3<u32>) {
     out_rgba[i] = pack4x8unorm(vec4<f32>(c, 1.0));
 }
 
-@compute @workgroup_size(64)
+// One invocation per depth value, RWG per workgroup.
+const RWG: u32 = 64u;
+
+@compute @workgroup_size(RWG)
 fn depth_range(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
                @builtin(local_invocation_index) lid: u32) {
-    let i = workgroup_index(wid, nwg) * 64u + lid;
+    let i = workgroup_index(wid, nwg) * RWG + lid;
     if (i >= P.width * P.height) {
         return;
     }

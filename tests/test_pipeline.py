@@ -13,7 +13,7 @@ from r360gpu.errors import InputError
 from r360gpu.pipeline import EvaluateOptions, default_probes, evaluate
 from r360gpu.pipeline.cache import RunCache
 from r360gpu.pipeline.pictures import PictureSink
-from r360gpu.pipeline.run import SceneRun, Timer, WarningLog
+from r360gpu.pipeline.run import SceneRun, Timer
 from r360gpu.pipeline.stages import score_view
 from r360gpu.pipeline.writer import BackgroundWriter
 from r360gpu.probes.base import StructuralProbe
@@ -28,8 +28,7 @@ def test_overlapped_views_give_the_cells_of_one_view_at_a_time(tmp_path, ctx, la
     bundle = load_bundle(root)
     res = evaluate(bundle, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
     sem, stru = default_probes()
-    run = SceneRun(bundle, EvaluateOptions(**OPTS), ctx, sem, stru, cache=RunCache(None), timer=Timer(),
-                   warnings=WarningLog())
+    run = SceneRun(bundle, EvaluateOptions(**OPTS), ctx, sem, stru, cache=RunCache(None), timer=Timer())
     one_by_one = {v: score_view(run, v, PictureSink(None, False)) for v in run.views}
     run.release()
     for m, entry in res["scenes"][bundle.name]["methods"].items():

@@ -19,7 +19,7 @@ def test_builtin_names_defaults_and_axes():
     from r360gpu.probes.builtin_semantic import BuiltinAppearanceProbe
     from r360gpu.probes.builtin_structural import BuiltinStructuralProbe
     from r360gpu.probes.registry import BUILTIN_PROBES, DEFAULT_PROBES, default_probes, probe_for_axis
-    from r360gpu.scoring import default_probes as scoring_defaults
+    from r360gpu.pipeline import default_probes as scoring_defaults
 
     assert set(BUILTIN_PROBES) == {"builtin-appearance", "builtin-graphseg", "builtin-slic"}
     for axis, name in DEFAULT_PROBES.items():

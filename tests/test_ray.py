@@ -247,7 +247,7 @@ def test_a_worker_on_another_version_fails_clearly(scenes, ray_instance, monkeyp
 
     common = {"version": "0.0.0-other"}
     with pytest.raises(InputError, match="same version on every node"):
-        distributed.score_chunk(common, ["view_000"])
+        distributed.ray_score_task(common, ["view_000"])
 
 
 def test_model_probes_reopen_their_files_when_sent_to_a_worker(tmp_path):

@@ -154,7 +154,7 @@ def test_mask_overlay_blend_is_the_plain_per_mask_blend(seed):
     """The overlay blends each mask (in order) into the float32 panel as
     (1 - alpha) * pixel + alpha * colour, rounded once at the end; it works on each mask's bounding
     box only, which must give exactly the whole-image blend (outlines drawn on both alike)."""
-    from r360gpu.report.pictures import _outline, _resize_mask, _resize_rgb
+    from r360gpu.report.pictures import _outline, resize_mask, _resize_rgb
 
     rng = np.random.default_rng(seed)
     h, w = rng.integers(1, 90, 2)
@@ -168,7 +168,7 @@ def test_mask_overlay_blend_is_the_plain_per_mask_blend(seed):
     img = _resize_rgb(rgb, width).astype(np.float32)
     size = (img.shape[1], img.shape[0])
     cols = mask_colors(4, seed)
-    small = [_resize_mask(m, size) for m in masks]
+    small = [resize_mask(m, size) for m in masks]
     for m, col in zip(small, cols):
         img[m] = (1.0 - 0.45) * img[m] + 0.45 * col.astype(np.float32)
     want = np.rint(img).astype(np.uint8)

@@ -60,15 +60,15 @@ def test_emphasis_ties_share_best_at_printed_precision():
 
 
 def test_second_best_never_marks_the_worst():
-    from r360gpu.report.tables import _emphasis
+    from r360gpu.report.tables import emphasis_marks
 
     # garden acc_seg of the demo: four methods at 1.000, one at 0.000 -> nothing underlined
-    assert _emphasis([1.0, 0.0, 1.0, 1.0, 1.0], 3, True) == ["best", "", "best", "best", "best"]
+    assert emphasis_marks([1.0, 0.0, 1.0, 1.0, 1.0], 3, True) == ["best", "", "best", "best", "best"]
     # a single best: the next distinct value is second, unless it is also the worst
-    assert _emphasis([0.9, 0.5, 0.7, 0.7], 3, True) == ["best", "", "second", "second"]
-    assert _emphasis([0.9, 0.5], 3, True) == ["best", ""]
-    assert _emphasis([0.2, 0.3, 0.4], 3, False) == ["best", "second", ""]
-    assert _emphasis([0.9, None, 0.8, 0.1], 3, True) == ["best", "", "second", ""]
+    assert emphasis_marks([0.9, 0.5, 0.7, 0.7], 3, True) == ["best", "", "second", "second"]
+    assert emphasis_marks([0.9, 0.5], 3, True) == ["best", ""]
+    assert emphasis_marks([0.2, 0.3, 0.4], 3, False) == ["best", "second", ""]
+    assert emphasis_marks([0.9, None, 0.8, 0.1], 3, True) == ["best", "", "second", ""]
 
 
 def test_render_tables_md_and_latex(paper_result):

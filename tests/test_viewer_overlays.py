@@ -7,12 +7,13 @@ import pytest
 from r360gpu.metrics.geometric import acc_depth_view
 from r360gpu.render import Renderer
 from viewer_fixtures import make_parts, orbit_cameras
+from r360gpu.util.resize import resize_nearest
 from r360gpu.viewer import colormaps
 from r360gpu.viewer.compose import Compositor, fit_rect, layout, picture_at, wipe_fraction
 from r360gpu.viewer.layers import PlaneImage
 from r360gpu.viewer.live import delta_stats, live_axis
 from r360gpu.viewer.overlays import (CHANGED_RGB, OverlayPass, OverlaySettings, overlay_reference, pack_mask,
-                             read_picture, resize_nearest)
+                             read_picture)
 
 W, H = 48, 36
 
@@ -111,8 +112,8 @@ def test_pack_mask_and_resize():
     bits = [(int(words[i // 32]) >> (i % 32)) & 1 for i in range(33)]
     assert [i for i, b in enumerate(bits) if b] == [0, 13, 32]
     a = np.arange(12).reshape(3, 4)
-    assert np.array_equal(resize_nearest(a, 8, 6), np.repeat(np.repeat(a, 2, 0), 2, 1))
-    assert resize_nearest(a, 4, 3) is a
+    assert np.array_equal(resize_nearest(a, (6, 8), axes=(0, 1)), np.repeat(np.repeat(a, 2, 0), 2, 1))
+    assert resize_nearest(a, (3, 4), axes=(0, 1)) is a
 
 
 def test_layout_arithmetic():

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..protocol import N_PERM
 from .cells import AxisCells
 from .ranks import average_ranks
 
@@ -127,7 +128,7 @@ def _kendall_within_scenes(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.asarray(taus, dtype=np.float64)
 
 
-def spearman_association(a, b, n_perm: int = 5000, seed: int = 0) -> Association:
+def spearman_association(a, b, n_perm: int = N_PERM, seed: int = 0) -> Association:
     """Association of two axes over a scenes x methods grid.
 
     Args:
@@ -172,7 +173,7 @@ def spearman_association(a, b, n_perm: int = 5000, seed: int = 0) -> Association
     )
 
 
-def axis_association(cells: AxisCells, n_perm: int = 5000, seed: int = 0) -> dict[str, Association]:
+def axis_association(cells: AxisCells, n_perm: int = N_PERM, seed: int = 0) -> dict[str, Association]:
     """:func:`spearman_association` for each pair in :data:`AXIS_PAIRS`.
 
     Every pair uses the same seed, so each p-value does not depend on which

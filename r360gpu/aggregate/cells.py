@@ -13,9 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-
-#: The three RQS axes, in the paper's order (semantic, geometric, structural).
-AXES: tuple[str, str, str] = ("s_sem", "s_geo", "s_str")
+from ..protocol import AXES  # the three RQS axes, in the paper's order (re-exported: aggregate.AXES)
 
 
 def _as_grid(name: str, values, shape: tuple[int, int]) -> np.ndarray:

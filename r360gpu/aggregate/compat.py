@@ -25,12 +25,13 @@ from __future__ import annotations
 from ..metrics.compat import check_compat
 from ..metrics.compat_public import evaluate_public_folder
 from ..metrics.geometric import GhtParams
+from ..protocol import XI_PUBLIC
 from .rqs import rqs as rqs_of
 
 REPLACED = ("s_sem", "acc_seg", "iou_pre", "iou_post", "iou_drop", "s_geo", "s_str", "sim_sam", "rqs", "n_views")
 
 
-def apply_compat(scene: dict, bundle, compat, *, xis=(0.3, 0.5), ght=None) -> None:
+def apply_compat(scene: dict, bundle, compat, *, xis=XI_PUBLIC, ght=None) -> None:
     """Put the public scripts' values into one scene's results (in place); see the module doc."""
     mode = check_compat(compat)
     if mode is None:

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..protocol import CI_LEVEL, N_BOOT
+
 # Resamples per chunk: bounds memory at chunk x S x M floats for large grids.
 # Chunking does not change the numbers (the generator's stream is consumed
 # in the same order).
@@ -53,7 +55,7 @@ class Reliability:
     ci_level: float
 
 
-def reliability(scene_rqs, n_boot: int = 20000, seed: int = 0, ci_level: float = 0.95) -> Reliability:
+def reliability(scene_rqs, n_boot: int = N_BOOT, seed: int = 0, ci_level: float = CI_LEVEL) -> Reliability:
     """Scene-macro statistics of per-scene RQS and a paired bootstrap against the best method.
 
     Args:

@@ -27,7 +27,7 @@ from ..metrics import depth_checks
 from ..metrics.combine import most_alarming_semantic, most_alarming_structural
 from ..metrics.fidelity import fidelity_summary
 from ..metrics.record import ViewRecord
-from ..metrics.semantic import XI_SWEEP
+from ..protocol import AXES, XI_SWEEP
 from .cells import AxisCells
 from .rqs import rqs as rqs_of
 
@@ -129,7 +129,7 @@ def axis_cells(scenes: dict) -> AxisCells | None:
             for k in grids:
                 v = ax.get(k)
                 grids[k][i, j] = np.nan if v is None else float(v)
-    if any(np.isnan(grids[k]).any() for k in ("s_sem", "s_geo", "s_str")):
+    if any(np.isnan(grids[k]).any() for k in AXES):
         return None
     n_views = grids["n_views"] if not np.isnan(grids["n_views"]).any() and (grids["n_views"] > 0).all() else None
     iou_drop = grids["iou_drop"] if not np.isnan(grids["iou_drop"]).any() else None

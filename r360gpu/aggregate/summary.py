@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 
+from ..protocol import CI_LEVEL, N_BOOT, N_PERM
 from .association import axis_association
 from .cells import AXES, AxisCells
 from .ranks import rank_summary
@@ -21,8 +22,8 @@ def _num(x) -> float | None:
 
 def aggregate_tables(
     cells: AxisCells,
-    n_boot: int = 20000,
-    n_perm: int = 5000,
+    n_boot: int = N_BOOT,
+    n_perm: int = N_PERM,
     seed: int = 0,
     rank_decimals: int | None = None,
 ) -> dict:
@@ -109,7 +110,7 @@ def aggregate_tables(
         for j, m in enumerate(methods)
     }
 
-    settings = {"n_boot": int(n_boot), "n_perm": int(n_perm), "seed": int(seed), "ci_level": 0.95,
+    settings = {"n_boot": int(n_boot), "n_perm": int(n_perm), "seed": int(seed), "ci_level": CI_LEVEL,
                 "rank_decimals": rank_decimals}
     notes: dict[str, str] = {}
     if len(scenes) >= 2:

@@ -32,7 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
-AXES = ("s_sem", "s_geo", "s_str")
+from ..protocol import AXES, XI_DEFAULT
+
 AXIS_NAMES = {"s_sem": "semantic", "s_geo": "geometric", "s_str": "structural"}
 BLIND_ABOVE = 0.5
 WEAK_ABOVE = 0.2
@@ -41,7 +42,7 @@ MIOU_PRE_WEAK = 0.5
 DETECT_WEAK = 0.8
 
 
-def detectability(view_records: list[dict], xi: float = 0.3) -> dict | None:
+def detectability(view_records: list[dict], xi: float = XI_DEFAULT) -> dict | None:
     """Scene mIoU_pre and the fraction of views with IoU_pre >= xi, over the views
     with a non-empty target; per view the best semantic probe counts.
 
@@ -59,7 +60,7 @@ def detectability(view_records: list[dict], xi: float = 0.3) -> dict | None:
     return {"miou_pre": float(a.mean()), "detect_frac": float((a >= xi).mean()), "n_views": int(a.size), "xi": xi}
 
 
-def scene_validity(scene: dict, xi: float = 0.3) -> tuple[dict, dict, dict | None]:
+def scene_validity(scene: dict, xi: float = XI_DEFAULT) -> tuple[dict, dict, dict | None]:
     """({axis: "ok" | "weak" | "blind" | None}, {axis: one sentence per non-ok verdict},
     :func:`detectability`) of one scene.
 

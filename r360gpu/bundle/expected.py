@@ -16,7 +16,7 @@ bundle.
 """
 from __future__ import annotations
 
-AXES = ("s_sem", "s_geo", "s_str")
+from ..protocol import AXES
 KEYS = ("failure", "caught_by")
 
 

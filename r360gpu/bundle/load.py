@@ -48,7 +48,7 @@ from ..util import warning_log
 from ..io.camera import Camera
 from ..io.compressed_ply import check_compressed_header, is_compressed_ply
 from ..io.inria_ply import check_inria_header, is_inria_ply
-from ..io.load import _latest_inria_iteration, load_cameras, load_gaussians
+from ..io.load import latest_inria_iteration, load_cameras, load_gaussians
 from ..io.masks import load_mask, mask_size
 from ..io.paths import link_problem
 from ..io.ply import read_ply_header
@@ -176,7 +176,7 @@ def _draft_from_config(root: Path, config: Path, problems: list[Problem], *, vie
             d.name = data["name"]
         else:
             bad("'name' must be a non-empty string")
-    reason = _bad_file_name(d.name)
+    reason = bad_name(d.name)
     if reason:
         bad(f"scene name {d.name!r} {reason} (it names output folders); set name = \"...\"")
 
@@ -392,11 +392,6 @@ def _parse_options(table, bad) -> BundleOptions:
         else:
             bad(f"[options] 'reference_free' must be true or false, got {table['reference_free']!r}")
     return opts
-
-
-def _bad_file_name(name: str) -> str | None:
-    """Why ``name`` cannot name an output folder, or None (:func:`.names.bad_name`)."""
-    return bad_name(name)
 
 
 # --- resolving and checking the files ------------------------------------------------------------
@@ -662,7 +657,7 @@ def _check_scene(spec: SourceSpec, label: str, problems: list[Problem], *, deep:
         if not p.exists():
             raise InputError(f"scene file is a {link_problem(p)}" if link_problem(p) else "no such file", p)
         if p.is_dir():
-            p = _latest_inria_iteration(p)
+            p = latest_inria_iteration(p)
         suffix = p.suffix.lower()
         if suffix == ".splat":
             _check_splat(p)

@@ -3,9 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..protocol import N_BOOT, N_PERM, XI_DEFAULT, XI_SWEEP
 from .lists import ListAction, add_views_option
-
-DEFAULT_XIS = (0.3, 0.5, 0.7, 0.9)
 
 
 def add_scoring_options(p) -> None:
@@ -42,8 +41,8 @@ def add_scoring_options(p) -> None:
                    help="skip the identity and reference controls (the unedited scene and the reference scored "
                         "as methods, never ranked) that give each axis its validity verdict")
     g = p.add_argument_group("statistics")
-    g.add_argument("--n-boot", type=int, default=20000, help="bootstrap resamples (default 20000)")
-    g.add_argument("--n-perm", type=int, default=5000, help="permutations (default 5000)")
+    g.add_argument("--n-boot", type=int, default=N_BOOT, help=f"bootstrap resamples (default {N_BOOT})")
+    g.add_argument("--n-perm", type=int, default=N_PERM, help=f"permutations (default {N_PERM})")
     g.add_argument("--seed", type=int, default=0, help="seed of bootstrap and permutations (default 0)")
     g = p.add_argument_group("run")
     g.add_argument("--adapter", default=None, help="GPU adapter: auto, gpu, cpu, or part of its name")
@@ -141,9 +140,9 @@ def executor_from_args(args):
 def options_from_args(args):
     from ..pipeline import EvaluateOptions
 
-    xis = args.xi or DEFAULT_XIS  # checked, with every other option, by EvaluateOptions
+    xis = args.xi or XI_SWEEP  # checked, with every other option, by EvaluateOptions
     return EvaluateOptions(
-        xis=tuple(sorted(set(xis) | {0.3})),
+        xis=tuple(sorted(set(xis) | {XI_DEFAULT})),
         compat=args.compat,
         reference_free=True if args.reference_free else None,
         depth=args.depth,

@@ -18,6 +18,7 @@ import sys
 
 from ..aggregate import aggregate_tables, read_axes_csv
 from ..errors import InputError
+from ..protocol import N_BOOT, N_PERM
 from ..report.tables import FORMATS, render_tables
 from ..util.atomic import write_json
 
@@ -64,9 +65,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("axes_csv", metavar="AXES.csv", help="per-(scene, method) axes")
     p.add_argument("--json", metavar="OUT", help="also write the numbers to this JSON file (atomically)")
     p.add_argument("--format", choices=FORMATS, default="md", help="table format printed (default: md)")
-    p.add_argument("--n-boot", type=_positive_int, default=20000, metavar="N",
+    p.add_argument("--n-boot", type=_positive_int, default=N_BOOT, metavar="N",
                    help="bootstrap resamples for P(beats best) (default: 20000)")
-    p.add_argument("--n-perm", type=_positive_int, default=5000, metavar="N",
+    p.add_argument("--n-perm", type=_positive_int, default=N_PERM, metavar="N",
                    help="within-scene permutations for the scene-centred rho p-value (default: 5000)")
     p.add_argument("--seed", type=_non_negative_int, default=0,
                    help="seed of the bootstrap and permutation generators (default: 0)")

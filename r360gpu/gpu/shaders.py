@@ -13,6 +13,7 @@ kernels of their own.
 """
 from __future__ import annotations
 
+import ast
 import os
 import re
 from functools import lru_cache
@@ -84,3 +85,72 @@ def available_shaders(include_only: bool = True) -> list[str]:
     if not include_only:
         names -= set(INCLUDE_ONLY)
     return sorted(names)
+
+
+# ---- sizes the shaders state, read by the host -------------------------------------------------
+# Workgroup sizes and per-workgroup block sizes are written once, in the WGSL (a module-scope
+# ``const NAME: u32 = ...;`` and ``@workgroup_size(NAME)``); the host reads them from there with
+# shader_constants / workgroup_size instead of keeping a copy that could drift.
+
+_CONST_U32 = re.compile(r"^[ \t]*const[ \t]+(\w+)[ \t]*:[ \t]*u32[ \t]*=[ \t]*([^;]+);", re.MULTILINE)
+_WORKGROUP_SIZE = re.compile(r"@workgroup_size\(([^)]*)\)\s*fn\s+(\w+)\s*\(")
+_U32_LITERAL = re.compile(r"\b(\d+)u\b")
+_OPS = {ast.Add: int.__add__, ast.Sub: int.__sub__, ast.Mult: int.__mul__, ast.FloorDiv: int.__floordiv__,
+        ast.LShift: int.__lshift__, ast.RShift: int.__rshift__}
+
+
+def _u32_expr(text: str, known: dict[str, int], where: str) -> int:
+    """Value of a WGSL u32 constant expression made of literals, earlier constants and + - * / << >>."""
+    src = _U32_LITERAL.sub(r"\1", text.strip()).replace("/", "//")
+
+    def ev(node: ast.AST) -> int:
+        if isinstance(node, ast.Constant) and type(node.value) is int:
+            return node.value
+        if isinstance(node, ast.Name) and node.id in known:
+            return known[node.id]
+        if isinstance(node, ast.BinOp) and type(node.op) in _OPS:
+            return _OPS[type(node.op)](ev(node.left), ev(node.right))
+        raise ValueError(f"{where}: cannot evaluate u32 expression {text.strip()!r} on the host")
+
+    return ev(ast.parse(src, mode="eval").body)
+
+
+@lru_cache(maxsize=None)
+def _constants_of(source: str, name: str) -> dict[str, int]:
+    out: dict[str, int] = {}
+    for m in _CONST_U32.finditer(source):
+        try:
+            out[m.group(1)] = _u32_expr(m.group(2), out, f"{name}.wgsl const {m.group(1)}")
+        except ValueError:
+            continue  # e.g. a bitcast or a function call: not a size the host needs
+    return out
+
+
+def shader_constants(name: str) -> dict[str, int]:
+    """The module-scope ``const NAME: u32`` values of shader ``name`` (includes expanded)."""
+    return dict(_constants_of(load_shader_source(name), name))
+
+
+def shader_constant(name: str, const: str) -> int:
+    """One ``const`` of shader ``name``; a clear error if the shader does not declare it."""
+    consts = shader_constants(name)
+    if const not in consts:
+        raise KeyError(f"{name}.wgsl declares no u32 const {const} (has: {', '.join(sorted(consts))})")
+    return consts[const]
+
+
+def workgroup_size(name: str, entry_point: str = "main") -> tuple[int, int, int]:
+    """The ``@workgroup_size`` of ``entry_point`` in shader ``name``, as (x, y, z)."""
+    source = load_shader_source(name)
+    consts = _constants_of(source, name)
+    for m in _WORKGROUP_SIZE.finditer(source):
+        if m.group(2) == entry_point:
+            dims = [_u32_expr(d, consts, f"{name}.wgsl {entry_point}") for d in m.group(1).split(",") if d.strip()]
+            return tuple(dims + [1] * (3 - len(dims)))  # type: ignore[return-value]
+    raise KeyError(f"{name}.wgsl has no compute entry point {entry_point!r} with a @workgroup_size")
+
+
+def workgroup_threads(name: str, entry_point: str = "main") -> int:
+    """Invocations in one workgroup of ``entry_point`` (the product of its workgroup size)."""
+    x, y, z = workgroup_size(name, entry_point)
+    return x * y * z

@@ -37,7 +37,7 @@ def load_gaussians(path: str | os.PathLike) -> Gaussians:
     """
     p = Path(path)
     if p.is_dir():
-        p = _latest_inria_iteration(p)
+        p = latest_inria_iteration(p)
     if not p.is_file():
         raise InputError("no such file", p)
     suffix = p.suffix.lower()
@@ -54,7 +54,7 @@ def load_gaussians(path: str | os.PathLike) -> Gaussians:
         f"or a .splat file", p)
 
 
-def _latest_inria_iteration(folder: Path) -> Path:
+def latest_inria_iteration(folder: Path) -> Path:
     runs = []
     pc = folder / "point_cloud"
     if pc.is_dir():

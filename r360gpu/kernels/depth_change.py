@@ -38,15 +38,17 @@ import numpy as np
 
 from ..errors import InputError
 from ..gpu.context import BufferRange, GpuContext, get_context
+from ..gpu.shaders import shader_constants, workgroup_threads
 
 SHADER = "depth_change"
-QV = 4  # vec4s per invocation in delta_minmax / histo (shader constant QV)
-N_BINS = 256
-_PX_PER_GROUP = {  # pixels one workgroup covers, per entry point
-    "delta_minmax": 64 * QV * 4,
-    "histo": 256 * QV * 4,
-    "histo_private": 16 * 256 * 4,
-    "changed": 64 * 32,
+_SIZES = shader_constants(SHADER)  # the sizes depth_change.wgsl states
+QV = _SIZES["QV"]  # vec4s per invocation in delta_minmax / histo
+N_BINS = _SIZES["N_BINS"]
+_PX_PER_GROUP = {  # pixels one workgroup covers, per entry point (4 pixels a vec4, 32 a changed word)
+    "delta_minmax": workgroup_threads(SHADER, "delta_minmax") * QV * 4,
+    "histo": workgroup_threads(SHADER, "histo") * QV * 4,
+    "histo_private": workgroup_threads(SHADER, "histo_private") * _SIZES["HQ"] * 4,
+    "changed": workgroup_threads(SHADER, "changed") * 32,
 }
 
 
@@ -342,7 +344,7 @@ def changed_in_masks(stages, mask, ts, *, ctx: GpuContext | None = None) -> list
             ctx.dispatch(
                 enc, pipe,
                 [params, None, None, c.delta, BufferRange(stats, k * stride, 16), None, m_bufs[c.r0], words],
-                ctx.grid(math.ceil(n_words / 64)),
+                ctx.grid(math.ceil(n_words / workgroup_threads(SHADER, "changed"))),
             )
             pending.append((k, c, words, n_words))
     ctx.submit(enc)

@@ -28,10 +28,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..gpu.context import BufferRange, GpuContext, get_context
+from ..gpu.shaders import shader_constant
 
 SHADER = "mask_iou"
 _HOST_COUNTS = hasattr(np, "bitwise_count")  # numpy >= 2; else intersections always run the kernel
-WG = 64  # workgroup size of every entry point in mask_iou.wgsl
+WG = shader_constant(SHADER, "WG")  # workgroup size of every entry point in mask_iou.wgsl
 _RANGES_EMPTY = (0, 0)
 
 

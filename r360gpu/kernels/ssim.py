@@ -46,14 +46,14 @@ import numpy as np
 
 from ..errors import InputError
 from ..gpu.context import GpuContext, get_context
+from ..gpu.shaders import shader_constants
 
 SHADER = "ssim"
 WIN = 11
 SIGMA = 1.5
 K1, K2 = 0.01, 0.03
-RB = 16  # output rows per ssim_v invocation (shader constant RB)
-SQ = 16  # words per sqdiff invocation (shader constant SQ)
-WG = 64
+_SIZES = shader_constants(SHADER)  # sizes ssim.wgsl states: RB output rows per ssim_v invocation,
+RB, SQ, WG = _SIZES["RB"], _SIZES["SQ"], _SIZES["WG"]  # SQ words per sqdiff invocation, WG invocations
 #: |mean SSIM - float64 definition|, per backend.  cpu: a bound, not a
 #: typical value: float32 rounding of E[x^2] and E[x]^2 (values within 0.5 of
 #: the shift) is about 4 * 2^-24 * 0.25 = 6e-8 against C2 = 9e-4, i.e. <= 1e-4

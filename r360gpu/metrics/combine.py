@@ -27,7 +27,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from ..errors import InputError
-from .semantic import XI_DEFAULT, SemanticSummary, SemanticView, semantic_summary
+from ..protocol import XI_DEFAULT
+from .semantic import SemanticSummary, SemanticView, semantic_summary
 from .structural import StructuralSummary, StructuralView, common_mode, structural_summary
 
 

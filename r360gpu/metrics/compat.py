@@ -45,6 +45,7 @@ import numpy as np
 
 from r360gpu.errors import InputError
 from r360gpu.metrics.ght import ght
+from r360gpu.protocol import GHT_KAPPA, GHT_NU, GHT_OMEGA, GHT_TAU
 
 N_LEVELS = 256
 """Entries of matplotlib's gray_r colormap (``Colormap.N``) and of the gray-level histogram."""
@@ -175,10 +176,10 @@ def compat_quantise(delta) -> np.ndarray:
 
 def compat_changed(
     delta,
-    nu: float = 1000.0,
-    tau: float = 300.0,
-    kappa: float = 0.0,
-    omega: float = 0.0,
+    nu: float = GHT_NU,
+    tau: float = GHT_TAU,
+    kappa: float = GHT_KAPPA,
+    omega: float = GHT_OMEGA,
 ) -> CompatResult:
     """``gray < t`` of the ``"public"`` path for one view, before the mask PNG round trip
     (:func:`public_changed` adds it; the two differ only for a constant mask).
@@ -253,10 +254,10 @@ def public_gray(delta, mode: str) -> np.ndarray:
 def public_changed(
     delta,
     mode: str = "public",
-    nu: float = 1000.0,
-    tau: float = 300.0,
-    kappa: float = 0.0,
-    omega: float = 0.0,
+    nu: float = GHT_NU,
+    tau: float = GHT_TAU,
+    kappa: float = GHT_KAPPA,
+    omega: float = GHT_OMEGA,
 ) -> CompatResult:
     """The changed-pixel mask the scripts' depth evaluation reads for one view.
 

@@ -45,13 +45,13 @@ import cv2
 import numpy as np
 
 from ..errors import InputError, R360Warning
+from ..protocol import RETAIN_IOU, XI_PUBLIC
 from .compat import check_compat, public_changed, public_delta, read_depth_public
 from .geometric import GhtParams
 
 SEMANTIC_DIRS = {"pre": "gsam2/before/mask", "post": "gsam2/after/mask"}
 SAM_DIRS = {"gt": "masks", "post": "sam/after"}
 DEPTH_DIRS = {"pre": "depth/before", "post": "depth/after"}
-RETAIN_IOU = 0.10
 
 
 # --- readers, as the scripts read ------------------------------------------------------------
@@ -212,7 +212,7 @@ def sam_view_public(gt_records, post_records, target: np.ndarray, where: str = "
 
 # --- a folder ---------------------------------------------------------------------------------
 
-def evaluate_public_folder(root: str | os.PathLike, compat="public", *, xis=(0.3, 0.5),
+def evaluate_public_folder(root: str | os.PathLike, compat="public", *, xis=XI_PUBLIC,
                            ght: GhtParams = GhtParams()) -> dict:
     """Per-view and scene values of one public-layout scene folder, as the scripts compute them.
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels import depth_change as kernel
+from ..protocol import GHT_KAPPA, GHT_NU, GHT_OMEGA, GHT_TAU
 from .compat import check_compat, public_changed, public_delta
 from .ght import ght, threshold_value
 
@@ -26,10 +27,10 @@ from .ght import ght, threshold_value
 class GhtParams:
     """Barron's GHT parameters; defaults are the Remove360 reference values."""
 
-    nu: float = 1000.0
-    tau: float = 300.0
-    kappa: float = 0.0
-    omega: float = 0.0
+    nu: float = GHT_NU
+    tau: float = GHT_TAU
+    kappa: float = GHT_KAPPA
+    omega: float = GHT_OMEGA
 
     def as_dict(self) -> dict:
         return {"nu": self.nu, "tau": self.tau, "kappa": self.kappa, "omega": self.omega}

@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 
 from r360gpu.errors import InputError
+from r360gpu.protocol import GHT_BINS, GHT_KAPPA, GHT_NU, GHT_OMEGA, GHT_TAU
 
 # Floor applied to class weights and variances, as in the paper; it keeps the
 # logarithms finite for empty classes and zero-scatter classes.
@@ -109,10 +110,10 @@ def _check_parameters(nu: float, tau: float, kappa: float, omega: float) -> None
 def ght(
     hist,
     x=None,
-    nu: float = 1000.0,
-    tau: float = 300.0,
-    kappa: float = 0.0,
-    omega: float = 0.0,
+    nu: float = GHT_NU,
+    tau: float = GHT_TAU,
+    kappa: float = GHT_KAPPA,
+    omega: float = GHT_OMEGA,
 ) -> GhtResult:
     """Pick the split of a histogram that maximises the GHT objective.
 
@@ -181,7 +182,7 @@ def _scores(n: np.ndarray, x: np.ndarray, nu: float, tau: float, kappa: float, o
     return f0 + f1
 
 
-def threshold_value(threshold: float, lo: float, hi: float, n_bins: int = 256) -> float:
+def threshold_value(threshold: float, lo: float, hi: float, n_bins: int = GHT_BINS) -> float:
     """Map a GHT threshold in bin-index units to a data value.
 
     The histogram is assumed to have ``n_bins`` equal bins spanning

@@ -12,7 +12,7 @@ rows, computing what the methods share once per view:
 
 The values equal the per-method functions (semantic_view, structural_view,
 acc_depth_view, fidelity_view, boundary_sensitivity) called one method at a
-time, as ``r360gpu/scoring.py`` does (tests/test_metrics_measure.py).
+time (tests/test_metrics_measure.py).
 """
 from __future__ import annotations
 
@@ -25,7 +25,8 @@ import numpy as np
 from .fidelity import LpipsModel, fidelity_views
 from .geometric import GeometricView, GhtParams, acc_depth_views
 from .record import ViewRecord
-from .semantic import XI_DEFAULT, semantic_view
+from ..protocol import XI_DEFAULT
+from .semantic import semantic_view
 from .sensitivity import NOT_GIVEN, BoundaryInput, boundary_sensitivity, boundary_targets
 from .structural import check_mode, structural_view
 
@@ -48,14 +49,12 @@ class MethodOutputs:
 @dataclass
 class MethodMeasures:
     """What the measure stage gives per method: the record, the boundary rows
-    ({row: {label: value}}, None when the sweep is off or lacks a probe), the
-    GeometricView (for pictures; None without depths) and the structural mask
-    pairs (first rendering, second rendering) per probe."""
+    ({row: {label: value}}, None when the sweep is off or lacks a probe) and the
+    GeometricView (for pictures; None without depths)."""
 
     record: ViewRecord
     boundary: dict | None
     geometric: GeometricView | None
-    pairs: dict
 
 
 def measure_view_methods(
@@ -120,13 +119,13 @@ def measure_view_methods(
                     ctx=ctx,
                 )
                 rows = {row: table.row(row) for row in table.rows}
-            parts[m] = (sem_views, str_views, g, rows, pairs)
+            parts[m] = (sem_views, str_views, g, rows)
         fid = fidelity.result()
     out = {}
-    for m, (sem_views, str_views, g, rows, pairs) in parts.items():
+    for m, (sem_views, str_views, g, rows) in parts.items():
         record = ViewRecord.build(view, scene, m, probes=probes, semantic=sem_views, structural=str_views,
                                   geometric=g, fidelity=fid.get(m))
-        out[m] = MethodMeasures(record, rows, g, pairs)
+        out[m] = MethodMeasures(record, rows, g)
     return out
 
 

@@ -19,6 +19,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from ..protocol import VIEW_RECORD_SCHEMA
 from . import _json
 from .fidelity import FidelityView
 from .geometric import GeometricView
@@ -26,7 +27,7 @@ from .semantic import SemanticView
 from .structural import StructuralView
 
 #: Format tag written into every record.
-SCHEMA = "r360gpu.view_record/1"
+SCHEMA = VIEW_RECORD_SCHEMA
 
 
 @dataclass(frozen=True)

@@ -36,13 +36,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels import mask_iou as K
+from ..protocol import XI_DEFAULT, XI_SWEEP
 from . import _json
 from ._masks import mask_stack, probe_name, target_mask
 
-#: The paper's detection threshold (s_sem = acc_seg at this ξ).
-XI_DEFAULT = 0.3
-#: Thresholds of the sensitivity sweep (Supp. "threshold sensitivity").
-XI_SWEEP = (0.3, 0.5, 0.7, 0.9)
 
 
 @dataclass(frozen=True)

@@ -54,11 +54,10 @@ from ..errors import InputError
 from ..kernels import mask_iou as K
 from ..gpu.context import get_context
 from ..kernels import morph
+from ..protocol import BOUNDARY_PX, RETAIN_IOU, XI_DEFAULT, XI_SWEEP
 from . import _json
 from .geometric import GeometricView, GhtParams, acc_depth_view
 from .semantic import (
-    XI_DEFAULT,
-    XI_SWEEP,
     SemanticView,
     acc_seg,
     check_xi,
@@ -70,7 +69,7 @@ from .structural import check_mode, retained, structural_from_ious, structural_s
 from ._masks import mask_stack, probe_name, target_mask, where
 
 #: Boundary offsets in pixels: negative = erosion, positive = dilation.
-BOUNDARY_OFFSETS = (-15, -10, -5, 0, 5, 10, 15)
+BOUNDARY_OFFSETS = (*(-r for r in reversed(BOUNDARY_PX)), 0, *BOUNDARY_PX)
 
 
 def boundary_label(offset: int) -> str:
@@ -250,7 +249,7 @@ def boundary_sensitivity(
     structural_mode: str | None = None,
     offsets: Sequence[int] = BOUNDARY_OFFSETS,
     xis: Iterable[float] = (XI_DEFAULT,),
-    retain_iou: float = 0.1,
+    retain_iou: float = RETAIN_IOU,
     compat: bool = False,
     ght_params: GhtParams = GhtParams(),
     include_empty_targets: bool = False,

@@ -55,13 +55,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels import mask_iou as K
+from ..protocol import RETAIN_IOU, STRUCTURAL_MODES
 from . import _json
 from ._masks import mask_stack, probe_name, target_mask
 
-#: Minimum IoU with the target mask for a probe mask to be retained.
-RETAIN_IOU = 0.1
-#: Comparison modes (eq. structural_axis).
-MODES = ("reference", "reference_free")
+MODES = STRUCTURAL_MODES  # short local name
 
 
 def check_mode(mode: str) -> str:

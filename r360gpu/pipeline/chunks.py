@@ -26,13 +26,13 @@ def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, a
     from ..gpu import get_context
     from .cache import RunCache
     from .pictures import PictureSink
-    from .run import SceneRun, Timer, WarningLog
+    from .run import SceneRun, Timer
     from .stages import score_view
 
     ctx = ctx or get_context(adapter)
     b = bundle if isinstance(bundle, Bundle) else load_bundle(bundle)
     run = SceneRun(b, options, ctx, list(semantic_probes), list(structural_probes), cache=RunCache(None),
-                   timer=Timer(), warnings=WarningLog())
+                   timer=Timer())
     try:
         unknown = [v for v in views if v not in run.views]
         if unknown:

@@ -10,7 +10,7 @@ returns the cells of the views the view cache does not hold.  Per scene:
 * the views missing from the view cache are cut into chunks of consecutive
   views, one Ray task each: (scene bundle, options, the fitted probe objects,
   the chunk).  Views already cached are not sent;
-* a task (:func:`score_chunk`) checks that its node runs the driver's
+* a task (:func:`ray_score_task`) checks that its node runs the driver's
   r360gpu version, opens its own GPU context, rebuilds the SceneRun without
   fitting and without any cache (the driver's ``--out`` need not be shared),
   reads the bundle's files by their absolute paths (every node must see the
@@ -252,7 +252,7 @@ class RayExecutor:
         size = self.options.chunk or min(MAX_CHUNK, max(1, math.ceil(len(todo) / (2 * workers))))
         chunks = chunk_views(todo, size)
         if self._remote is None:
-            self._remote = ray.remote(score_chunk)
+            self._remote = ray.remote(ray_score_task)
         task = self._remote.options(num_cpus=cpus, num_gpus=gpus, max_retries=self.options.max_retries,
                                     retry_exceptions=False)
         from .. import __version__
@@ -311,7 +311,7 @@ class RayExecutor:
                 view_cache.store_view(v, cells, run.changed_inputs(v, result.get("decoded", {}).get(v)))
         warning_log.replay(result["warnings"])
         for stage, s in result["timing"].items():
-            run.timer.totals[stage] = run.timer.totals.get(stage, 0.0) + s
+            run.timer.add_seconds(stage, s)
         self.nodes[result["node"]] = self.nodes.get(result["node"], 0) + 1
         if result["adapter"] not in self.adapters:
             self.adapters.add(result["adapter"])
@@ -351,7 +351,7 @@ class _TaskProgress:
             self.bar.close()
 
 
-def score_chunk(common: dict, views: list) -> dict:
+def ray_score_task(common: dict, views: list) -> dict:
     """One Ray task: score ``views`` of one scene on this node (module docstring)."""
     import platform
 
@@ -367,20 +367,20 @@ def score_chunk(common: dict, views: list) -> dict:
     ctx = get_context(common["adapter"])
     timer = Timer()
     with warning_log.collecting(None), warning_log.where(scene=common["bundle"].name):
-        return _score_chunk(common, views, ctx, timer, node)
+        return _ray_score_task(common, views, ctx, timer, node)
 
 
-def _score_chunk(common, views, ctx, timer, node) -> dict:
+def _ray_score_task(common, views, ctx, timer, node) -> dict:
     import tempfile
 
     from .cache import RunCache
     from .pictures import PictureSink
-    from .run import SceneRun, WarningLog
+    from .run import SceneRun
     from ..util.filehash import decoded_digests
     from .stages import score_view
 
     run = SceneRun(common["bundle"], common["opts"], ctx, common["sem"], common["stru"], cache=RunCache(None),
-                   timer=timer, warnings=WarningLog(), fit=False)
+                   timer=timer, fit=False)
     try:
         if run.probes_desc != common["probes_desc"]:
             raise InputError(f"Ray node {node}: the probes arrived different from the driver's "

@@ -6,13 +6,13 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from .. import __version__
 from ..errors import InputError
 from ..util import warning_log
 from .cache import RunCache
 from .options import EvaluateOptions, default_probes
 from .pictures import PictureSink
-from .run import SceneRun, Timer, WarningLog
+from .results_doc import ResultsDocument
+from .run import SceneRun, Timer
 from .stages import gather
 
 
@@ -109,22 +109,14 @@ def _load_and_evaluate(bundles, out, semantic_probes, structural_probes, options
 
 
 def _evaluate(loaded, opts, ctx, probes, cache, sink, out, progress, log, executor=None, kept=None) -> dict:
-    from ..aggregate.pooling import aggregate_results
     from ..util.imports import ImportAhead
 
     # the cross-scene statistics (two scenes or more) use scipy.stats, first needed once every view is scored
     later = ImportAhead(*(["scipy.stats"] if len(loaded) >= 2 else []))
     timer = Timer()
-    warnings = WarningLog()
-    results = {
-        "schema": "r360gpu.results/1",
-        "r360gpu_version": __version__,
-        "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "adapter": ctx.describe(),
-        "options": {**opts.scoring_key(), "n_boot": opts.n_boot, "n_perm": opts.n_perm, "seed": opts.seed},
-        "probes": {},
-        "scenes": {},
-    }
+    document = ResultsDocument(adapter=ctx.describe(), options={**opts.scoring_key(), "n_boot": opts.n_boot,
+                                                                "n_perm": opts.n_perm, "seed": opts.seed})
+    results = document.doc
     t_start = time.perf_counter()
     n_views_done = 0
     views_of: dict = {}
@@ -134,7 +126,7 @@ def _evaluate(loaded, opts, ctx, probes, cache, sink, out, progress, log, execut
     def open_run(bundle) -> SceneRun:
         sem, stru, selection = scene_probes(bundle, probes[0], probes[1], compat=opts.compat, defaults=probes[2])
         with warning_log.where(scene=bundle.name):
-            run = SceneRun(bundle, opts, ctx, sem, stru, cache=cache, timer=timer, warnings=warnings, kept=kept)
+            run = SceneRun(bundle, opts, ctx, sem, stru, cache=cache, timer=timer, kept=kept)
         run.probe_selection = selection
         return run
 
@@ -153,20 +145,17 @@ def _evaluate(loaded, opts, ctx, probes, cache, sink, out, progress, log, execut
                 from ..aggregate.compat import apply_compat
 
                 apply_compat(scene_res, bundle, opts.compat, xis=opts.xis, ght=opts.ght)
-            results["scenes"][bundle.name] = scene_res
-            _add_probes(results["probes"], bundle.name, run)
+            document.add_scene(bundle.name, scene_res, run.probes_desc, selection=run.probe_selection)
             n_views_done += len(run.views)
             plots.draw(bundle.name, scene_res)
-        results["timing"] = {"stages_s": {k: round(v, 3) for k, v in timer.totals.items()},
-                             "total_s": round(time.perf_counter() - t_start, 3),
-                             "views": n_views_done}
-        if executor is not None:  # what ran where; a comparison of runs leaves timing out
-            results["timing"]["executor"] = executor.describe()
+        document.set_timing(timer.totals, time.perf_counter() - t_start, n_views_done,
+                            executor.describe() if executor is not None else None)
+        if executor is not None:
             executor.close()
         later.wait()
-        aggregate_results(results, n_boot=opts.n_boot, n_perm=opts.n_perm, seed=opts.seed)
-        results["warnings"] = in_run_order(warning_log.records(), [b.name for b in loaded], views_of)
-        results["warning_counts"] = warning_log.counts()
+        document.aggregate(n_boot=opts.n_boot, n_perm=opts.n_perm, seed=opts.seed)
+        document.set_warnings(in_run_order(warning_log.records(), [b.name for b in loaded], views_of),
+                              warning_log.counts())
         if out is not None:
             from ..report.outputs import write_run_outputs
 
@@ -175,21 +164,6 @@ def _evaluate(loaded, opts, ctx, probes, cache, sink, out, progress, log, execut
         scenes.close()
         plots.close()
     return results
-
-
-def _add_probes(entry: dict, scene: str, run: SceneRun) -> None:
-    """The scene's probe descriptions joined into results["probes"] (each probe once), and which
-    probes it ran and why in results["probes"]["selection"][scene]."""
-    import json
-
-    for axis in ("semantic", "structural"):
-        have = entry.setdefault(axis, [])
-        for d in run.probes_desc.get(axis, []):
-            if json.dumps(d, sort_keys=True, default=str) not in {json.dumps(h, sort_keys=True, default=str)
-                                                                    for h in have}:
-                have.append(d)
-    if getattr(run, "probe_selection", None):
-        entry.setdefault("selection", {})[scene] = run.probe_selection
 
 
 def _say_probes(run: SceneRun, log) -> None:

@@ -4,7 +4,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 from ..metrics.geometric import GhtParams
-from ..metrics.semantic import XI_SWEEP
+from ..probes.registry import default_probes  # noqa: F401  (the pipeline's default probes)
+from ..protocol import N_BOOT, N_PERM, XI_SWEEP
 
 
 @dataclass
@@ -42,8 +43,8 @@ class EvaluateOptions:
     pictures: bool = True
     fit_views: int = 8
     controls: bool = True
-    n_boot: int = 20000
-    n_perm: int = 5000
+    n_boot: int = N_BOOT
+    n_perm: int = N_PERM
     seed: int = 0
     antialiased: bool = False  # render every splat scene in the antialiased mode (score --antialiased)
 
@@ -94,10 +95,3 @@ class EvaluateOptions:
         d["xis"] = [float(x) for x in self.xis]
         d["views"] = None if self.views is None else list(self.views)
         return d
-
-
-def default_probes():
-    """The weight-free built-in probes: (semantic list, structural list) (see probes.registry)."""
-    from ..probes.registry import default_probes as registry_defaults
-
-    return registry_defaults()

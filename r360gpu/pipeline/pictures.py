@@ -94,21 +94,21 @@ class _Shrink:
         return self._memo.get("rgb", (a,), lambda: rgb8_at(a, self.width))
 
     def _size(self, shape):
-        from ..report.pictures import _size_for
+        from ..report.pictures import panel_size
 
-        return _size_for(shape, self.width)
+        return panel_size(shape, self.width)
 
     def mask(self, m):
-        from ..report.pictures import _resize_mask
+        from ..report.pictures import resize_mask
 
-        return self._memo.get("mask", (m,), lambda: _resize_mask(np.asarray(m) != 0, self._size(np.shape(m))))
+        return self._memo.get("mask", (m,), lambda: resize_mask(np.asarray(m) != 0, self._size(np.shape(m))))
 
     def union(self, prediction):
         """A semantic prediction's union mask, at the panel size."""
         return self._memo.get("union", (prediction,), lambda: self.mask(prediction.union()))
 
     def masks(self, stack):
-        from ..report.pictures import _resize_mask
+        from ..report.pictures import resize_mask
 
         def make(x):
             a = np.asarray(x) != 0
@@ -117,6 +117,6 @@ class _Shrink:
             if a.ndim != 3 or not a.shape[0]:
                 return a
             size = self._size(a.shape[1:])
-            return np.stack([_resize_mask(k, size) for k in a])
+            return np.stack([resize_mask(k, size) for k in a])
 
         return self._memo.get("masks", (stack,), lambda: make(stack))

@@ -15,7 +15,6 @@ holds
   learn from the scene are fitted (as per-scene copies) on pre renders that
   are then reused for scoring those views, or, when a fit record in the
   cache says what the fit gives, only once a view has to be scored;
-* ``warnings``: a :class:`WarningLog` the stages add to;
 * ``kept``: renders made before the run (:class:`~r360gpu.render.kept.KeptRenders`,
   e.g. the synthetic generator's reference renders), used instead of rendering
   a view again.
@@ -51,15 +50,10 @@ class Timer:
             self.totals[stage] = self.totals.get(stage, 0.0) + t - t0
         return t
 
-
-class WarningLog:
-    """The stages' handle on the run's warnings (:mod:`r360gpu.util.warning_log`, printed once
-    and recorded in results.json with scene, method, view and file)."""
-
-    def add(self, message: str, *, scene=None, method=None, view=None, file=None) -> None:
-        from ..util import warning_log
-
-        warning_log.warn(message, file=file, scene=scene, method=method, view=view)
+    def add_seconds(self, stage: str, seconds: float) -> None:
+        """Add seconds measured elsewhere (a Ray task's stage totals)."""
+        with self._lock:
+            self.totals[stage] = self.totals.get(stage, 0.0) + seconds
 
 
 def select_views(names: list[str], patterns, where=None) -> list[str]:
@@ -109,13 +103,13 @@ def open_pres(bundle, src) -> tuple[dict, dict]:
 class SceneRun:
     """The opened sources, masks and probes of one scene (see the module docstring)."""
 
-    def __init__(self, bundle, opts, ctx, sem_probes, str_probes, *, cache, timer: Timer, warnings: WarningLog,
-                 fit: bool = True, kept=None):
+    def __init__(self, bundle, opts, ctx, sem_probes, str_probes, *, cache, timer: Timer, fit: bool = True,
+                 kept=None):
         from ..metrics.fidelity import LpipsModel
         from ..render.sources import open_source
 
         self.bundle, self.opts, self.ctx = bundle, opts, ctx
-        self.timer, self.warnings, self.kept = timer, warnings, kept
+        self.timer, self.kept = timer, kept
         self.views = select_views(bundle.views, opts.views, getattr(bundle, "config", None) or bundle.root)
         self.depth_mode = opts.depth or bundle.options.depth
         ref_free = bundle.reference is None or (opts.reference_free if opts.reference_free is not None
@@ -148,9 +142,10 @@ class SceneRun:
         self.target_record = None
         if getattr(bundle, "target", None) is not None:  # [target]: a mask for every view (r360gpu.lift)
             from ..lift.resolve import resolve_target
+            from ..util import warning_log
 
             t0 = time.perf_counter()
-            bundle, self.target_record = resolve_target(bundle, self.pre, ctx=ctx, warn=warnings.add)
+            bundle, self.target_record = resolve_target(bundle, self.pre, ctx=ctx, warn=warning_log.warn)
             self.bundle = bundle
             timer.add("target", t0)
         self._masks: dict = {}

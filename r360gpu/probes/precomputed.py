@@ -74,6 +74,7 @@ import numpy as np
 
 from r360gpu.errors import InputError, R360Warning
 from r360gpu.util import warning_log
+from r360gpu.util.resize import resize_nearest  # re-exported: the project's nearest rule
 from r360gpu.probes import rle, sam_json
 from r360gpu.probes.base import (
     RENDERINGS,
@@ -131,26 +132,6 @@ def label_matches(class_name: str, prompt: str) -> bool:
     """True when ``class_name`` is kept for ``prompt`` under the prompt rule."""
     phrases = prompt_phrases(prompt)
     return not phrases or _normalise(class_name) in phrases
-
-
-def resize_nearest(masks: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """Nearest-neighbour resize of bool (K, H, W) or (H, W) masks to size (H', W').
-
-    Source row of output row i is floor(i * H / H') (same for columns), which
-    is what cv2.INTER_NEAREST and torch's "nearest" interpolation pick.
-    """
-    masks = np.asarray(masks)
-    out_h, out_w = int(size[0]), int(size[1])
-    in_h, in_w = masks.shape[-2], masks.shape[-1]
-    if (in_h, in_w) == (out_h, out_w):
-        return masks
-    if in_h == 0 or in_w == 0:
-        if masks.ndim == 3 and masks.shape[0] == 0:
-            return np.zeros((0, out_h, out_w), dtype=masks.dtype)
-        raise ValueError(f"cannot resize a mask of size {(in_h, in_w)}")
-    rows = (np.arange(out_h, dtype=np.int64) * in_h) // out_h
-    cols = (np.arange(out_w, dtype=np.int64) * in_w) // out_w
-    return np.ascontiguousarray(masks[..., rows[:, None], cols[None, :]])
 
 
 def _load_json(path: Path):

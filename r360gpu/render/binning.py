@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..gpu.context import BufferRange, GpuContext
+from ..gpu.shaders import workgroup_threads
 from ..gpu.uniforms import uniform
 from .kernels import pipeline
 from .scan import exclusive_scan
@@ -75,7 +76,7 @@ def record_counts(ctx: GpuContext, enc, proj, order, n: int, tiles_x: int, windo
     ctx.dispatch(enc, pipeline(ctx, "render_bin", "count"),
                  [params, BufferRange(order, 0, counts.size), _per_gaussian(proj.rect, n), counts, None, None,
                   _per_gaussian(proj.pos_op, n), _per_gaussian(proj.conic, n)],
-                 ctx.grid(-(-n // 256)))
+                 ctx.grid(-(-n // workgroup_threads("render_bin", "count"))))
     total = exclusive_scan(ctx, enc, counts, n, scratch, "bin.scan")
     return counts, total
 
@@ -91,7 +92,7 @@ def record_emit(ctx: GpuContext, enc, proj, order, offsets: BufferRange, n: int,
                  [params, BufferRange(order, 0, offsets.size), _per_gaussian(proj.rect, n), offsets,
                   BufferRange(keys, 0, k * 4), BufferRange(vals, 0, k * 4),
                   _per_gaussian(proj.pos_op, n), _per_gaussian(proj.conic, n)],
-                 ctx.grid(-(-n // 256)))
+                 ctx.grid(-(-n // workgroup_threads("render_bin", "emit"))))
     return keys, vals
 
 
@@ -102,5 +103,5 @@ def record_ranges(ctx: GpuContext, enc, keys, num_keys: int, num_tiles: int, scr
     if num_keys > 0:
         ctx.dispatch(enc, pipeline(ctx, "render_ranges"),
                      [uniform(ctx, "render_ranges", n=num_keys), BufferRange(keys, 0, num_keys * 4), ranges],
-                     ctx.grid(-(-num_keys // 256)))
+                     ctx.grid(-(-num_keys // workgroup_threads("render_ranges"))))
     return ranges

@@ -7,11 +7,15 @@ built without them, so the shaders never hold a second copy.
 """
 from __future__ import annotations
 
+import math
+
 from ..gpu.context import GpuContext
+from ..gpu.shaders import shader_constant
 from .conventions import SHADER_CONSTANTS, TILE
 
-#: Threads per segment of workgroup_scan.wgsl's two-level scan, per shader (its square is the workgroup size).
-SCAN_SEGMENTS = {"prefix_sum": 16, "radix_sort": 8}
+#: Threads per segment of workgroup_scan.wgsl's two-level scan, per shader: the square root of the
+#: workgroup size (WG) each shader states.
+SCAN_SEGMENTS = {name: math.isqrt(shader_constant(name, "WG")) for name in ("prefix_sum", "radix_sort")}
 
 if TILE != 16:  # render_rasterize.wgsl's workgroup shape covers 16 x 16 pixels
     raise ImportError(f"conventions.TILE must be 16 for render_rasterize.wgsl, got {TILE}")

@@ -15,9 +15,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..gpu.context import GpuContext, get_context
+from ..gpu.shaders import workgroup_threads
 from .binning import TileWindow, plan_windows, record_counts, record_emit, record_ranges
 from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA, TILE, RenderOptions
-from .project import Projected, camera_arrays, project, tile_grid
+from .project import WG as PROJECT_WG, Projected, camera_arrays, project, tile_grid
 from .rasterize import PLANES, plane_stride, planes_to_numpy, record_rasterize
 from .scene import DeviceScene
 from .scratch import Scratch
@@ -117,7 +118,7 @@ class Renderer:
         self.scratch = Scratch(self.ctx)
         self.stats = RenderStats()
         limit = self.ctx.max_binding_bytes
-        if self.scene.n * 16 > limit or self.scene.n > 256 * self.ctx.max_workgroups**2:
+        if self.scene.n * 16 > limit or self.scene.n > min(PROJECT_WG, workgroup_threads("render_bin", "count")) * self.ctx.max_workgroups**2:
             raise InputError(
                 f"scene has {self.scene.n} Gaussians; this device's {limit}-byte storage bindings "
                 f"hold at most {limit // 16}"
@@ -221,7 +222,7 @@ class Renderer:
 
     def _key_capacity(self) -> int:
         """Most keys one window may hold: one binding, and one dispatch of one thread per key."""
-        return min(self.ctx.max_binding_bytes // 4, 256 * self.ctx.max_workgroups**2)
+        return min(self.ctx.max_binding_bytes // 4, workgroup_threads("render_ranges") * self.ctx.max_workgroups**2)
 
     def _render_window(self, proj: Projected, order, window: TileWindow, image, cam: dict, gx: int, t0: float,
                        stride: int, row_base: int):

@@ -12,11 +12,15 @@ import numpy as np
 
 from ..errors import InputError
 from ..gpu.context import BufferRange, GpuContext
+from ..gpu.shaders import workgroup_threads
 from ..gpu.uniforms import uniform
 from .conventions import FRUSTUM_GUARD, TILE
 from .kernels import pipeline
 from .scene import PARAM_FLOATS, DeviceScene
 from .scratch import Scratch
+
+#: Invocations per workgroup of render_project.wgsl, one per Gaussian (the shader states it).
+WG = workgroup_threads("render_project")
 
 # Chunks start at multiples of this many Gaussians so every window offset is a
 # multiple of 32 bytes (8 x 12 bytes for degree-0 SH).
@@ -66,7 +70,7 @@ def chunk_size(ctx: GpuContext, sh_stride: int) -> int:
     per = per // _CHUNK_ALIGN * _CHUNK_ALIGN
     if per == 0:
         raise InputError(f"storage bindings of {ctx.max_binding_bytes} bytes cannot hold one chunk of Gaussians")
-    return min(per, 256 * ctx.max_workgroups**2)
+    return min(per, WG * ctx.max_workgroups**2)
 
 
 def project(ctx: GpuContext, enc, scene: DeviceScene, cam: dict, tiles: tuple[int, int],
@@ -117,7 +121,7 @@ def project(ctx: GpuContext, enc, scene: DeviceScene, cam: dict, tiles: tuple[in
                 *whole,
                 rows,
             ],
-            ctx.grid(-(-count // 256)),
+            ctx.grid(-(-count // WG)),
         )
     return out
 

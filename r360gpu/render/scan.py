@@ -8,12 +8,13 @@ another (portable to software Vulkan, which has no forward-progress guarantee).
 from __future__ import annotations
 
 from ..gpu.context import BufferRange, GpuContext
+from ..gpu.shaders import shader_constant
 from ..gpu.uniforms import uniform
 from .kernels import pipeline
 from .scratch import Scratch
 
-#: Elements scanned by one workgroup (256 threads x 8 items); must match the shader.
-BLOCK = 2048
+#: Elements scanned by one workgroup (WG threads x ITEMS items), as prefix_sum.wgsl states it.
+BLOCK = shader_constant("prefix_sum", "BLOCK")
 
 
 def exclusive_scan(ctx: GpuContext, enc, data, n: int, scratch: Scratch, tag: str = "scan") -> BufferRange:

@@ -11,16 +11,18 @@ from __future__ import annotations
 import math
 
 from ..gpu.context import BufferRange, GpuContext
+from ..gpu.shaders import shader_constants
 from ..gpu.uniforms import uniform
 from .kernels import pipeline
 from .scan import exclusive_scan
 from .scratch import Scratch
 
-#: Elements per workgroup (64 threads x 32 items); must match the shader.
-BLOCK = 2048
-#: Bits per pass; must match the shader.
-DIGIT_BITS = 4
-RADIX = 1 << DIGIT_BITS
+_SIZES = shader_constants("radix_sort")  # the sizes radix_sort.wgsl states
+#: Elements per workgroup (WG threads x ITEMS items).
+BLOCK = _SIZES["BLOCK"]
+#: Bits per pass, and buckets per digit.
+DIGIT_BITS = _SIZES["DIGIT_BITS"]
+RADIX = _SIZES["RADIX"]
 
 
 def window_elements(ctx: GpuContext) -> int:

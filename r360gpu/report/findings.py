@@ -20,14 +20,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..protocol import AXES, XI_DEFAULT
 from .results_io import method_entry, method_names, number, scene_names
 
-AXES = ("s_sem", "s_geo", "s_str")
 VERDICTS = ("ok", "weak", "blind")
 #: An axis below this value counts as low: a warning banner, and a failure "caught".
 LOW_AXIS = 0.5
-#: Semantic IoU threshold of s_sem (the paper's xi = 0.3).
-XI = 0.3
 
 _WHAT = {"s_sem": "the semantic probe", "s_geo": "the depth change (GHT threshold)",
          "s_str": "the structural probe"}
@@ -104,7 +102,7 @@ def controls(results: dict) -> list[tuple[str, str, dict]]:
 
 # -- per view ----------------------------------------------------------------------
 
-def _view_axes(rec: dict, xi: float = XI) -> dict:
+def _view_axes(rec: dict, xi: float = XI_DEFAULT) -> dict:
     """Per-view values of one view record: iou_pre, iou_post (most alarming probe), s_sem (1 when no
     probe finds the object at ``xi``), acc_depth, t_depth, sim_sam, s_str, psnr, ssim, lpips."""
     out: dict = {"view": str(rec.get("view"))}

@@ -39,6 +39,7 @@ from pathlib import Path
 from ..errors import R360Warning
 from ..metrics.semantic import SemanticView, semantic_summary
 from ..metrics.structural import StructuralView, structural_summary
+from ..protocol import AXES
 from ..util.atomic import write_text
 from ..util.warning_log import format_record
 from . import findings
@@ -54,7 +55,7 @@ from .results_tables import (
     scene_value,
     structural_header,
 )
-from .tables import Cell, Table, _emphasis, _fmt, _number_cells
+from .tables import Cell, Table, emphasis_marks, fmt_number, number_cells
 
 REPORT_HTML = "report.html"
 #: Default number of per-view pictures embedded per (scene, method): all.
@@ -189,7 +190,7 @@ def scene_table(results: dict, scene: str) -> Table:
         cols.append(("lpips", "LPIPS (lower is better)", 3, False))
     rows = [[Cell(m)] + [Cell("")] * len(cols) for m in methods]
     for j, (key, _, dec, higher) in enumerate(cols, start=1):
-        for row, c in zip(rows, _number_cells([scene_value(results, scene, m, key) for m in methods], dec, True,
+        for row, c in zip(rows, number_cells([scene_value(results, scene, m, key) for m in methods], dec, True,
                                               higher)):
             row[j] = c
     return Table(key=f"scene-{scene}", title=f"Scene {scene}: axes per method.",
@@ -295,7 +296,7 @@ def low_axis_warnings(results: dict, threshold: float = LOW_AXIS) -> list[str]:
     mode = modes.pop() if len(modes) == 1 else "mixed"
     out = []
     for m in method_names(results):
-        for axis in ("s_sem", "s_geo", "s_str"):
+        for axis in AXES:
             v = overall_value(results, m, axis)
             if v is not None and not math.isnan(v) and v < threshold:
                 out.append(f"{m}: {axis} = {v:.3f} < {threshold:g} -- {_low_axis_message(axis, mode)}.")
@@ -314,7 +315,7 @@ def best_per_axis(results: dict) -> list[tuple[str, list[str], float, int]]:
     for label, key, higher, dec in specs:
         vals = [overall_value(results, m, key) for m in methods]
         vals = [None if v is None or math.isnan(v) else v for v in vals]
-        marks = _emphasis(vals, dec, higher)
+        marks = emphasis_marks(vals, dec, higher)
         best = [m for m, mk in zip(methods, marks) if mk == "best"]
         if not best and sum(v is not None for v in vals) == 1:
             best = [m for m, v in zip(methods, vals) if v is not None]
@@ -351,13 +352,13 @@ def probe_readings(results: dict, scene: str, method: str) -> list[tuple[str, st
             struct.setdefault(p, []).append(StructuralView.from_dict(v))
     for p, views in sem.items():
         s = semantic_summary(views, include_empty_targets=include)
-        vals = (f"mIoU_pre {_fmt(s.iou_pre, 3)}, mIoU_post {_fmt(s.iou_post, 3)}, IoU_drop {_fmt(s.iou_drop, 3)}, "
-                f"acc_seg(0.3) {_fmt(s.s_sem, 3)}")
+        vals = (f"mIoU_pre {fmt_number(s.iou_pre, 3)}, mIoU_post {fmt_number(s.iou_post, 3)}, IoU_drop {fmt_number(s.iou_drop, 3)}, "
+                f"acc_seg(0.3) {fmt_number(s.s_sem, 3)}")
         out.append((p, "semantic", vals, f"{s.n_scored}/{s.n_views}"))
     for p, views in struct.items():
         s = structural_summary(views, include_empty_targets=include)
         label = "sim_SAM(I_post, I_ref)" if s.mode == "reference" else "sim_SAM(I_pre, I_post)"
-        out.append((p, "structural", f"{label} {_fmt(s.sim_sam, 3)}, s_str {_fmt(s.s_str, 3)}",
+        out.append((p, "structural", f"{label} {fmt_number(s.sim_sam, 3)}, s_str {fmt_number(s.s_str, 3)}",
                     f"{s.n_scored}/{s.n_views}"))
     return out
 
@@ -502,10 +503,10 @@ def verdicts_html(results: dict) -> str:
     scenes = list(dict.fromkeys(v.scene for v in verdicts))
     by = {(v.scene, v.axis): v for v in verdicts}
     t = ['<table><thead><tr><th class="lab">Scene</th>'
-         + "".join(f'<th class="lab">{a}</th>' for a in findings.AXES) + "</tr></thead><tbody>"]
+         + "".join(f'<th class="lab">{a}</th>' for a in AXES) + "</tr></thead><tbody>"]
     for s in scenes:
         cells = []
-        for a in findings.AXES:
+        for a in AXES:
             v = by.get((s, a))
             text = v.verdict if v is not None and v.verdict else "--"
             cls = f"v-{text}" if text in findings.VERDICTS else ""
@@ -530,7 +531,7 @@ def controls_html(results: dict) -> str:
          + "".join(f'<th class="num">{k}</th>' for k in keys) + "</tr></thead><tbody>"]
     for s, name, axes in ctrl:
         t.append(f'<tr><td class="lab">{_e(s)}</td><td class="lab">{_e(name)}</td>'
-                 + "".join(f'<td class="num">{_e(_fmt(number(axes.get(k)), 3))}</td>' for k in keys) + "</tr>")
+                 + "".join(f'<td class="num">{_e(fmt_number(number(axes.get(k)), 3))}</td>' for k in keys) + "</tr>")
     t.append("</tbody></table>")
     return ("<details><summary>Controls behind the probe checks</summary>"
             '<p class="notes">identity = the pre scene scored as a method (nothing removed: every axis should be '
@@ -553,11 +554,11 @@ def expectations_html(results: dict) -> str:
          '<th class="lab">Should be caught by</th><th class="lab">Result</th></tr></thead><tbody>']
     for c in checks:
         if c.caught_by:
-            detail = ", ".join(f"{a} {_fmt(v, 3)} {'caught' if ok else 'missed' if ok is not None else 'n/a'}"
+            detail = ", ".join(f"{a} {fmt_number(v, 3)} {'caught' if ok else 'missed' if ok is not None else 'n/a'}"
                                for a, v, ok in c.checks)
         else:
             a, v, ok = c.checks[0]
-            detail = f"lowest axis {a} {_fmt(v, 3)}"
+            detail = f"lowest axis {a} {fmt_number(v, 3)}"
         cls = {"caught": "caught", "passes": "caught", "missed": "missed", "false alarm": "missed",
                "partly": "partly"}.get(c.outcome, "")
         h.append(f'<tr><td class="lab">{_e(c.scene)}</td><td class="lab">{_e(c.method)}</td>'
@@ -595,7 +596,7 @@ def per_view_table_html(results: dict, scene: str, rows: list[dict]) -> str:
         cells = []
         for k, _, dec in cols:
             v = r.get(k)
-            text = _fmt(v, dec) if v is None or math.isfinite(v) else ("inf" if v > 0 else "-inf")
+            text = fmt_number(v, dec) if v is None or math.isfinite(v) else ("inf" if v > 0 else "-inf")
             data = "" if v is None else (repr(float(v)) if math.isfinite(v) else ("1e308" if v > 0 else "-1e308"))
             cells.append(f'<td class="num" data-v="{data}">{_e(text)}</td>')
         link = f'<a href="#{anchor}">sheet</a>' if r.get("picture") else ""
@@ -611,9 +612,9 @@ def _method_section(results: dict, out_dir: Path, scene: str, method: str, probl
     entry = method_entry(results, scene, method) or {}
     axes = entry.get("axes") or {}
     rqs = number(axes.get("rqs"))
-    h = [f'<details class="method" open><summary>{_e(method)} &mdash; RQS {_e(_fmt(rqs, 3))}</summary>']
+    h = [f'<details class="method" open><summary>{_e(method)} &mdash; RQS {_e(fmt_number(rqs, 3))}</summary>']
     mode = structural_mode(results, scene)
-    lows = [f"{a} = {number(axes.get(a)):.3f} -- {_low_axis_message(a, mode)}" for a in ("s_sem", "s_geo", "s_str")
+    lows = [f"{a} = {number(axes.get(a)):.3f} -- {_low_axis_message(a, mode)}" for a in AXES
             if number(axes.get(a)) is not None and number(axes.get(a)) < LOW_AXIS]
     for line in lows:
         h.append(f'<div class="warn">{_e(line)}</div>')
@@ -687,7 +688,7 @@ def _probes_html(results: dict) -> str:
             info = {"axis": kind,
                     "models": ", ".join(f"{f} (sha256 {str(h)[:12]})" for f, h in models.items()) or "none",
                     "weight-free": "yes" if p.get("weight_free") else "no"}
-            info.update({k: p[k] for k in ("limitations", "prompt_use", "fit") if p.get(k)})
+            info.update({k: p[k] for k in ("limitations", "prompt_use", "fit", "varies_by_scene") if p.get(k)})
             info["parameters"] = p.get("params") or {}
             out.append(f"<h4>{_e(p.get('name', '?'))} ({_e(kind)})</h4>" + _kv_table(info))
     if not out:
@@ -770,7 +771,7 @@ def report_html(results: dict, out_dir: str | os.PathLike, *, max_views: int | N
     if best:
         h.append('<h3>Best method per axis</h3><ul class="best">')
         for label, ms, v, dec in best:
-            h.append(f"<li>{_e(label)}: <strong>{_e(', '.join(ms))}</strong> ({_e(_fmt(v, dec))})</li>")
+            h.append(f"<li>{_e(label)}: <strong>{_e(', '.join(ms))}</strong> ({_e(fmt_number(v, dec))})</li>")
         h.append("</ul>")
     overall = {m: {k: overall_value(results, m, k) for k in ("s_sem", "s_geo", "s_str", "rqs")} for m in methods}
     if any(v is not None for d in overall.values() for v in d.values()):

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..protocol import AXES
 from ..util.atomic import write_bytes
 from .html import write_html
 from .plots import view_axes_png
@@ -55,14 +56,14 @@ def write_run_outputs(results: dict, out, *, embed_cache=None, plots: dict | Non
     error (disk full, read-only) is an InputError naming the file, with nothing changed."""
     from ..errors import InputError
     from ..util.atomic import all_or_nothing
-    from ..util.outdir import _reason
+    from ..util.outdir import os_error_reason
 
     out = Path(out)
     try:
         with all_or_nothing([out / name for name in OUTPUT_DOCUMENTS]):
             return write_outputs(results, out, embed_cache=embed_cache, plots=plots)
     except OSError as e:
-        raise InputError(f"cannot write the results ({_reason(e)}): none of {', '.join(OUTPUT_DOCUMENTS)} "
+        raise InputError(f"cannot write the results ({os_error_reason(e)}): none of {', '.join(OUTPUT_DOCUMENTS)} "
                          f"was changed; per-view results are cached, rerun to finish", e.filename or out) from None
 
 
@@ -114,7 +115,7 @@ def control_lines(results: dict) -> list[str]:
         for c, entry in controls.items():
             ax = entry.get("axes") or {}
             vals = "  ".join(f"{a} {ax[a]:.3f}" if isinstance(ax.get(a), (int, float)) else f"{a} -"
-                             for a in ("s_sem", "s_geo", "s_str"))
+                             for a in AXES)
             lines.append(f"  control {c:<10} {vals}")
         for note in (s.get("validity_notes") or {}).values():
             lines.append(f"  {note}")

@@ -24,7 +24,9 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..protocol import XI_DEFAULT
 from ..util.atomic import write_bytes
+from ..util.resize import resize_nearest
 from ..util.memo import ByIdentity
 from . import png
 
@@ -123,7 +125,7 @@ def _stack(masks, what: str) -> np.ndarray:
     return a != 0
 
 
-def _size_for(shape: tuple[int, int], width: int) -> tuple[int, int]:
+def panel_size(shape: tuple[int, int], width: int) -> tuple[int, int]:
     """(w, h) for cv2.resize: ``width`` wide, aspect kept (height at least 1)."""
     h, w = shape
     return int(width), max(1, int(round(h * width / w)))
@@ -133,13 +135,12 @@ def _resize_rgb(rgb: np.ndarray, width: int) -> np.ndarray:
     if rgb.shape[1] == width:
         return rgb
     interp = cv2.INTER_AREA if width < rgb.shape[1] else cv2.INTER_NEAREST
-    return cv2.resize(rgb, _size_for(rgb.shape[:2], width), interpolation=interp)
+    return cv2.resize(rgb, panel_size(rgb.shape[:2], width), interpolation=interp)
 
 
-def _resize_mask(mask: np.ndarray, size_wh: tuple[int, int]) -> np.ndarray:
-    if mask.shape[1] == size_wh[0] and mask.shape[0] == size_wh[1]:
-        return mask
-    return cv2.resize(mask.astype(np.uint8), size_wh, interpolation=cv2.INTER_NEAREST) != 0
+def resize_mask(mask: np.ndarray, size_wh: tuple[int, int]) -> np.ndarray:
+    """A bool mask at panel size ``(w, h)`` by the project's nearest rule (:mod:`r360gpu.util.resize`)."""
+    return resize_nearest(mask, (size_wh[1], size_wh[0]))
 
 
 def _check_width(width: int) -> int:
@@ -178,7 +179,7 @@ def rgb_panel(image, width: int = PANEL_WIDTH, *, target=None) -> np.ndarray:
     img = rgb8_at(image, width, "RGB panel").copy()
     if target is not None:
         t = _mask(target, "target mask")
-        _outline(img, _resize_mask(t, (img.shape[1], img.shape[0])), TARGET_RGB)
+        _outline(img, resize_mask(t, (img.shape[1], img.shape[0])), TARGET_RGB)
     return img
 
 
@@ -249,8 +250,8 @@ def changed_panel(changed, target, width: int = PANEL_WIDTH) -> np.ndarray:
     t = _mask(target, "target mask")
     if c.shape != t.shape:
         raise InputError(f"changed mask is {c.shape[0]}x{c.shape[1]} but the target is {t.shape[0]}x{t.shape[1]}")
-    size = _size_for(c.shape, width)
-    c, t = _resize_mask(c, size), _resize_mask(t, size)
+    size = panel_size(c.shape, width)
+    c, t = resize_mask(c, size), resize_mask(t, size)
     img = np.empty((size[1], size[0], 3), np.uint8)
     img[:] = BACKGROUND_RGB
     img[c & ~t] = CHANGED_OUTSIDE_RGB
@@ -288,7 +289,7 @@ def mask_overlay(rgb, masks, width: int = PANEL_WIDTH, *, color: tuple[int, int,
                          f"{full_hw[0]}x{full_hw[1]}")
     colors = (np.tile(np.array(color, np.uint8), (stack.shape[0], 1)) if color is not None
               else mask_colors(stack.shape[0], seed))
-    small = [_resize_mask(m, size).astype(np.uint8) for m in stack]
+    small = [resize_mask(m, size).astype(np.uint8) for m in stack]
     keep = np.float32(1.0 - alpha)
     for m, col in zip(small, colors):
         # blended within the mask's bounding box only, and written where the mask is
@@ -300,7 +301,7 @@ def mask_overlay(rgb, masks, width: int = PANEL_WIDTH, *, color: tuple[int, int,
     for m, col in zip(small, colors):
         _outline(out, m, tuple(int(c) for c in col))
     if target is not None:
-        _outline(out, _resize_mask(_mask(target, "target mask"), size), TARGET_RGB)
+        _outline(out, resize_mask(_mask(target, "target mask"), size), TARGET_RGB)
     return out
 
 
@@ -488,7 +489,7 @@ def _num(x, decimals: int) -> str:
     return f"{v:.{decimals}f}"
 
 
-def view_numbers(record: dict | None, xi: float = 0.3) -> list[str]:
+def view_numbers(record: dict | None, xi: float = XI_DEFAULT) -> list[str]:
     """One view's numbers as short ASCII lines (per semantic / structural probe, the geometric axis,
     fidelity), from a view record (:meth:`r360gpu.metrics.record.ViewRecord.to_dict`)."""
     if not record:

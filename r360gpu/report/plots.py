@@ -19,6 +19,7 @@ import matplotlib
 import matplotlib.style
 from matplotlib.figure import Figure
 
+from ..protocol import XI_DEFAULT
 from ..util.atomic import write_bytes
 from .results_io import number
 
@@ -97,7 +98,7 @@ def view_series(views: Sequence) -> dict:
             "acc_depth": depth, "excluded": excluded, "mode": mode}
 
 
-def view_axes_png(views: Sequence, *, title: str | None = None, xi: float = 0.3) -> bytes:
+def view_axes_png(views: Sequence, *, title: str | None = None, xi: float = XI_DEFAULT) -> bytes:
     """PNG bytes (800 x 300 px) of the per-view axes along the camera path.
 
     Lines: IoU_post per semantic probe (below ``xi`` the object counts as not
@@ -146,7 +147,7 @@ def view_axes_png(views: Sequence, *, title: str | None = None, xi: float = 0.3)
         return _png(fig)
 
 
-def view_axes_plot(path: str | os.PathLike, views: Sequence, *, title: str | None = None, xi: float = 0.3) -> Path:
+def view_axes_plot(path: str | os.PathLike, views: Sequence, *, title: str | None = None, xi: float = XI_DEFAULT) -> Path:
     """Write :func:`view_axes_png` to ``path`` (atomically); returns the path."""
     path = Path(path)
     write_bytes(path, view_axes_png(views, title=title, xi=xi))

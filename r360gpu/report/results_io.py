@@ -29,10 +29,9 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..metrics import _json
+from ..protocol import RESULTS_SCHEMA, STRUCTURAL_MODES  # RESULTS_SCHEMA: format tag of results.json
 from ..util.atomic import write_bytes, write_text
 
-#: Format tag of results.json.
-RESULTS_SCHEMA = "r360gpu.results/1"
 RESULTS_JSON = "results.json"
 RESULTS_CSV = "results.csv"
 
@@ -89,7 +88,7 @@ def structural_mode(results: dict, scene: str) -> str:
     for entry in (s.get("methods") or {}).values():
         for rec in entry.get("views") or []:
             for sv in (rec.get("structural") or {}).values():
-                if sv.get("mode") in ("reference", "reference_free"):
+                if sv.get("mode") in STRUCTURAL_MODES:
                     return sv["mode"]
     forced = bool((results.get("options") or {}).get("reference_free", False))
     return "reference" if s.get("reference") and not forced else "reference_free"

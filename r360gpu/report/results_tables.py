@@ -32,9 +32,9 @@ from .results_io import method_entry, method_names, number, scene_names, structu
 from .tables import (
     Cell,
     Table,
-    _emphasis,
-    _fmt,
-    _number_cells,
+    emphasis_marks,
+    fmt_number,
+    number_cells,
     build_tables,
     render_latex,
     render_markdown,
@@ -201,7 +201,7 @@ def main_table(results: dict, *, doubt_marks: bool = True) -> Table:
     rows = [[Cell(m)] + [Cell("")] * len(cols) for m in methods]
     for j, (key, _, decimals, higher) in enumerate(cols, start=1):
         values = [overall_value(results, m, key) for m in methods]
-        for row, cell in zip(rows, _number_cells(values, decimals, True, higher)):
+        for row, cell in zip(rows, number_cells(values, decimals, True, higher)):
             row[j] = doubt_mark(results, key, cell) if doubt_marks else cell
     notes = [
         f"acc_seg = s_sem (IoU threshold 0.3); acc_depth = s_geo; {str_note}.",
@@ -233,11 +233,11 @@ def axis_table(results: dict, key: str) -> Table:
     """
     methods, scenes = method_names(results), scene_names(results)
     md, tex, decimals, higher = axis_spec(results, key)
-    rows = [[Cell(s)] + _number_cells([scene_value(results, s, m, key) for m in methods], decimals, True, higher)
+    rows = [[Cell(s)] + number_cells([scene_value(results, s, m, key) for m in methods], decimals, True, higher)
             for s in scenes]
     overall = [overall_value(results, m, key) for m in methods]
     label = "Overall (pooled views)" if key in ("psnr", "ssim", "lpips") else f"Overall ({_pooling(results)})"
-    rows.append([Cell(label)] + [doubt_mark(results, key, c) for c in _number_cells(overall, decimals, True, higher)])
+    rows.append([Cell(label)] + [doubt_mark(results, key, c) for c in number_cells(overall, decimals, True, higher)])
     notes = ["Best and second best per row are emphasised"
              + (" (lowest is best)." if not higher else ".")] + doubt_notes(results, only=key)
     if key == "s_str":
@@ -272,9 +272,9 @@ def iou_table(results: dict) -> Table:
             if pre is None or post is None:
                 cells.append(("--", "--"))
             else:
-                d = _fmt(drop, 2)
+                d = fmt_number(drop, 2)
                 cells.append((f"{pre:.2f} → {post:.2f} [{d}]", rf"{pre:.2f}$\rightarrow${post:.2f} [{d}]"))
-        marks = _emphasis(drops, 2, higher_is_better=True)
+        marks = emphasis_marks(drops, 2, higher_is_better=True)
         rows.append([Cell(s)] + [Cell(t, x, e) for (t, x), e in zip(cells, marks)])
     return Table(
         key="iou_pre_post",
@@ -300,7 +300,7 @@ def xi_table(results: dict) -> Table | None:
         Cell(f"xi={k}" if i == 0 else k, rf"$\xi_{{\mathrm{{IoU}}}}={k}$" if i == 0 else f"${k}$")
         for i, k in enumerate(keys)
     ]
-    rows = [[Cell(m)] + [Cell(_fmt(number((xi[m] or {}).get(k)), 3)) for k in keys] for m in methods]
+    rows = [[Cell(m)] + [Cell(fmt_number(number((xi[m] or {}).get(k)), 3)) for k in keys] for m in methods]
     pooling = (results.get("sensitivity") or {}).get("pooling")
     return Table(
         key="xi_sensitivity",
@@ -351,7 +351,7 @@ def boundary_table(results: dict) -> Table | None:
             if first and rows:
                 rules.add(len(rows))
             row = [Cell(md, tex) if first else Cell(""), Cell(m)]
-            row += [Cell(_fmt(number(vals.get(lab)), 3), emphasis="best" if lab == "Original" else "")
+            row += [Cell(fmt_number(number(vals.get(lab)), 3), emphasis="best" if lab == "Original" else "")
                     for lab in labels]
             rows.append(row)
             first = False

@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
+from ..protocol import AXES
+
 FORMATS = ("md", "latex")
 _NONE = "--"
 
@@ -71,11 +73,11 @@ class Table:
     label_columns: int = 1
 
 
-def _fmt(x: float | None, decimals: int) -> str:
+def fmt_number(x: float | None, decimals: int) -> str:
     return _NONE if x is None else f"{x:.{decimals}f}"
 
 
-def _emphasis(values: Sequence[float | None], decimals: int, higher_is_better: bool) -> list[str]:
+def emphasis_marks(values: Sequence[float | None], decimals: int, higher_is_better: bool) -> list[str]:
     """"best"/"second"/"" per value, comparing values rounded to ``decimals``.
 
     Every value printed like the best shares "best".  "second" goes to the next
@@ -94,15 +96,15 @@ def _emphasis(values: Sequence[float | None], decimals: int, higher_is_better: b
     return [marks.get(v, "") if v is not None else "" for v in shown]
 
 
-def _number_cells(values: Sequence[float | None], decimals: int, emphasise: bool = False,
+def number_cells(values: Sequence[float | None], decimals: int, emphasise: bool = False,
                   higher_is_better: bool = True) -> list[Cell]:
-    marks = _emphasis(values, decimals, higher_is_better) if emphasise else [""] * len(values)
-    return [Cell(_fmt(v, decimals), emphasis=e) for v, e in zip(values, marks)]
+    marks = emphasis_marks(values, decimals, higher_is_better) if emphasise else [""] * len(values)
+    return [Cell(fmt_number(v, decimals), emphasis=e) for v, e in zip(values, marks)]
 
 
 def _column(rows: list[list[Cell]], j: int, values: Sequence[float | None], decimals: int,
             emphasise: bool = True, higher_is_better: bool = True) -> None:
-    for row, cell in zip(rows, _number_cells(values, decimals, emphasise, higher_is_better)):
+    for row, cell in zip(rows, number_cells(values, decimals, emphasise, higher_is_better)):
         row[j] = cell
 
 
@@ -113,10 +115,10 @@ def _pooling_label(result: dict) -> str:
 def rqs_table(result: dict) -> Table:
     """Per-scene RQS (scenes x methods) with the Overall row (tab:supp_rqs layout)."""
     methods, scenes = list(result["methods"]), list(result["scenes"])
-    rows = [[Cell(s)] + _number_cells([result["rqs"][s][m] for m in methods], 3, emphasise=True)
+    rows = [[Cell(s)] + number_cells([result["rqs"][s][m] for m in methods], 3, emphasise=True)
             for s in scenes]
     overall = [result["overall"][m]["rqs"] for m in methods]
-    rows.append([Cell(f"Overall ({_pooling_label(result)})")] + _number_cells(overall, 3, emphasise=True))
+    rows.append([Cell(f"Overall ({_pooling_label(result)})")] + number_cells(overall, 3, emphasise=True))
     return Table(
         key="rqs_per_scene",
         title="Per-scene Removal Quality Score (RQS = geometric mean of s_sem, s_geo, s_str).",
@@ -139,7 +141,7 @@ def overall_table(result: dict) -> Table:
     if has_drop:
         header.append(Cell("IoU_drop (diagnostic)", r"IoU$_{\mathrm{drop}}$ (diagnostic)"))
         columns.append(([overall[m]["iou_drop"] for m in methods], 3, True))
-    for axis in ("s_sem", "s_geo", "s_str"):
+    for axis in AXES:
         header.append(Cell(*_AXIS_HEADERS[axis]))
         columns.append(([overall[m][axis] for m in methods], 3, True))
     header.append(Cell("RQS"))
@@ -166,8 +168,8 @@ def scene_macro_table(result: dict) -> Table:
     methods = list(result["methods"])
     macro = result["scene_macro"]
     has_drop = all("iou_drop" in macro[m] for m in methods)
-    keys = ["s_sem", "s_geo", "s_str"] + (["iou_drop"] if has_drop else []) + ["mean_rqs"]
-    header = [Cell("Method")] + [Cell(*_AXIS_HEADERS[k]) for k in ("s_sem", "s_geo", "s_str")]
+    keys = [*AXES] + (["iou_drop"] if has_drop else []) + ["mean_rqs"]
+    header = [Cell("Method")] + [Cell(*_AXIS_HEADERS[k]) for k in AXES]
     if has_drop:
         header.append(Cell("IoU_drop", r"IoU$_{\mathrm{drop}}$"))
     header.append(Cell("mean RQS"))
@@ -193,10 +195,10 @@ def rank_table(result: dict) -> Table:
     rows = []
     for m in methods:
         r = ranks[m]
-        rows.append([Cell(m)] + _number_cells([r["sem"], r["geo"], r["str"]], 1)
-                    + [Cell(_fmt(r["avg_rank"], 2)), Cell(_fmt(r["med_rank"], 1)), Cell(_fmt(r["worst_rank"], 1))])
+        rows.append([Cell(m)] + number_cells([r["sem"], r["geo"], r["str"]], 1)
+                    + [Cell(fmt_number(r["avg_rank"], 2)), Cell(fmt_number(r["med_rank"], 1)), Cell(fmt_number(r["worst_rank"], 1))])
     for j, key, decimals in ((4, "avg_rank", 2), (5, "med_rank", 1), (6, "worst_rank", 1)):
-        marks = _emphasis([ranks[m][key] for m in methods], decimals, higher_is_better=False)
+        marks = emphasis_marks([ranks[m][key] for m in methods], decimals, higher_is_better=False)
         for row, mark in zip(rows, marks):
             if mark == "best":
                 row[j] = Cell(row[j].text, emphasis="best")
@@ -218,16 +220,16 @@ def reliability_table(result: dict) -> Table:
     header = [Cell("Method"), Cell("mean RQS"), Cell("sd"), Cell("range"), Cell("95% CI", r"95\% CI"),
               Cell(f"P(beats {best})", f"$P$(beats {_latex_escape(best)})")]
     rows = []
-    means = _number_cells([rel[m]["mean"] for m in methods], 3, emphasise=True)
+    means = number_cells([rel[m]["mean"] for m in methods], 3, emphasise=True)
     for m, mean_cell in zip(methods, means):
         r = rel[m]
         rows.append([
             Cell(m),
             Cell(mean_cell.text, emphasis="best" if mean_cell.emphasis == "best" else ""),
-            Cell(_fmt(r["sd"], 3)),
-            Cell(f"{_fmt(r['min'], 3)}-{_fmt(r['max'], 3)}", f"{_fmt(r['min'], 3)}--{_fmt(r['max'], 3)}"),
-            Cell(f"[{_fmt(r['ci_low'], 3)}, {_fmt(r['ci_high'], 3)}]"),
-            Cell(_fmt(r["p_beats_best"], 3)),
+            Cell(fmt_number(r["sd"], 3)),
+            Cell(f"{fmt_number(r['min'], 3)}-{fmt_number(r['max'], 3)}", f"{fmt_number(r['min'], 3)}--{fmt_number(r['max'], 3)}"),
+            Cell(f"[{fmt_number(r['ci_low'], 3)}, {fmt_number(r['ci_high'], 3)}]"),
+            Cell(fmt_number(r["p_beats_best"], 3)),
         ])
     n_boot = settings.get("n_boot")
     return Table(
@@ -251,12 +253,12 @@ def association_table(result: dict) -> Table:
     rows = []
     for pair, a in assoc.items():
         md_name, tex_name = _PAIR_HEADERS.get(pair, (pair, None))
-        p = _fmt(a["p_centred"], 3)
-        tau, sd = _fmt(a["tau_mean"], 2), _fmt(a["tau_sd"], 2)
+        p = fmt_number(a["p_centred"], 3)
+        tau, sd = fmt_number(a["tau_mean"], 2), fmt_number(a["tau_sd"], 2)
         rows.append([
             Cell(md_name, tex_name),
-            Cell(_fmt(a["rho"], 3), f"${_fmt(a['rho'], 3)}$"),
-            Cell(f"{_fmt(a['rho_centred'], 3)} (p={p})", f"${_fmt(a['rho_centred'], 3)}$~($p{{=}}{p}$)"),
+            Cell(fmt_number(a["rho"], 3), f"${fmt_number(a['rho'], 3)}$"),
+            Cell(f"{fmt_number(a['rho_centred'], 3)} (p={p})", f"${fmt_number(a['rho_centred'], 3)}$~($p{{=}}{p}$)"),
             Cell(f"{tau} +/- {sd}", f"${tau} \\pm {sd}$"),
         ])
     return Table(

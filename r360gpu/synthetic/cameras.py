@@ -59,7 +59,7 @@ def view_kinds(n_views: int) -> list[str]:
     return kinds
 
 
-def view_name(i: int) -> str:
+def synthetic_view_name(i: int) -> str:
     """Name of view ``i`` (camera name = mask file stem)."""
     return f"view_{i:03d}"
 
@@ -90,7 +90,7 @@ def orbit_cameras(rig: Rig, n_views: int, width: int, height: int,
                   rng: np.random.Generator) -> tuple[list[Camera], dict[str, str]]:
     """``n_views`` pinhole cameras along the rig's arc and the kind of each view by name.
 
-    Cameras are named :func:`view_name` (``view_000``, ...) in arc order; the
+    Cameras are named :func:`synthetic_view_name` (``view_000``, ...) in arc order; the
     principal point is the image centre.
     """
     if n_views < 1:
@@ -117,7 +117,7 @@ def orbit_cameras(rig: Rig, n_views: int, width: int, height: int,
             # Turn towards the open side of the arc (where the capture came from), not into a wall.
             options = [_turn(eye, aim, a) for a in (AWAY_TURN, -AWAY_TURN)]
             aim = max(options, key=lambda p: float(np.dot(p - eye, front_vec)))
-        name = view_name(i)
+        name = synthetic_view_name(i)
         cameras.append(Camera.from_camera_to_world(look_at(eye, aim), fx, fx, width / 2, height / 2,
                                                    width, height, name))
         by_name[name] = kind

@@ -33,6 +33,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..io import Gaussians
+from ..protocol import AXES
 from .primitives import rgb_to_sh, sh_to_rgb
 from .scene import SyntheticScene
 
@@ -158,7 +159,7 @@ EXPECTED: dict[str, tuple[str, tuple[str, ...]]] = {
     "clean": ("none: removed and completed like the reference", ()),
     "floaters": ("residue of the target (shrunk, scattered, fainter Gaussians) where it was: it keeps the "
                  "object's colours, stays near its depth and breaks the completed structure",
-                 ("s_sem", "s_geo", "s_str")),
+                 AXES),
     "recoloured": ("the target's Gaussians kept in place, recoloured like the background: looks removed, "
                    "the geometry is unchanged", ("s_geo",)),
     "hole": ("removed without completion: the background the target hid is missing, so the region "

@@ -56,12 +56,6 @@ class SyntheticScene:
     cameras: tuple
     view_kinds: dict = field(default_factory=dict)
 
-    def part_mask(self, name: str) -> np.ndarray:
-        """(N_bg,) bool: the background Gaussians of the part called ``name``."""
-        if name not in self.part_names:
-            raise KeyError(f"scene {self.name!r} has no part {name!r}; parts: {', '.join(self.part_names)}")
-        return self.part_index == self.part_names.index(name)
-
     def in_neighbourhood(self) -> np.ndarray:
         """(N_bg,) bool: background Gaussians inside :attr:`neighbourhood` that are not shell."""
         inside = self.neighbourhood.contains(np.asarray(self.background.means, np.float64))

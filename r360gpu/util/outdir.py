@@ -79,17 +79,17 @@ def open_output_folder(out: str | os.PathLike) -> OutputLock:
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
-        raise InputError(f"cannot create the output folder: {_reason(e)}", out) from None
+        raise InputError(f"cannot create the output folder: {os_error_reason(e)}", out) from None
     lock = _acquire(out / LOCK_NAME)
     try:
         remove_stale_temporaries(out)
     except OSError as e:
         lock.release()
-        raise InputError(f"cannot clean the output folder: {_reason(e)}", out) from None
+        raise InputError(f"cannot clean the output folder: {os_error_reason(e)}", out) from None
     return lock
 
 
-def _reason(e: OSError) -> str:
+def os_error_reason(e: OSError) -> str:
     if e.errno == errno.EROFS:
         return "read-only file system"
     if e.errno == errno.ENOSPC:
@@ -132,7 +132,7 @@ def _acquire(path: Path) -> OutputLock:
     except InputError:
         raise
     except OSError as e:
-        raise InputError(f"cannot write to the output folder: {_reason(e)}", path.parent) from None
+        raise InputError(f"cannot write to the output folder: {os_error_reason(e)}", path.parent) from None
     return OutputLock(path, fd)
 
 

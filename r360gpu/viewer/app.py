@@ -124,10 +124,6 @@ class ViewerApp:
         w, h = self.canvas.get_physical_size()
         return max(1, int(w)), max(1, int(h))
 
-    def view_area(self) -> tuple[int, int, int, int]:
-        """(x0, y0, width, height) of the framebuffer left to the pictures by the docked panels."""
-        return self.loop.dock(self.current_view()).view
-
     def request_draw(self) -> None:
         self.canvas.request_draw()
 

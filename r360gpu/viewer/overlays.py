@@ -28,11 +28,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from r360gpu.gpu.context import GpuContext
+from r360gpu.gpu.shaders import workgroup_size, workgroup_threads
 
 from . import colormaps
 from .layers import PlaneImage
 
 SHADER = "viewer_overlay"
+_TILE_XY = workgroup_size(SHADER, "overlay")  # pixels one overlay workgroup covers
 HEAT_BELOW = 0.35
 CHANGED_RGB = (1.0, 0.1, 0.75)
 OUTLINE_RGB = (1.0, 0.86, 0.0)
@@ -82,17 +84,6 @@ def pack_mask(mask: np.ndarray) -> np.ndarray:
     words = np.zeros(-(-bits.size // 4) * 4, np.uint8)
     words[: bits.size] = bits
     return words.view(np.uint32)
-
-
-def resize_nearest(a: np.ndarray, width: int, height: int) -> np.ndarray:
-    """Nearest-neighbour resize of a (H, W, ...) array to (height, width, ...) with pixel-centre sampling."""
-    a = np.asarray(a)
-    h, w = a.shape[:2]
-    if (h, w) == (height, width):
-        return a
-    ys = np.minimum(h - 1, ((np.arange(height) + 0.5) * h / height).astype(np.int64))
-    xs = np.minimum(w - 1, ((np.arange(width) + 0.5) * w / width).astype(np.int64))
-    return a[ys][:, xs]
 
 
 class OverlayPass:
@@ -160,7 +151,7 @@ class OverlayPass:
             probe_ids if probe_ids is not None else self._dummy,
             self.cmap_buffer(settings.colormap), out,
         ]
-        ctx.dispatch(enc, ctx.pipeline(SHADER, "overlay"), resources, (math.ceil(w / 8), math.ceil(h / 8), 1))
+        ctx.dispatch(enc, ctx.pipeline(SHADER, "overlay"), resources, (math.ceil(w / _TILE_XY[0]), math.ceil(h / _TILE_XY[1]), 1))
 
     def depth_range(self, image: PlaneImage) -> tuple[float, float] | None:
         """(min, max) of the valid depths of ``image`` (waits for the device), None without coverage."""
@@ -170,7 +161,7 @@ class OverlayPass:
                              0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         n = image.width * image.height
         ctx.run(ctx.pipeline(SHADER, "depth_range"),
-                [params, None, image.depth_window(), None, None, None, None, None, stats], math.ceil(n / 64))
+                [params, None, image.depth_window(), None, None, None, None, None, stats], math.ceil(n / workgroup_threads(SHADER, "depth_range")))
         lo_bits, hi_bits = ctx.read(stats, np.uint32, 2)
         if lo_bits == 0xFFFFFFFF:
             return None

@@ -59,11 +59,6 @@ class Panels:
         self.renderer.set_gui(self.draw)
 
     @staticmethod
-    def dock_width() -> float:
-        """Width (logical pixels) of the side panel docked at the window's left edge."""
-        return float(PANEL_WIDTH)
-
-    @staticmethod
     def dock_sizes() -> tuple[float, float, float]:
         """(left panel width, Metrics width when docked right, Metrics height when docked at the
         bottom), logical pixels."""

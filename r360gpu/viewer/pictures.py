@@ -16,7 +16,8 @@ from r360gpu.io.masks import load_mask
 from .compose import Layout
 from .layers import PlaneImage, camera_key
 from .live import delta_stats
-from .overlays import OverlaySettings, resize_nearest
+from ..util.resize import resize_nearest
+from .overlays import OverlaySettings
 
 #: Target masks kept in memory (read from disk again after that).
 MASK_CACHE = 32
@@ -155,7 +156,7 @@ class Pictures:
             while len(self._masks) >= MASK_CACHE:
                 self._masks.pop(next(iter(self._masks)))
             m = self._masks[view] = load_mask(self.app.bundle.masks[view])
-        return resize_nearest(m, width, height)
+        return resize_nearest(m, (height, width), axes=(0, 1))
 
     def mask_buffer(self, view: str | None, width: int, height: int):
         if view is None or view not in self.app.bundle.masks:
@@ -198,5 +199,5 @@ class Pictures:
         buf = entry["buffers"].get(bkey)
         if buf is None:
             ids = instance_ids(pm.masks)
-            buf = entry["buffers"][bkey] = app.overlay.upload_ids(resize_nearest(ids, width, height))
+            buf = entry["buffers"][bkey] = app.overlay.upload_ids(resize_nearest(ids, (height, width), axes=(0, 1)))
         return buf

@@ -23,11 +23,7 @@ from pathlib import Path
 from r360gpu.errors import InputError
 from r360gpu.pipeline import CACHE_DIR  # where ``r360gpu score`` keeps its caches, beside results.json
 from r360gpu.metrics.record import ViewRecord
-from r360gpu.metrics.semantic import XI_DEFAULT
-
-SCHEMA = "r360gpu.results/1"
-#: Per-view axes in chart order.
-AXES = ("s_sem", "s_geo", "s_str")
+from r360gpu.protocol import AXES, RESULTS_SCHEMA as SCHEMA, XI_DEFAULT  # AXES: per-view axes in chart order
 
 
 @dataclass(frozen=True)
@@ -129,7 +125,7 @@ def load_results(path, scene: str) -> SceneResults:
                 raise InputError(f"scene {scene!r}, method {name!r}, view record {i}: {e}", path) from None
             views[r.view] = view_axes(r)
         methods[str(name)] = MethodResults(axes=dict(m.get("axes") or {}), views=views)
-    probes = doc.get("probes") or {}
+    probes = entry.get("probes") or doc.get("probes") or {}  # the scene's own (fitted there), else the run's
     return SceneResults(path=path, scene=scene, methods=methods,
                         probes={k: list(probes.get(k) or []) for k in ("semantic", "structural")},
                         prompt=entry.get("prompt"))

@@ -1,0 +1,160 @@
+"""The import graph follows docs/architecture.md: each package imports only the packages its row
+allows (imports parsed with ast, lazy imports inside functions included), and the package graph has
+no cycle."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PKG = Path(__file__).resolve().parent.parent / "r360gpu"
+DOC = PKG.parent / "docs" / "architecture.md"
+
+#: Leaves every package may import: the error types, the protocol's constants, the version string.
+LEAVES = {"errors", "protocol", "__version__"}
+#: What each package (or top-level module) may import besides LEAVES: the data flow
+#: io/bundle (load) -> render -> probes -> metrics -> aggregate -> report, pipeline running them,
+#: the generator, viewer and command line on top.  Keep in step with docs/architecture.md.
+ALLOWED: dict[str, set[str]] = {
+    "errors": set(),
+    "protocol": set(),
+    "util": set(),
+    "gpu": {"util"},
+    "io": {"util"},
+    "kernels": {"gpu", "util"},
+    "bundle": {"io", "util"},
+    "render": {"gpu", "kernels", "io", "util"},
+    "probes": {"gpu", "kernels", "io", "util"},
+    "metrics": {"gpu", "kernels", "io", "render", "probes", "util"},
+    "aggregate": {"metrics", "util"},
+    "report": {"aggregate", "metrics", "util"},
+    "pipeline": {"gpu", "kernels", "io", "bundle", "render", "probes", "metrics", "aggregate", "report", "util"},
+    "synthetic": {"gpu", "kernels", "io", "bundle", "render", "util"},
+    "viewer": {"gpu", "kernels", "io", "bundle", "render", "probes", "metrics", "aggregate", "report", "pipeline",
+               "util"},
+    "cli": {"gpu", "kernels", "io", "bundle", "render", "probes", "metrics", "aggregate", "report", "pipeline",
+            "synthetic", "viewer", "util"},
+    "__main__": {"cli"},
+    # the package facade re-exports the public entry points
+    "__init__": {"bundle", "pipeline", "render", "io", "probes", "metrics", "aggregate", "report"},
+}
+
+
+def _module_name(path: Path) -> list[str]:
+    parts = list(path.relative_to(PKG.parent).with_suffix("").parts)
+    return parts[:-1] if parts[-1] == "__init__" else parts
+
+
+def imports_of(path: Path) -> set[str]:
+    """The r360gpu modules ``path`` imports (dotted, absolute), at any depth of its code."""
+    mod = _module_name(path)
+    return imports_in(path.read_text(encoding="utf-8"), mod if path.name == "__init__.py" else mod[:-1])
+
+
+def imports_in(source: str, pkg: list[str]) -> set[str]:
+    """The r360gpu modules ``source`` imports, relative imports resolved against package ``pkg``."""
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = pkg[: len(pkg) - (node.level - 1)] + (node.module.split(".") if node.module else [])
+            else:
+                base = (node.module or "").split(".")
+            if base[0] != "r360gpu":
+                continue
+            if len(base) == 1 or node.module is None:  # from r360gpu import x / from . import x: x may be a module
+                out.update(".".join(base + [a.name]) for a in node.names)
+            else:
+                out.add(".".join(base))
+        elif isinstance(node, ast.Import):
+            out.update(a.name for a in node.names if a.name.split(".")[0] == "r360gpu")
+    return out
+
+
+def _unit(dotted: str) -> str:
+    """The package (or top-level module) a dotted r360gpu module belongs to."""
+    parts = dotted.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def package_edges() -> dict[str, dict[str, list[str]]]:
+    """{package: {imported package: [files that import it]}}, self-imports left out."""
+    edges: dict[str, dict[str, list[str]]] = {}
+    for path in sorted(PKG.rglob("*.py")):
+        rel = path.relative_to(PKG)
+        src = rel.parts[0].removesuffix(".py") if len(rel.parts) >= 1 else "__init__"
+        for target in imports_of(path):
+            dst = _unit(target)
+            if dst != src:
+                edges.setdefault(src, {}).setdefault(dst, []).append(str(rel))
+    return edges
+
+
+def test_every_package_has_a_row():
+    units = {p.name.removesuffix(".py") for p in PKG.iterdir()
+             if (p.is_dir() and (p / "__init__.py").exists()) or (p.suffix == ".py")}
+    assert units - set(ALLOWED) == set(), "add the new package to ALLOWED and docs/architecture.md"
+    assert set(ALLOWED) - units == set()
+
+
+def violations(edges: dict[str, dict[str, list[str]]]) -> list[str]:
+    return [f"{src} -> {dst} ({', '.join(sorted(set(files))[:3])})"
+            for src, dsts in edges.items() for dst, files in dsts.items()
+            if dst not in ALLOWED.get(src, set()) | LEAVES]
+
+
+def test_imports_follow_the_allowed_edges():
+    bad = violations(package_edges())
+    assert not bad, "imports against the data flow (docs/architecture.md):\n" + "\n".join(bad)
+
+
+def test_package_graph_has_no_cycle():
+    # the facade (__init__) and the version string are outside the flow
+    graph = {s: {d for d in dsts if d in ALLOWED and d != "__init__"}
+             for s, dsts in package_edges().items() if s != "__init__"}
+    seen, on_path = set(), []
+
+    def visit(n):
+        if n in on_path:
+            raise AssertionError("import cycle: " + " -> ".join(on_path[on_path.index(n):] + [n]))
+        if n in seen:
+            return
+        on_path.append(n)
+        for m in sorted(graph.get(n, ())):
+            visit(m)
+        on_path.pop()
+        seen.add(n)
+
+    for n in sorted(graph):
+        visit(n)
+
+
+def test_the_doc_states_the_same_table():
+    text = DOC.read_text(encoding="utf-8")
+    for src, allowed in ALLOWED.items():
+        if src.startswith("__"):
+            continue
+        row = next((line for line in text.splitlines() if line.startswith(f"| `{src}` |")), None)
+        assert row is not None, f"docs/architecture.md has no row for {src}"
+        cells = row.split("|")[3]
+        listed = {c.strip(" `") for c in cells.split(",") if c.strip(" `-")}
+        assert listed == allowed, f"{src}: doc lists {sorted(listed)}, test allows {sorted(allowed)}"
+
+
+@pytest.mark.parametrize("src, expect", [
+    ("from ..pipeline import evaluate\n", {"r360gpu.pipeline"}),
+    ("from . import _json\n", {"r360gpu.metrics._json"}),
+    ("from .semantic import acc_seg\n", {"r360gpu.metrics.semantic"}),
+    ("import r360gpu.render.sort\n", {"r360gpu.render.sort"}),
+    ("def f():\n    from ..report.html import x\n", {"r360gpu.report.html"}),
+    ("from r360gpu import protocol, errors\n", {"r360gpu.protocol", "r360gpu.errors"}),
+    ("from .. import __version__\nimport numpy\n", {"r360gpu.__version__"}),
+])
+def test_import_parser(src, expect):
+    assert imports_in(src, ["r360gpu", "metrics"]) == expect
+
+
+def test_an_edge_up_the_flow_is_reported():
+    edges = {"report": {"pipeline": ["report/html.py"]}, "pipeline": {"report": ["pipeline/evaluate.py"]}}
+    assert violations(edges) == ["report -> pipeline (report/html.py)"]
