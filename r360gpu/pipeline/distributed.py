@@ -333,7 +333,7 @@ def _ray_score_task(common, views, ctx, timer, node) -> dict:
     import tempfile
 
     from .cache import RunCache
-    from .pictures import PictureSink
+    from .picture_sink import PictureSink
     from .run import SceneRun
     from .stages import score_view
 
