@@ -5,7 +5,7 @@ float32 depth, a target mask, two probe masks per side.  Timed, best of
 ``--repeat``, on one thread (the picture writer's):
 
 * the panels with r360gpu's order (float renders resized, then quantised:
-  ``report.pictures.rgb8_at``) against the order it replaced (quantised to
+  ``report.contact_sheets.rgb8_at``) against the order it replaced (quantised to
   8 bits at full size, then resized), in the same run;
 * then the rest of the sheet: laying the panels out, the PNG, the report's
   embedding JPEG.
@@ -60,7 +60,7 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
     cv2.setNumThreads(1)  # the picture writer is one thread beside the scoring ones
-    from r360gpu.report import pictures as P
+    from r360gpu.report import contact_sheets as P
     from r360gpu.report.embed import EMBED_WIDTH, embed_jpeg
 
     view = fake_view(args.height, args.width, np.random.default_rng(0))

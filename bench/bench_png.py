@@ -2,7 +2,7 @@
 ISA-L deflate) against OpenCV's libpng at level 6 and level 1 (adaptive filters, and the
 "up" filter it used before), and against its own format with the standard zlib, in one run.
 
-The sheet is built by report.pictures.sheet_image from rendered-looking panels
+The sheet is built by report.contact_sheets.sheet_image from rendered-looking panels
 (smooth gradients, noise, a flat-coloured object, mask outlines), 8 panels at
 the default panel width, as `r360gpu score` writes one per method and view.
 Every encoding is decoded again and checked equal to the sheet (lossless).
@@ -21,7 +21,7 @@ import numpy as np
 
 
 def make_sheet(rng) -> np.ndarray:
-    from r360gpu.report.pictures import sheet_image
+    from r360gpu.report.contact_sheets import sheet_image
 
     h, w = 360, 480
     yy, xx = np.mgrid[:h, :w].astype(np.float32)
@@ -41,7 +41,7 @@ def main() -> int:
     import zlib
 
     from r360gpu.report import png
-    from r360gpu.report.pictures import encode_png
+    from r360gpu.report.contact_sheets import encode_png
 
     sheet = make_sheet(np.random.default_rng(0))
     bgr = cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR)

@@ -29,7 +29,7 @@ from r360gpu.metrics.geometric import GeometricView
 from r360gpu.metrics.record import ViewRecord
 from r360gpu.metrics.semantic import XI_SWEEP, SemanticView, semantic_summary
 from r360gpu.metrics.structural import StructuralView, structural_summary
-from r360gpu.report.pictures import view_contact_sheet
+from r360gpu.report.contact_sheets import view_contact_sheet
 from r360gpu.report.plots import view_axes_plot
 from r360gpu.report.results_io import RESULTS_SCHEMA
 

@@ -12,7 +12,7 @@ from r360gpu.bundle import load_bundle
 from r360gpu.errors import InputError
 from r360gpu.pipeline import EvaluateOptions, default_probes, evaluate
 from r360gpu.pipeline.cache import RunCache
-from r360gpu.pipeline.pictures import PictureSink
+from r360gpu.pipeline.picture_sink import PictureSink
 from r360gpu.pipeline.run import SceneRun, Timer
 from r360gpu.pipeline.stages import score_view
 from r360gpu.pipeline.writer import BackgroundWriter
@@ -185,7 +185,7 @@ def test_picture_sink_writes_the_sheet_of_the_full_size_inputs(tmp_path, size):
 
     from r360gpu.metrics.compat import depth_delta
     from r360gpu.probes.base import MaskSet, SemanticPrediction
-    from r360gpu.report.pictures import panel_width_for, view_contact_sheet
+    from r360gpu.report.contact_sheets import panel_width_for, view_contact_sheet
 
     h, w = size
     rng = np.random.default_rng(h)
@@ -225,7 +225,7 @@ def test_panel_width_follows_small_views():
     import cv2
     import numpy as np
 
-    from r360gpu.report.pictures import (MIN_PANEL_WIDTH, PANEL_WIDTH, panel_width_for, sheet_image, view_numbers,
+    from r360gpu.report.contact_sheets import (MIN_PANEL_WIDTH, PANEL_WIDTH, panel_width_for, sheet_image, view_numbers,
                                          _FONT, _TITLE_SCALE)
 
     assert [panel_width_for(w) for w in (4000, PANEL_WIDTH, 290, MIN_PANEL_WIDTH, 97, 1)] == [

@@ -39,8 +39,8 @@ def test_index_is_the_floor_rule_and_edges():
 
 def test_every_mask_resize_in_the_project_is_this_rule():
     from r360gpu.probes import precomputed
-    from r360gpu.report.pictures import resize_mask
-    from r360gpu.viewer import pictures as viewer_pictures
+    from r360gpu.report.contact_sheets import resize_mask
+    from r360gpu.viewer import frame_pictures as viewer_pictures
 
     assert precomputed.resize_nearest is resize_nearest
     assert viewer_pictures.resize_nearest is resize_nearest

@@ -9,7 +9,7 @@ from r360gpu.errors import InputError
 from r360gpu.gpu import GpuContext
 from r360gpu.io.gaussians import random_gaussians
 from r360gpu.render import Renderer, render
-from r360gpu.render import pipeline as render_pipeline
+from r360gpu.render import renderer as render_pipeline
 from test_render_pipeline import camera, compare
 
 PLANES = ("rgb", "alpha", "depth", "median_depth")

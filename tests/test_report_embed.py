@@ -12,7 +12,7 @@ from r360gpu.errors import R360Warning
 from r360gpu.report import embed
 from r360gpu.report.embed import EMBED_WIDTH, JPEG_QUALITY, jpeg_from_png, load_embed, sheet_jpeg, store_embed
 from r360gpu.report.html import write_html
-from r360gpu.report.pictures import contact_sheet, sheet_image
+from r360gpu.report.contact_sheets import contact_sheet, sheet_image
 
 from report_fake import fake_results
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from r360gpu.errors import InputError
-from r360gpu.report.pictures import (
+from r360gpu.report.contact_sheets import (
     _resize_rgb,
     BACKGROUND_RGB,
     CHANGED_OUTSIDE_RGB,
@@ -154,7 +154,7 @@ def test_mask_overlay_blend_is_the_plain_per_mask_blend(seed):
     """The overlay blends each mask (in order) into the float32 panel as
     (1 - alpha) * pixel + alpha * colour, rounded once at the end; it works on each mask's bounding
     box only, which must give exactly the whole-image blend (outlines drawn on both alike)."""
-    from r360gpu.report.pictures import _outline, resize_mask, _resize_rgb
+    from r360gpu.report.contact_sheets import _outline, resize_mask, _resize_rgb
 
     rng = np.random.default_rng(seed)
     h, w = rng.integers(1, 90, 2)
@@ -270,7 +270,7 @@ def test_axes_overview_png():
 @pytest.mark.parametrize("n_lines", [0, 2])
 @pytest.mark.parametrize("width", [64, 128])
 def test_sheet_panel_cuts_out_one_panel(n_lines, width):
-    from r360gpu.report.pictures import sheet_panel
+    from r360gpu.report.contact_sheets import sheet_panel
 
     rng = np.random.default_rng(3)
     panels = [(f"p{i}", rng.integers(0, 250, (30 + 4 * i, 40, 3)).astype(np.uint8)) for i in range(7)]

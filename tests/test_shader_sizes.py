@@ -49,7 +49,7 @@ fn c() {}
 
 def test_host_sizes_equal_the_shaders():
     from r360gpu.kernels import depth_change, mask_iou, ssim
-    from r360gpu.render import kernels, project, scan, sort
+    from r360gpu.render import shader_pipelines as kernels, project, scan, sort
 
     c = S.shader_constants("prefix_sum")
     assert scan.BLOCK == c["BLOCK"] == S.workgroup_threads("prefix_sum", "scan_blocks") * c["ITEMS"]

@@ -9,7 +9,7 @@ import pytest
 from r360gpu.gpu import shaders
 from r360gpu.gpu.shaders import INCLUDE_ONLY, available_shaders, load_shader_source, shader_path
 from r360gpu.gpu.uniforms import SCALARS, pack_words, struct_fields
-from r360gpu.render import conventions, kernels
+from r360gpu.render import conventions, shader_pipelines as kernels
 
 RENDER_SHADERS = ("render_project", "render_bin", "render_ranges", "render_rasterize", "prefix_sum", "radix_sort")
 _COMMENT = re.compile(r"//[^\n]*")

@@ -9,7 +9,7 @@ Read in this order:
   where they may run (GPU thread / any thread); :func:`~.stages.score_view` runs them in a row;
 * :mod:`.cache`     -- the view cache (per-view cells), the probe cache and fit records
   under ``OUT/.r360cache``;
-* :mod:`.pictures`  -- :class:`~.pictures.PictureSink`, the contact sheets the stages feed;
+* :mod:`.picture_sink`  -- :class:`~.picture_sink.PictureSink`, the contact sheets the stages feed;
 * :mod:`.writer`    -- :class:`~.writer.BackgroundWriter`: pictures and cache cells off the GPU thread;
 * :mod:`.evaluate`  -- :func:`evaluate`: scenes in, the results document out; the views of a
   scene overlapped (GPU thread renders and measures, host threads read and probe ahead);

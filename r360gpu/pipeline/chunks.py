@@ -25,7 +25,7 @@ def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, a
     from ..errors import InputError
     from ..gpu import get_context
     from .cache import RunCache
-    from .pictures import PictureSink
+    from .picture_sink import PictureSink
     from .run import SceneRun, Timer
     from .stages import score_view
 

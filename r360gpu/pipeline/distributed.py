@@ -374,7 +374,7 @@ def _ray_score_task(common, views, ctx, timer, node) -> dict:
     import tempfile
 
     from .cache import RunCache
-    from .pictures import PictureSink
+    from .picture_sink import PictureSink
     from .run import SceneRun
     from ..util.filehash import decoded_digests
     from .stages import score_view

@@ -10,7 +10,7 @@ from ..errors import InputError
 from ..util import warning_log
 from .cache import RunCache
 from .options import EvaluateOptions, default_probes
-from .pictures import PictureSink
+from .picture_sink import PictureSink
 from .results_doc import ResultsDocument
 from .run import SceneRun, Timer
 from .stages import gather

@@ -223,7 +223,7 @@ def measure(run, data: ViewData, sink) -> tuple[dict, dict]:
 
 
 def picture_jobs(run, data: ViewData, geos: dict, cells: dict | None = None) -> list:
-    """Keyword arguments of :meth:`~.pictures.PictureSink.method_view`, one per method.
+    """Keyword arguments of :meth:`~.picture_sink.PictureSink.method_view`, one per method.
 
     Reads device depth back here (the GPU thread), so the sink works on host arrays only.
     """

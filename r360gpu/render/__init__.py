@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA, RenderOptions
 from .doctor import doctor_checks
-from .pipeline import DeviceRender, Render, Renderer, RenderStats, render, render_views
+from .renderer import DeviceRender, Render, Renderer, RenderStats, render, render_views
 from .rasterize import PLANES
 
 __all__ = [

@@ -21,7 +21,7 @@ import numpy as np
 from ..gpu.context import BufferRange, GpuContext
 from ..gpu.shaders import workgroup_threads
 from ..gpu.uniforms import uniform
-from .kernels import pipeline
+from .shader_pipelines import pipeline
 from .scan import exclusive_scan
 from .scratch import Scratch
 

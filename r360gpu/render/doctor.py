@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..gpu.context import GpuContext
-from .pipeline import Renderer
+from .renderer import Renderer
 from .sort import host_argsort, sort_pairs
 
 _SH_C0 = 0.28209479177387814

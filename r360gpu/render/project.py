@@ -15,7 +15,7 @@ from ..gpu.context import BufferRange, GpuContext
 from ..gpu.shaders import workgroup_threads
 from ..gpu.uniforms import uniform
 from .conventions import FRUSTUM_GUARD, TILE
-from .kernels import pipeline
+from .shader_pipelines import pipeline
 from .scene import PARAM_FLOATS, DeviceScene
 from .scratch import Scratch
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..gpu.context import BufferRange, GpuContext
 from ..gpu.uniforms import uniform
-from .kernels import pipeline
+from .shader_pipelines import pipeline
 
 #: Plane order in the output buffer.
 PLANES = ("r", "g", "b", "alpha", "depth", "median_depth")

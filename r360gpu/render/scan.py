@@ -10,7 +10,7 @@ from __future__ import annotations
 from ..gpu.context import BufferRange, GpuContext
 from ..gpu.shaders import shader_constant
 from ..gpu.uniforms import uniform
-from .kernels import pipeline
+from .shader_pipelines import pipeline
 from .scratch import Scratch
 
 #: Elements scanned by one workgroup (WG threads x ITEMS items), as prefix_sum.wgsl states it.

@@ -13,7 +13,7 @@ import math
 from ..gpu.context import BufferRange, GpuContext
 from ..gpu.shaders import shader_constants
 from ..gpu.uniforms import uniform
-from .kernels import pipeline
+from .shader_pipelines import pipeline
 from .scan import exclusive_scan
 from .scratch import Scratch
 

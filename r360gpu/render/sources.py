@@ -41,7 +41,7 @@ class SceneSource:
         from .conventions import RenderOptions
 
         from ..io import Gaussians, load_gaussians
-        from .pipeline import Renderer
+        from .renderer import Renderer
 
         if depth not in ("expected", "median"):
             raise InputError(f"depth mode must be 'expected' or 'median', got {depth!r}")
@@ -152,7 +152,7 @@ class DeviceViewsSource:
 
     def images(self, view: str, camera=None) -> ViewImages:
         from ..kernels.depth_change import DeviceDepth
-        from .pipeline import DeviceRender
+        from .renderer import DeviceRender
 
         if view not in self.views:
             raise InputError(f"{self.name}: no render for view {view!r}")

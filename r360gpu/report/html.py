@@ -45,7 +45,7 @@ from ..util.warning_log import format_record
 from . import findings
 from .embed import JPEG_QUALITY, sheet_jpeg
 from .findings import LOW_AXIS
-from .pictures import sheet_panel, view_numbers
+from .contact_sheets import sheet_panel, view_numbers
 from .plots import axes_overview_png, view_series
 from .results_io import method_entry, method_names, number, scene_names, structural_mode
 from .results_tables import (

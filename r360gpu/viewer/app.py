@@ -8,7 +8,7 @@ imgui and r360gpu) and hands each job to one part:
 * :class:`r360gpu.viewer.input.Input` -- keys, mouse and the state machine's actions;
 * :class:`r360gpu.viewer.frame.FrameLoop` -- one frame, start to end, with the
   panels docked beside the pictures (:mod:`r360gpu.viewer.docking`);
-* :class:`r360gpu.viewer.pictures.Pictures` -- rendering and overlays of the shown scenes;
+* :class:`r360gpu.viewer.frame_pictures.Pictures` -- rendering and overlays of the shown scenes;
 * :class:`r360gpu.viewer.live.LiveMeter` -- the live geometric axis at the viewpoint;
 * :class:`r360gpu.viewer.target.SceneTarget` -- the 3D target estimate (focus, masks
   away from the evaluation views);
@@ -33,7 +33,7 @@ from .input import Input
 from .layers import SplatLayer, build_layers
 from .live import LiveMeter
 from .overlays import OverlayPass
-from .pictures import Pictures
+from .frame_pictures import Pictures
 from .quality import ResolutionPolicy
 from .state import Action, ViewerState
 from .target import SceneTarget

@@ -5,7 +5,7 @@ fly-through) -> note whether the camera moved -> dock the panels beside the
 pictures (:mod:`r360gpu.viewer.docking`) and lay the pictures out
 (:mod:`r360gpu.viewer.compose`) -> pick the render scale (progressive: reduced while
 the camera moves, full once it rests, :mod:`r360gpu.viewer.quality`) -> render and
-overlay each shown scene (:mod:`r360gpu.viewer.pictures`) -> measure the live axis
+overlay each shown scene (:mod:`r360gpu.viewer.frame_pictures`) -> measure the live axis
 once the camera rests (:mod:`r360gpu.viewer.live`) -> compose into the window ->
 view captures -> imgui panels and pane labels (:mod:`r360gpu.viewer.panels`) ->
 window captures (:mod:`r360gpu.viewer.capture`).

@@ -37,7 +37,7 @@ class PictureSink:
         are drawn on the sheet, so they survive copying it).
         """
         from ..metrics.compat import compat_quantise, depth_delta
-        from ..report.pictures import view_contact_sheet
+        from ..report.contact_sheets import view_contact_sheet
 
         delta = threshold = changed = None
         if geo is not None:
@@ -73,7 +73,7 @@ class _Shrink:
     """RGB images and masks at a panel's size, made once per array (keyed by identity).
 
     Uses the picture module's own conversion and resizing
-    (:func:`~r360gpu.report.pictures.rgb8_at`, nearest resize for masks), so
+    (:func:`~r360gpu.report.contact_sheets.rgb8_at`, nearest resize for masks), so
     a panel made from the result is the panel made from the full-size input.
     """
 
@@ -84,22 +84,22 @@ class _Shrink:
     @classmethod
     def for_view(cls, pre_rgb) -> "_Shrink":
         """At the panel width of a view as wide as ``pre_rgb``."""
-        from ..report.pictures import panel_width_for
+        from ..report.contact_sheets import panel_width_for
 
         return cls(panel_width_for(np.shape(pre_rgb)[1]))
 
     def rgb(self, a):
-        from ..report.pictures import rgb8_at
+        from ..report.contact_sheets import rgb8_at
 
         return self._memo.get("rgb", (a,), lambda: rgb8_at(a, self.width))
 
     def _size(self, shape):
-        from ..report.pictures import panel_size
+        from ..report.contact_sheets import panel_size
 
         return panel_size(shape, self.width)
 
     def mask(self, m):
-        from ..report.pictures import resize_mask
+        from ..report.contact_sheets import resize_mask
 
         return self._memo.get("mask", (m,), lambda: resize_mask(np.asarray(m) != 0, self._size(np.shape(m))))
 
@@ -108,7 +108,7 @@ class _Shrink:
         return self._memo.get("union", (prediction,), lambda: self.mask(prediction.union()))
 
     def masks(self, stack):
-        from ..report.pictures import resize_mask
+        from ..report.contact_sheets import resize_mask
 
         def make(x):
             a = np.asarray(x) != 0
