@@ -15,7 +15,7 @@ from ..errors import InputError
 from ..gpu.context import BufferRange
 from ..gpu.uniforms import uniform
 from ..render.conventions import ALPHA_MAX, ALPHA_MIN, T_MIN
-from ..render.pipeline import Renderer
+from ..render.renderer import Renderer
 from ..render.project import tile_grid
 
 #: Fixed-point units per unit of compositing weight (the shader's ``scale``): a tile's sum of at most

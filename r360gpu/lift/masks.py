@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import InputError
 from ..io.gaussians import Gaussians
 from ..io.sh import C0 as SH_C0
-from ..render.pipeline import DeviceRender, Renderer
+from ..render.renderer import DeviceRender, Renderer
 
 #: A pixel is target where the target holds at least this share of its composited weight.
 MASK_SHARE = 0.5
