@@ -42,6 +42,7 @@ from __future__ import annotations
 import io
 import os
 import struct
+import tokenize
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -158,10 +159,10 @@ def image_size(path: str | os.PathLike) -> tuple[int, int]:
 
 
 _JPEG_MAGIC = b"\xff\xd8\xff"
-#: Decoded images larger than this many pixels are refused before decoding (a 16384 x 16384 view;
+#: Decoded images larger than this many pixels are refused before decoding (an 8192 x 8192 view;
 #: a few kilobytes of PNG can claim a size whose decoding takes gigabytes).  The bundle check also
 #: bounds every rendering and mask by its view's size from the headers, before any decode.
-MAX_PIXELS = 1 << 28
+MAX_PIXELS = 1 << 26
 #: Extensions of lossy formats: a depth file in one is named in the "missing depth" message.
 LOSSY_EXTENSIONS = (".jpg", ".jpeg", ".webp")
 
@@ -407,19 +408,40 @@ def _exr_depth_opencv(path, unsupported: UnsupportedExrError) -> np.ndarray:
     return img
 
 
+# What numpy's .npy header parser raises on a damaged header (it evaluates the header as a literal).
+_NPY_HEADER_ERRORS = (ValueError, SyntaxError, TypeError, EOFError, OverflowError, tokenize.TokenError)
+
+
+def _npy_header(f, path) -> tuple[tuple[int, ...], np.dtype]:
+    """(shape, dtype) from a .npy header, its length checked against the file before numpy reads it
+    (numpy allocates what the length field claims)."""
+    try:
+        start = f.tell()
+        size = f.seek(0, os.SEEK_END)
+        f.seek(start)
+        version = np.lib.format.read_magic(f)
+        if version not in ((1, 0), (2, 0), (3, 0)):
+            raise ValueError(f"unknown .npy format version {version}")
+        field = f.read(2 if version == (1, 0) else 4)
+        length = int.from_bytes(field, "little")
+        if len(field) < (2 if version == (1, 0) else 4) or length > size - f.tell():
+            raise ValueError(f"the header claims {length} bytes, the file has {size - f.tell()} left")
+        f.seek(f.tell() - len(field))
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+        else:
+            shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+    except _NPY_HEADER_ERRORS as e:
+        raise InputError(f"not a valid .npy file ({type(e).__name__}: {str(e)[:200]})", path) from None
+    return tuple(shape), dtype
+
+
 def _npy_shape(path) -> tuple[int, ...]:
     try:
         with open(path, "rb") as f:
-            version = np.lib.format.read_magic(f)
-            if version == (1, 0):
-                shape, _, _ = np.lib.format.read_array_header_1_0(f)
-            else:
-                shape, _, _ = np.lib.format.read_array_header_2_0(f)
+            return _npy_header(f, path)[0]
     except OSError as e:
-        raise InputError(f"cannot read file: {e.strerror or e}", path) from None
-    except ValueError as e:
-        raise InputError(f"not a valid .npy file ({e})", path) from None
-    return tuple(shape)
+        raise read_error(e, path) from None
 
 
 def _npy_hw(shape: tuple[int, ...], path) -> tuple[int, int]:
@@ -434,11 +456,19 @@ def _npy_hw(shape: tuple[int, ...], path) -> tuple[int, int]:
 
 def _npy_depth(path) -> np.ndarray:
     try:
-        arr = np.load(io.BytesIO(read_file(path)), allow_pickle=False)  # hashed as read (util.filehash)
+        data = read_file(path)  # hashed as read (util.filehash)
     except OSError as e:
-        raise InputError(f"cannot read file: {e.strerror or e}", path) from None
-    except ValueError as e:
-        raise InputError(f"not a valid .npy file ({e})", path) from None
+        raise read_error(e, path) from None
+    f = io.BytesIO(data)
+    shape, dtype = _npy_header(f, path)
+    n = int(np.prod(shape, dtype=object)) if shape else 1
+    if n > MAX_PIXELS or (not dtype.hasobject and n * dtype.itemsize > len(data) - f.tell()):
+        raise InputError(f"the .npy header claims shape {shape} of {dtype}, more than the file's "
+                         f"{len(data)} bytes hold (truncated?) or r360gpu decodes", path)
+    try:
+        arr = np.load(io.BytesIO(data), allow_pickle=False)
+    except _NPY_HEADER_ERRORS as e:
+        raise InputError(f"not a valid .npy file ({type(e).__name__}: {str(e)[:200]})", path) from None
     if not isinstance(arr, np.ndarray):
         raise InputError("not a .npy array file", path)
     if arr.dtype == np.bool_ or not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
