@@ -16,7 +16,7 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from bundle_factory import H, VIEWS, W, make_bundle, make_remove360, mask_image, write_mask, write_rgb
+from bundle_factory import H, VIEWS, W, camera, make_bundle, make_remove360, mask_image, write_mask, write_rgb
 from r360gpu.io import random_gaussians, save_compressed_ply, save_ply
 
 SCORE_FLAGS = ["--quiet", "--no-boundary", "--no-pictures", "--n-boot", "10", "--n-perm", "10"]
@@ -786,3 +786,191 @@ def _(root):
         for v in VIEWS:
             (root / "sj" / r / f"{v}.json").write_text("[{\"segmentation\": 5}]")
     return score(b, "--structural-probe", f"sam-json:{root / 'sj'}"), "view_00.json"
+
+
+# --- issue 26: each class closed where the input enters ---------------------------------------------
+
+@case("score-pre-depth-all-inf", "warning", "pre has no valid depth", verify=_notes("no valid pre depth"))
+def _(root):
+    b = renders_bundle(root / "b")
+    np.save(b / "pre" / "depth" / "view_01.npy", np.full((H, W), np.inf, np.float32))
+    return score(b), "view_01.npy"
+
+
+@case("score-depth-jpeg-bytes-as-png", "error", "JPEG")
+def _(root):
+    b = renders_bundle(root / "b", post_depth={"view_01": False})
+    ok, buf = cv2.imencode(".jpg", np.full((H, W), 120, np.uint8))
+    (b / "a" / "depth" / "view_01.png").write_bytes(buf.tobytes())
+    return score(b), "view_01.png"
+
+
+@case("check-depth-jpeg-bytes-as-png", "error", "JPEG")
+def _(root):
+    b = renders_bundle(root / "b", post_depth={"view_01": False})
+    ok, buf = cv2.imencode(".jpg", np.full((H, W), 120, np.uint8))
+    (b / "a" / "depth" / "view_01.png").write_bytes(buf.tobytes())
+    return check(b), "view_01.png"
+
+
+@case("check-depth-saved-as-jpg", "error", "view_02.jpg")
+def _(root):
+    b = renders_bundle(root / "b", post_depth={"view_02": False})
+    assert cv2.imwrite(str(b / "a" / "depth" / "view_02.jpg"), np.full((H, W), 120, np.uint8))
+    return check(b), "depth"
+
+
+def _palette_inverted(path: Path) -> None:
+    from PIL import Image
+
+    im = Image.fromarray((mask_image() > 0).astype(np.uint8), mode="P")
+    im.putpalette([255, 255, 255, 0, 0, 0] + [0] * 762)  # index 0 (background) drawn white
+    im.save(path)
+
+
+def _palette_read(out, results, stderr):
+    v1 = [r for r in results["scenes"]["r"]["methods"]["a"]["views"] if r["view"] == "view_01"][0]
+    assert v1["geometric"]["n_mask"] == int((mask_image() != 0).sum())  # index != 0 is target, not "white"
+
+
+@case("score-mask-palette-index-0-white", "warning", "palette", verify=_palette_read)
+def _(root):
+    b = renders_bundle(root / "b")
+    _palette_inverted(b / "masks" / "view_01.png")
+    return score(b), "view_01.png"
+
+
+@case("check-mask-dangling-symlink", "error", "symbolic link")
+def _(root):
+    b = renders_bundle(root / "b")
+    (b / "masks" / "view_01.png").unlink()
+    (b / "masks" / "view_01.png").symlink_to(root / "nowhere.png")
+    return check(b), "view_01.png"
+
+
+@case("score-mask-symlink-loop", "error", "symbolic link")
+def _(root):
+    b = renders_bundle(root / "b")
+    (b / "masks" / "view_01.png").unlink()
+    (b / "masks" / "view_01.png").symlink_to(b / "masks" / "view_01.png")
+    return score(b), "view_01.png"
+
+
+@case("check-rgb-dangling-symlink", "error", "symbolic link")
+def _(root):
+    b = renders_bundle(root / "b")
+    (b / "a" / "rgb" / "view_02.png").unlink()
+    (b / "a" / "rgb" / "view_02.png").symlink_to(root / "gone.png")
+    return check(b), "view_02.png"
+
+
+@case("out-empty", "error", "--out is empty")
+def _(root):
+    return ["score", str(renders_bundle(root / "b")), "--out", "", *SCORE_FLAGS], "--out"
+
+
+@case("out-dangling-symlink", "error", "symbolic link")
+def _(root):
+    b = renders_bundle(root / "b")
+    (root / "o").symlink_to(root / "missing-target")
+    return ["score", str(b), "--out", str(root / "o"), *SCORE_FLAGS], "o"
+
+
+@case("score-n-boot-zero", "error", "n_boot")
+def _(root):
+    return ["score", str(renders_bundle(root / "b")), "--out", "{out}", "--quiet", "--no-pictures",
+            "--n-boot", "0"], "--n-boot"
+
+
+@case("score-n-perm-negative", "error", "n_perm")
+def _(root):
+    return ["score", str(renders_bundle(root / "b")), "--out", "{out}", "--quiet", "--n-perm", "-3"], "--n-perm"
+
+
+def _sam_dir(root: Path, claim: tuple[int, int]) -> Path:
+    d = root / "sam"
+    h, w = claim
+    for rendering in ("pre", "post"):
+        (d / rendering).mkdir(parents=True)
+        for v in VIEWS:
+            (d / rendering / f"{v}.json").write_text(
+                json.dumps([{"segmentation": {"size": [h, w], "counts": [h * w]}}]))
+    return d
+
+
+@case("score-sam-json-rle-claims-huge-size", "error", "larger than the view")
+def _(root):
+    b = renders_bundle(root / "b")
+    d = _sam_dir(root, (50000, 50000))
+    return score(b, "--structural-probe", f"sam-json:{d}"), "view_00.json"
+
+
+def _distorted_colmap(root: Path) -> Path:
+    b = make_bundle(root / "b")
+    from r360gpu.io import save_colmap
+
+    save_colmap(b / "cameras", [camera(f"{v}.jpg") for v in VIEWS], binary=False)
+    for f in ("cameras.bin", "images.bin", "points3D.bin"):
+        (b / "cameras" / f).unlink(missing_ok=True)
+    lines = (b / "cameras" / "cameras.txt").read_text().splitlines()
+    out = []
+    for line in lines:
+        if line and not line.startswith("#"):
+            w = line.split()
+            line = " ".join([w[0], "OPENCV", *w[2:], "0.1", "0.01", "0", "0"])
+        out.append(line)
+    (b / "cameras" / "cameras.txt").write_text("\n".join(out) + "\n")
+    return b
+
+
+def _distortion_recorded(out, results, stderr):
+    hits = [w for w in results["warnings"] if "distortion" in w["message"]]
+    assert hits and hits[0]["scene"] == "room", results["warnings"]
+
+
+@case("score-colmap-distortion-recorded", "warning", "distortion", verify=_distortion_recorded)
+def _(root):
+    return score(_distorted_colmap(root), "--no-controls"), "cameras/"
+
+
+def _bom_read(out, results, stderr):
+    prompt = results["scenes"]["room_table"]["prompt"]
+    assert prompt == "table", repr(prompt)
+
+
+@case("score-prompt-txt-with-bom", "warning", "byte-order mark", verify=_bom_read)
+def _(root):
+    f = make_remove360(root / "room_table")
+    (f / "prompt.txt").write_bytes("\ufefftable\n".encode("utf-8"))
+    return score(f), "prompt.txt"
+
+
+@case("check-scene-every-gaussian-nan", "error", "")
+def _(root):
+    b = make_bundle(root / "b")
+    p = b / "methods" / "clean.ply"
+    save_ply(p, random_gaussians(35, sh_degree=1, seed=3), format="ascii")
+    head, body = p.read_text().split("end_header\n")
+    rows = ["nan " + line.split(" ", 1)[1] for line in body.splitlines()]
+    p.write_text(head + "end_header\n" + "\n".join(rows) + "\n")
+    return check(b), "clean.ply"
+
+
+@case("check-public-folder-rgb-depth-png", "error", "colour")
+def _(root):
+    f = make_remove360(root / "room_table")
+    img = np.random.default_rng(1).integers(0, 255, (H, W, 3), np.uint8)
+    assert cv2.imwrite(str(f / "depth" / "after" / "view_01.png"), img)
+    return check(f), "view_01.png"
+
+
+@case("score-ray-address-refuses", "error", "127.0.0.1:1")
+def _(root):
+    return score(renders_bundle(root / "b"), "--ray", "127.0.0.1:1"), "Ray cluster"
+
+
+@case("score-benchmark-dangling-method-folder", "error", "symbolic link")
+def _(root):
+    make_remove360(root / "bench" / "gc" / "room_table")
+    (root / "bench" / "af").symlink_to(root / "not-there")
+    return ["score", "--benchmark", str(root / "bench"), "--out", "{out}", *SCORE_FLAGS], "af"

@@ -37,6 +37,9 @@ from ..errors import InputError
 from ..util.filehash import read_file
 from .paths import read_error
 
+#: The largest data window decoded (the limit of :mod:`.renders`, a 8192 x 8192 view).
+MAX_PIXELS = 1 << 26
+
 _MAGIC = b"\x76\x2f\x31\x01"
 _TILED, _DEEP, _MULTIPART = 0x200, 0x800, 0x1000
 _COMPRESSION_NAMES = ["NONE", "RLE", "ZIPS", "ZIP", "PIZ", "PXR24", "B44", "B44A", "DWAA", "DWAB",
@@ -178,6 +181,9 @@ def _parse_header(data: bytes, path: str) -> ExrInfo:
     width, height = x_max - x_min + 1, y_max - y_min + 1
     if width <= 0 or height <= 0:
         raise InputError(f"EXR data window is empty ({width}x{height})", path)
+    if width * height > MAX_PIXELS:  # checked before a pixel is allocated (a header edit can claim 2^31)
+        raise InputError(f"EXR data window is {width}x{height}, more pixels than r360gpu decodes ({MAX_PIXELS})",
+                         path)
     return ExrInfo(width, height, channels, _COMPRESSION_NAMES[comp[0]], x_min, y_min, pos)
 
 

@@ -47,9 +47,10 @@ def load_mask(path: str | os.PathLike, shape: tuple[int, int] | None = None) -> 
     except OSError as e:
         raise read_error(e, path, "mask") from None
     _refuse_jpeg(raw[:3].tobytes(), path)
-    from .renders import check_pixel_count
+    from .renders import check_pixel_count, check_png_chunks
 
     check_pixel_count(raw[:1 << 16].tobytes(), path, "mask")
+    check_png_chunks(raw, path, "mask")
     if _is_palette_png(raw[:32].tobytes()):
         mask = _palette_mask(raw, path)
     else:

@@ -42,6 +42,7 @@ from __future__ import annotations
 import io
 import os
 import struct
+import tokenize
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -158,10 +159,10 @@ def image_size(path: str | os.PathLike) -> tuple[int, int]:
 
 
 _JPEG_MAGIC = b"\xff\xd8\xff"
-#: Decoded images larger than this many pixels are refused before decoding (a 16384 x 16384 view;
+#: Decoded images larger than this many pixels are refused before decoding (an 8192 x 8192 view;
 #: a few kilobytes of PNG can claim a size whose decoding takes gigabytes).  The bundle check also
 #: bounds every rendering and mask by its view's size from the headers, before any decode.
-MAX_PIXELS = 1 << 28
+MAX_PIXELS = 1 << 26
 #: Extensions of lossy formats: a depth file in one is named in the "missing depth" message.
 LOSSY_EXTENSIONS = (".jpg", ".jpeg", ".webp")
 
@@ -188,6 +189,25 @@ def check_pixel_count(head: bytes, path, what: str = "image") -> None:
     if hw is not None and hw[0] * hw[1] > MAX_PIXELS:
         raise InputError(f"{what} claims {hw[1]}x{hw[0]} pixels, more than r360gpu decodes ({MAX_PIXELS}); "
                          f"not a rendering of an evaluation view", path)
+
+
+def check_png_chunks(raw, path, what: str = "image") -> None:
+    """InputError when a PNG's chunk lengths run past the end of the file.  OpenCV allocates what a
+    chunk length claims before it reads it: a 100-byte file claiming a 2 GB chunk took 8 s and
+    gigabytes; walking the chunk headers first costs microseconds."""
+    data = raw.tobytes() if isinstance(raw, np.ndarray) else bytes(raw)
+    if not data.startswith(_PNG_SIGNATURE):
+        return
+    pos, n = len(_PNG_SIGNATURE), len(data)
+    while pos + 8 <= n:
+        (length,) = struct.unpack(">I", data[pos:pos + 4])
+        kind = data[pos + 4:pos + 8]
+        if pos + 12 + length > n:
+            raise InputError(f"corrupt or truncated PNG {what}: chunk {kind!r} at byte {pos} claims {length} "
+                             f"bytes, the file has {max(0, n - pos - 12)} left", path)
+        if kind == b"IEND":
+            return
+        pos += 12 + length
 
 
 def depth_size(path: str | os.PathLike) -> tuple[int, int]:
@@ -335,6 +355,7 @@ def _decode(path, what: str, *, lossless: bool = False) -> np.ndarray:
     if lossless:
         refuse_lossy(raw[:3].tobytes(), path, what)
     check_pixel_count(raw[:_HEADER_BYTES].tobytes(), path, what)
+    check_png_chunks(raw, path, what)
     img = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED) if raw.size else None
     if img is None:
         raise InputError(f"cannot decode {what} (not an image file, or corrupt)", path)
@@ -387,19 +408,40 @@ def _exr_depth_opencv(path, unsupported: UnsupportedExrError) -> np.ndarray:
     return img
 
 
+# What numpy's .npy header parser raises on a damaged header (it evaluates the header as a literal).
+_NPY_HEADER_ERRORS = (ValueError, SyntaxError, TypeError, EOFError, OverflowError, tokenize.TokenError)
+
+
+def _npy_header(f, path) -> tuple[tuple[int, ...], np.dtype]:
+    """(shape, dtype) from a .npy header, its length checked against the file before numpy reads it
+    (numpy allocates what the length field claims)."""
+    try:
+        start = f.tell()
+        size = f.seek(0, os.SEEK_END)
+        f.seek(start)
+        version = np.lib.format.read_magic(f)
+        if version not in ((1, 0), (2, 0), (3, 0)):
+            raise ValueError(f"unknown .npy format version {version}")
+        field = f.read(2 if version == (1, 0) else 4)
+        length = int.from_bytes(field, "little")
+        if len(field) < (2 if version == (1, 0) else 4) or length > size - f.tell():
+            raise ValueError(f"the header claims {length} bytes, the file has {size - f.tell()} left")
+        f.seek(f.tell() - len(field))
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+        else:
+            shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+    except _NPY_HEADER_ERRORS as e:
+        raise InputError(f"not a valid .npy file ({type(e).__name__}: {str(e)[:200]})", path) from None
+    return tuple(shape), dtype
+
+
 def _npy_shape(path) -> tuple[int, ...]:
     try:
         with open(path, "rb") as f:
-            version = np.lib.format.read_magic(f)
-            if version == (1, 0):
-                shape, _, _ = np.lib.format.read_array_header_1_0(f)
-            else:
-                shape, _, _ = np.lib.format.read_array_header_2_0(f)
+            return _npy_header(f, path)[0]
     except OSError as e:
-        raise InputError(f"cannot read file: {e.strerror or e}", path) from None
-    except ValueError as e:
-        raise InputError(f"not a valid .npy file ({e})", path) from None
-    return tuple(shape)
+        raise read_error(e, path) from None
 
 
 def _npy_hw(shape: tuple[int, ...], path) -> tuple[int, int]:
@@ -414,11 +456,19 @@ def _npy_hw(shape: tuple[int, ...], path) -> tuple[int, int]:
 
 def _npy_depth(path) -> np.ndarray:
     try:
-        arr = np.load(io.BytesIO(read_file(path)), allow_pickle=False)  # hashed as read (util.filehash)
+        data = read_file(path)  # hashed as read (util.filehash)
     except OSError as e:
-        raise InputError(f"cannot read file: {e.strerror or e}", path) from None
-    except ValueError as e:
-        raise InputError(f"not a valid .npy file ({e})", path) from None
+        raise read_error(e, path) from None
+    f = io.BytesIO(data)
+    shape, dtype = _npy_header(f, path)
+    n = int(np.prod(shape, dtype=object)) if shape else 1
+    if n > MAX_PIXELS or (not dtype.hasobject and n * dtype.itemsize > len(data) - f.tell()):
+        raise InputError(f"the .npy header claims shape {shape} of {dtype}, more than the file's "
+                         f"{len(data)} bytes hold (truncated?) or r360gpu decodes", path)
+    try:
+        arr = np.load(io.BytesIO(data), allow_pickle=False)
+    except _NPY_HEADER_ERRORS as e:
+        raise InputError(f"not a valid .npy file ({type(e).__name__}: {str(e)[:200]})", path) from None
     if not isinstance(arr, np.ndarray):
         raise InputError("not a .npy array file", path)
     if arr.dtype == np.bool_ or not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):

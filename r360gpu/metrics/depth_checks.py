@@ -66,7 +66,8 @@ def check_view(scene: str, method: str, view: str, d_pre, d_post, mask, *, sourc
     """Warn about a doubtful depth pair; returns the note for the view's record (None: fine).
 
     source: the method's file or folder (named in the warning); label: how
-    the bundle names it (``[methods.NAME]``).  unit_checked: the set of
+    the bundle names it (``[methods.NAME]``).  pre_source: pre's depth file of the view, or a
+    callable giving it (called only to warn).
     """
     if d_pre is None or d_post is None:
         return None
@@ -76,7 +77,8 @@ def check_view(scene: str, method: str, view: str, d_pre, d_post, mask, *, sourc
     if not pre_valid:
         warning_log.warn(f"pre has no valid depth (all 0, NaN or Inf) in this view: {label}'s acc_depth counts "
                          f"no pixel as changed (the reference's missing-depth rule); check pre's depth output",
-                         file=pre_source, scene=scene, method=method, view=view)
+                         file=pre_source() if callable(pre_source) else pre_source, scene=scene, method=method,
+                         view=view)
         return NOTE_NO_PRE_DEPTH
     if not _valid(post).any():
         warning_log.warn(f"{label} has no valid depth (all 0 or NaN) in this view while pre has depth at "

@@ -200,7 +200,20 @@ def _check_depth(run, data: ViewData, method: str, record, pre, post) -> None:
     depth_checks.annotate(record, depth_checks.check_view(
         run.bundle.name, method, data.view, d_pre, d_post, data.mask, source=getattr(source, "path", None),
         label=None if is_method else f"[{method}]",
-        pre_source=getattr(run.bundle.pre_of(method) if is_method else run.bundle.pre, "path", None)))
+        pre_source=lambda: _depth_file(run.bundle.pre_of(method) if is_method else run.bundle.pre, data.view)))
+
+
+def _depth_file(spec, view: str):
+    """The file a source's depth of ``view`` comes from (its depth image for renders, else the source's
+    path), named in a warning about that depth."""
+    from ..errors import InputError
+
+    if getattr(spec, "kind", None) == "renders":
+        try:
+            return spec.reader().depth_path(view)
+        except InputError:
+            pass
+    return getattr(spec, "path", None)
 
 
 def measure(run, data: ViewData, sink) -> tuple[dict, dict]:

@@ -137,7 +137,7 @@ def label_matches(class_name: str, prompt: str) -> bool:
 def _load_json(path: Path):
     try:
         with open(path, "rb") as f:
-            return json.loads(f.read().decode("utf-8"))
+            return json.loads(f.read().decode("utf-8-sig"))  # a BOM is not content
     except OSError as exc:
         raise InputError(f"cannot read file ({exc.strerror or exc})", path) from None
     except UnicodeDecodeError as exc:

@@ -44,8 +44,8 @@ __all__ = [
 
 _PathLike = str | os.PathLike | None
 
-#: Largest decoded mask (pixels) without a view to compare with (a 16384 x 16384 image).
-MAX_PIXELS = 1 << 28
+#: Largest decoded mask (pixels) without a view to compare with: the readers' bound.
+from r360gpu.io.renders import MAX_PIXELS  # noqa: E402
 _limit: contextvars.ContextVar[int | None] = contextvars.ContextVar("r360gpu_rle_limit", default=None)
 
 

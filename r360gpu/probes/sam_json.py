@@ -380,5 +380,7 @@ def load(path) -> object:
     module docstring); InputError naming the file when it cannot be read."""
     path = Path(path)
     raw = _read(path)
+    if raw.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte-order mark is not content
+        raw = raw[3:]
     data = _fast(raw) if (b'"segmentation"' in raw or b'"mask"' in raw) else None
     return _standard(raw, path) if data is None else data
