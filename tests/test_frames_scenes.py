@@ -169,7 +169,9 @@ def test_nerfstudio_layout_applies_dataparser_transforms_beside_the_export(synth
     assert b.pre.frame is not None and b.methods["clean"].frame.scale == pytest.approx(scale)
     _same_renders(plain[0], folder, ctx)
     out = tmp_path / "out"
+    capsys.readouterr()
     assert main(["score", str(folder), "--out", str(out), *FAST]) == 0
+    assert "frame: room pre: cameras moved by nerfstudio" in capsys.readouterr().out
     res = json.loads((out / "results.json").read_text())
     assert res["scenes"]["room"]["frame_check"]["pre"]["level"] == "ok"
     assert res["scenes"]["room"]["sources"]["pre"]["frame"]["scale"] == pytest.approx(scale)

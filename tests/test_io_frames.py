@@ -13,7 +13,8 @@ from r360gpu.io import Camera, load_cameras, save_colmap, save_transforms_json
 from r360gpu.io.colmap_points import read_points3d, save_points3d
 from r360gpu.io.frames import Frame, gsplat_frame, gsplat_normalization, nerfstudio_frame, resolve_frame
 from r360gpu.io.rotation import quat_to_rotmat
-from r360gpu.metrics.frame_check import FrameVerdict, frame_verdict, mismatch_message, view_coverage
+from r360gpu.metrics.frame_check import (EDGE_RATIO_MIN, FrameVerdict, frame_verdict, mismatch_message,
+                                         silhouette_edges, view_coverage)
 
 
 def look_at(centre, target=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), name="v", w=40, h=30) -> Camera:
@@ -243,3 +244,60 @@ def test_frame_verdicts():
     assert "renders nothing" in msg and "dataparser_transforms" in msg and "gsplat" in msg
     nan = view_coverage("x", np.full((3, 3), np.nan, np.float32), np.zeros((3, 3), bool))
     assert nan.coverage == 0.0 and nan.target is None
+
+
+# --- the frame keys of scene.toml -------------------------------------------------------------------
+
+def test_scene_toml_frame_keys(tmp_path):
+    from bundle_factory import SCENE_TOML, make_bundle
+    from r360gpu.bundle import check_bundle, load_bundle
+
+    root = make_bundle(tmp_path / "b")
+    assert load_bundle(root).pre.frame is None  # no dataparser_transforms.json beside pre.ply
+    dp = _dataparser(root, np.eye(4), 2.0, applied=np.eye(4)[:3])
+    b = load_bundle(root)  # beside pre.ply, not beside methods/clean.ply
+    assert b.pre.frame.scale == pytest.approx(2.0) and b.methods["clean"].frame is None
+    dp.unlink()
+    toml = SCENE_TOML.replace('masks = "masks"', 'masks = "masks"\nframe = "gsplat"')
+    (root / "scene.toml").write_text(toml)
+    problems = [str(p) for p in check_bundle(root)]  # save_colmap's points3D.bin is empty
+    assert any("needs the COLMAP sparse points" in p and "(frame of [pre])" in p for p in problems), problems
+    (root / "scene.toml").write_text(SCENE_TOML.replace('[methods.objectclear]\n',
+                                                        '[methods.objectclear]\nframe = "cameras"\n'))
+    assert any("'frame' applies to splat scenes only" in str(p) for p in check_bundle(root))
+    (root / "scene.toml").write_text(SCENE_TOML.replace('masks = "masks"', 'masks = "masks"\nframes = "gsplat"'))
+    assert any("did you mean 'frame'" in str(p) for p in check_bundle(root))
+    (root / "scene.toml").write_text(SCENE_TOML.replace('masks = "masks"', 'masks = "masks"\nframe = 3'))
+    assert any("'frame' must be 'auto', 'cameras', 'gsplat'" in str(p) for p in check_bundle(root))
+
+
+def test_the_frame_is_part_of_the_fingerprint(tmp_path):
+    from bundle_factory import make_bundle
+    from r360gpu.bundle import load_bundle
+
+    root = make_bundle(tmp_path / "b")
+    plain = load_bundle(root).fingerprint()
+    _dataparser(root, np.eye(4), 2.0, applied=np.eye(4)[:3])
+    assert load_bundle(root).fingerprint() != plain
+
+
+def test_silhouette_edges_follow_the_object_not_the_mask():
+    """An object standing out of its background has depth edges along its mask; a mask that is
+    elsewhere (cameras in another frame) has none."""
+    yy, xx = np.mgrid[0:60, 0:80]
+    depth = 4.0 + 0.01 * xx + 0.02 * np.sin(yy / 3.0)  # a slanted, slightly rippled wall
+    obj = (abs(xx - 30) < 10) & (abs(yy - 25) < 12)
+    depth = np.where(obj, 2.0, depth).astype(np.float32)
+    assert silhouette_edges(depth, obj) > 5 * EDGE_RATIO_MIN
+    elsewhere = np.roll(obj, 35, axis=1)
+    assert silhouette_edges(depth, elsewhere) < EDGE_RATIO_MIN
+    assert silhouette_edges(depth, np.zeros_like(obj)) is None
+    alpha = np.ones(depth.shape, np.float32)
+    ok = [view_coverage(f"v{i}", alpha, obj, depth) for i in range(3)]
+    off = [view_coverage(f"v{i}", alpha, elsewhere, depth) for i in range(3)]
+    assert frame_verdict(ok).level == "ok" and frame_verdict(off).level == "warn"
+    msg = mismatch_message(frame_verdict(off), source="pre.ply", frame="nerfstudio x", cameras=None)
+    assert "no depth edges along the target masks' outlines" in msg and "moved by nerfstudio x" in msg
+    nan = depth.copy()
+    nan[:5] = np.nan
+    assert silhouette_edges(nan, obj) > EDGE_RATIO_MIN

@@ -135,6 +135,7 @@ def _evaluate(loaded, opts, ctx, probes, cache, sink, out, progress, log, execut
         for i, bundle in enumerate(loaded):
             run = scenes.take(i)
             _say_probes(run, log)
+            _say_frames(run, log)
             with warning_log.where(scene=bundle.name):
                 try:
                     scene_res = evaluate_scene(run, cache, sink, progress, executor, rendered=scenes.opener(i + 1))
@@ -172,6 +173,16 @@ def _say_probes(run: SceneRun, log) -> None:
         return
     for axis, sel in (getattr(run, "probe_selection", None) or {}).items():
         log(f"probes: {run.bundle.name} {axis}: {', '.join(sel['probes'])} ({sel['source']}) -- {sel['why']}")
+
+
+def _say_frames(run: SceneRun, log) -> None:
+    """On the console: the splat sources whose cameras are moved into another frame (r360gpu.io.frames)."""
+    named = [("pre", run.pre), ("reference", run.reference), *run.methods.items()]
+    for name, src in named:
+        frame = getattr(src, "frame", None)
+        if frame is not None:
+            log(f"frame: {run.bundle.name} {name}: cameras moved by {frame.origin} (scale {frame.scale:.6g}; "
+                f"depth reported in the cameras' units)")
 
 
 class _ScenesAhead:

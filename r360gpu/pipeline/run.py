@@ -283,6 +283,7 @@ class SceneRun:
         are kept for scoring.  The verdict is cached with the bundle's fingerprint (a rerun
         renders nothing for it).  Returns {pre name: verdict dict} of the sources checked."""
         from ..metrics import frame_check
+        from ..render.sources import host_depth
         from .cache import digest
 
         with_target = [v for v in self.views if self.mask(v).any()]
@@ -304,9 +305,9 @@ class SceneRun:
                 for v in pick:
                     img = self.images(src, v)
                     self._fit_renders[name, v] = img  # render_pre takes it when the view is scored
-                    seen.append(frame_check.view_coverage(v, img.alpha, self.mask(v)))
-                self.timer.add("frame check", t0)
+                    seen.append(frame_check.view_coverage(v, img.alpha, self.mask(v), host_depth(img.depth, self.ctx)))
                 verdict = frame_check.frame_verdict(seen)
+                self.timer.add("frame check", t0)
                 cache.store_fit(key, verdict.to_dict(), "frames")
             out[name] = verdict.to_dict()
             if verdict.level == "ok":
