@@ -1,5 +1,5 @@
 """Weight-free built-in probes: the appearance (semantic) probe and the
-graph-segmentation / SLIC (structural) probe.
+hierarchy / graph-segmentation / SLIC (structural) probe.
 
 The demonstration tests run the synthetic room of bench/demo_builtin_probes.py
 at 320x180 and check the claims docs/probes.md makes from that script's output."""
@@ -26,6 +26,8 @@ from r360gpu.probes.builtin_structural import (
     STRUCTURAL_LIMITATIONS,
     BuiltinStructuralProbe,
     StructuralParams,
+    edge_strength,
+    hierarchy_levels,
     segment_labels,
 )
 from r360gpu.probes.cache import ProbeCache, cache_key, cached, canonical_json
@@ -109,10 +111,20 @@ def test_label_masks_nearest_centre_aligned():
 
 # --- structural probe ------------------------------------------------------------
 
-STRUCTURAL = [StructuralParams(), StructuralParams.slic()]
+STRUCTURAL = [StructuralParams(), StructuralParams.graph(), StructuralParams.slic()]
+STRUCTURAL_IDS = ["hierarchy", "graph", "slic"]
 
 
-@pytest.mark.parametrize("params", STRUCTURAL, ids=["graph", "slic"])
+def _nested_or_disjoint(masks: np.ndarray) -> bool:
+    """Every two masks are disjoint or one holds the other (a hierarchy's regions)."""
+    flat = masks.reshape(masks.shape[0], -1).astype(np.int64)
+    inter = flat @ flat.T
+    area = np.diag(inter)
+    smaller = np.minimum(area[:, None], area[None, :])
+    return bool(np.all((inter == 0) | (inter == smaller)))
+
+
+@pytest.mark.parametrize("params", STRUCTURAL, ids=STRUCTURAL_IDS)
 def test_structural_masks_shapes_disjoint_and_deterministic(room, params):
     _, images, _ = room
     probe = BuiltinStructuralProbe(params)
@@ -124,14 +136,19 @@ def test_structural_masks_shapes_disjoint_and_deterministic(room, params):
         assert ms.masks.dtype == bool and ms.masks.shape[1:] == view.size
         assert 1 <= ms.count <= params.max_masks
         assert ms.scores is None
-        assert ms.masks.sum(axis=0).max() == 1  # disjoint
+        if params.method == "hierarchy":  # several levels: nested, never partly overlapping, never repeated
+            assert _nested_or_disjoint(ms.masks)
+            flat = ms.masks.reshape(ms.count, -1)
+            assert len({m.tobytes() for m in flat}) == ms.count
+        else:
+            assert ms.masks.sum(axis=0).max() == 1  # disjoint
         areas = ms.masks.sum(axis=(1, 2))
         assert np.all(np.diff(areas) <= 0)  # largest first
         assert areas.min() >= params.min_area_frac * view.height * view.width * 0.5
         assert np.array_equal(ms.masks, ms2.masks)
 
 
-@pytest.mark.parametrize("params", STRUCTURAL, ids=["graph", "slic"])
+@pytest.mark.parametrize("params", STRUCTURAL, ids=STRUCTURAL_IDS)
 @pytest.mark.parametrize("size", [(1, 1), (1, 7), (7, 1), (2, 3), (37, 53)])
 def test_structural_tiny_and_odd_sizes(params, size):
     rng = np.random.default_rng(1)
@@ -139,7 +156,7 @@ def test_structural_tiny_and_odd_sizes(params, size):
     ms = BuiltinStructuralProbe(params).predict([ProbeView("v", img)])[0]
     assert ms.size == size and ms.masks.dtype == bool
     assert ms.count >= 1
-    assert ms.masks.sum(axis=0).max() == 1
+    assert _nested_or_disjoint(ms.masks)
 
 
 def test_structural_odd_large_size_is_downscaled_and_brought_back():
@@ -147,7 +164,7 @@ def test_structural_odd_large_size_is_downscaled_and_brought_back():
     img = np.zeros((701, 1283, 3), np.uint8)
     img[:, 600:] = (30, 200, 60)
     img = np.clip(img.astype(int) + rng.integers(-3, 4, img.shape), 0, 255).astype(np.uint8)
-    ms = BuiltinStructuralProbe().predict_image(img)
+    ms = BuiltinStructuralProbe(StructuralParams.graph()).predict_image(img)
     assert ms.masks.shape == (2, 701, 1283)
     left = np.zeros((701, 1283), bool)
     left[:, :600] = True
@@ -155,7 +172,7 @@ def test_structural_odd_large_size_is_downscaled_and_brought_back():
     assert max(_iou(m, left) for m in ms.masks) > 0.99
 
 
-@pytest.mark.parametrize("params", STRUCTURAL, ids=["graph", "slic"])
+@pytest.mark.parametrize("params", STRUCTURAL, ids=STRUCTURAL_IDS)
 def test_structural_one_colour_image_is_one_mask(params):
     img = np.full((90, 160, 3), (120, 80, 200), np.uint8)
     ms = BuiltinStructuralProbe(params).predict_image(img)
@@ -173,20 +190,23 @@ def test_structural_uint8_and_float_inputs_agree(room):
 def test_structural_describe_and_cache_key():
     probe = BuiltinStructuralProbe()
     d = probe.describe()
-    assert d["name"] == "builtin-graphseg" and d["kind"] == "structural" and d["models"] == {}
+    assert d["name"] == "builtin-hierarchy" and d["kind"] == "structural" and d["models"] == {}
     assert d["weight_free"] is True and d["limitations"] == STRUCTURAL_LIMITATIONS
-    assert d["params"]["k"] == 1000.0 and d["params"]["method"] == "graph"
+    assert d["params"]["method"] == "hierarchy" and d["params"]["levels"] == (2.0, 4.0, 8.0)
+    assert BuiltinStructuralProbe(StructuralParams.graph()).name == "builtin-graphseg"
     slic = BuiltinStructuralProbe(StructuralParams.slic())
     assert slic.name == "builtin-slic" and slic.describe()["params"]["merge_delta_e"] == 10.0
     img = np.zeros((4, 4, 3), np.uint8)
-    other = BuiltinStructuralProbe(StructuralParams(k=500.0))
+    other = BuiltinStructuralProbe(StructuralParams(levels=(2.0, 4.0)))
     keys = {cache_key(img, p.name, p.describe()) for p in (probe, other)}
     assert len(keys) == 2
     canonical_json(d)
 
 
 @pytest.mark.parametrize(
-    "kwargs", [{"method": "sam"}, {"k": 0}, {"min_area_frac": 1.0}, {"max_masks": 0}, {"work_long_side": 4}]
+    "kwargs", [{"method": "sam"}, {"k": 0}, {"min_area_frac": 1.0}, {"max_masks": 0}, {"work_long_side": 4},
+               {"levels": ()}, {"levels": (4.0, 2.0)}, {"levels": (2.0, 2.0)}, {"levels": (0.0, 1.0)},
+               {"fine_k": 0}, {"colour_weight": -1.0}, {"edge_blur": -0.5}]
 )
 def test_structural_bad_params(kwargs):
     with pytest.raises(InputError, match="structural probe parameters"):
@@ -198,11 +218,45 @@ def test_structural_merging_joins_similar_neighbours():
     img[:, :40] = (100, 100, 100)
     img[:, 40:] = (104, 100, 100)  # Delta-E about 1.5 from the left half
     img[10:30, 60:75] = (20, 200, 20)
-    unmerged = segment_labels(img, StructuralParams(k=1.0, sigma=0.0))
-    merged = segment_labels(img, StructuralParams(k=1.0, sigma=0.0, merge_delta_e=5.0))
+    unmerged = segment_labels(img, StructuralParams.graph(k=1.0, sigma=0.0))
+    merged = segment_labels(img, StructuralParams.graph(k=1.0, sigma=0.0, merge_delta_e=5.0))
+    with pytest.raises(ValueError, match="hierarchy_levels"):
+        segment_labels(img, StructuralParams())
     assert unmerged.max() + 1 == 3
     assert merged.max() + 1 == 2
     assert merged[0, 0] == merged[0, 79] != merged[20, 65]
+
+
+def test_hierarchy_levels_whole_part_and_sub_part():
+    """An object of two parts (two reds, a weak step) with a sub-part (a faint
+    stripe) on a grey background: finest level sub-part, then the parts, then
+    the whole object; the background never merges with the object."""
+    img = np.full((60, 90, 3), 128, np.uint8)
+    img[15:45, 20:45] = (200, 30, 30)
+    img[15:45, 45:70] = (185, 40, 35)  # part: Delta-E ~ 7 from the other red
+    img[15:45, 55:58] = (180, 44, 38)  # sub-part: Delta-E ~ 3
+    params = StructuralParams(sigma=0.0, fine_k=1.0, fine_min_area_frac=0.0, edge_blur=0.0,
+                              levels=(2.0, 5.0, 20.0), colour_weight=1.0)
+    fine, middle, coarse = hierarchy_levels(img, params)
+    assert fine[30, 56] != fine[30, 50]  # the stripe alone
+    assert middle[30, 56] == middle[30, 50] != middle[30, 30]  # the two parts
+    assert coarse[30, 30] == coarse[30, 60] != coarse[5, 5]  # the whole object, not the background
+    # A region no merge touched keeps its id from level to level.
+    assert fine[5, 5] == middle[5, 5] == coarse[5, 5]
+    masks = BuiltinStructuralProbe(params).predict_image(img).masks
+    obj = np.zeros(img.shape[:2], bool)
+    obj[15:45, 20:70] = True
+    assert max(_iou(m, obj) for m in masks) == 1.0
+
+
+def test_edge_strength_is_delta_e_per_pixel():
+    img = np.zeros((8, 8, 3), np.uint8)
+    assert edge_strength(img, 0.0).max() == 0.0
+    ramp = np.repeat(np.repeat(np.arange(0, 80, 10, dtype=np.uint8)[None, :, None], 8, 0), 3, 2)
+    g = edge_strength(ramp, 0.0)
+    lab = __import__("cv2").cvtColor(ramp.astype(np.float32) / 255, __import__("cv2").COLOR_RGB2Lab)[..., 0]
+    # Interior columns: central difference / 2 of L* (a, b are 0 on a grey ramp).
+    assert np.allclose(g[3, 2:6], (lab[3, 3:7] - lab[3, 1:5]) / 2, atol=1e-3)
 
 
 def test_structural_needs_an_image():
@@ -215,9 +269,11 @@ def test_structural_photo_gives_tens_of_masks():
     cv2 = pytest.importorskip("cv2")
     bgr = cv2.imread(cbook.get_sample_data("grace_hopper.jpg", asfileobj=False))
     photo = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
-    probe = BuiltinStructuralProbe()
+    graph, hierarchy = BuiltinStructuralProbe(StructuralParams.graph()), BuiltinStructuralProbe()
     for img in (photo, cv2.resize(photo, (160, 90), interpolation=cv2.INTER_AREA)):
-        assert 10 <= probe.predict_image(img).count <= 60
+        assert 10 <= graph.predict_image(img).count <= 60
+        # Several granularities: more masks than one partition, up to max_masks.
+        assert graph.predict_image(img).count < hierarchy.predict_image(img).count <= StructuralParams().max_masks
 
 
 # --- appearance probe ---------------------------------------------------------------
@@ -419,9 +475,10 @@ def test_demo_appearance_detects_residuals_not_clean_removal(room):
     assert iou["recoloured"] < 0.3 and iou["faded"] < 0.3
 
 
-def test_demo_graphseg_finds_object_and_nothing_after_clean_removal(room):
+@pytest.mark.parametrize("params", STRUCTURAL[:2], ids=STRUCTURAL_IDS[:2])
+def test_demo_structural_finds_object_and_nothing_after_clean_removal(room, params):
     _, images, target = room
-    probe = BuiltinStructuralProbe()
+    probe = BuiltinStructuralProbe(params)
     best = {case: max(_iou(m, target) for m in probe.predict_image(img).masks) for case, img in images.items()}
     assert best["pre"] >= 0.5
     assert best["clean"] < 0.1  # none retained by the structural axis
@@ -432,7 +489,7 @@ def test_demo_graphseg_finds_object_and_nothing_after_clean_removal(room):
 def test_speed_at_1080p():
     img, target = demo.render(1080, 1920, demo.HELD_OUT, "pre")
     appearance = BuiltinAppearanceProbe().fit([img], [target])
-    graph = BuiltinStructuralProbe()
+    graph = BuiltinStructuralProbe(StructuralParams.graph())
 
     def best_of_3(fn):
         times = []

@@ -21,7 +21,7 @@ def test_builtin_names_defaults_and_axes():
     from r360gpu.probes.registry import BUILTIN_PROBES, DEFAULT_PROBES, default_probes, probe_for_axis
     from r360gpu.pipeline import default_probes as scoring_defaults
 
-    assert set(BUILTIN_PROBES) == {"builtin-appearance", "builtin-graphseg", "builtin-slic"}
+    assert set(BUILTIN_PROBES) == {"builtin-appearance", "builtin-hierarchy", "builtin-graphseg", "builtin-slic"}
     for axis, name in DEFAULT_PROBES.items():
         assert BUILTIN_PROBES[name][0] == axis
     sem, stru = default_probes()
@@ -30,6 +30,8 @@ def test_builtin_names_defaults_and_axes():
     assert s2[0] is not sem[0] and (s2[0].describe(), t2[0].describe()) == (sem[0].describe(), stru[0].describe())
     assert isinstance(probe_for_axis(" Builtin ", "semantic"), BuiltinAppearanceProbe)
     assert probe_for_axis("builtin", "structural").describe() == stru[0].describe()
+    assert stru[0].name == "builtin-hierarchy"
+    assert probe_for_axis("builtin-graphseg", "structural").describe()["params"]["method"] == "graph"
     slic = probe_for_axis("builtin-slic", "structural")
     assert slic.describe() != stru[0].describe()
     with pytest.raises(InputError, match="is a structural probe, not a semantic one"):

@@ -301,7 +301,14 @@ def test_first_screen_main_table_verdicts_and_worst_views(checked_report):
     # worst view per method: ghost's is a room view with the lowest acc_depth (0.2 at view 00)
     worst = findings.worst_views(results)
     assert worst["ghost"]["scene"] == "room" and worst["ghost"]["view"] == "00"
-    assert leaks.count("<figure>") == len(METHODS)
+    rows = findings.view_rows(results)
+    leaking = {r["method"] for r in rows if findings.leaks(r)}
+    assert leaks.count("<figure>") == len(leaking)
+    for m in METHODS:  # a method with no leaking view gets no thumbnail, and is named as not leaking
+        assert (m in worst) == (m in leaking)
+        if m not in leaking:
+            assert f"<b>{m}</b>" in leaks[leaks.index("No view leaks"):]
+    assert findings.leaks({"s_sem": 1.0, "acc_depth": 0.49}) and not findings.leaks({"s_sem": 1.0, "s_str": 0.5})
     anchor = f'href="#pic-0-{METHODS.index("ghost")}-0"'
     assert anchor in leaks and f'id="pic-0-{METHODS.index("ghost")}-0"' in text
 

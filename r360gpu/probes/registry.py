@@ -1,7 +1,7 @@
 """Build probes from command-line specs: :func:`parse_probe_spec`.
 
 One place for every probe name: the weight-free built-ins (``builtin``,
-``builtin-appearance``, ``builtin-graphseg``, ``builtin-slic``: plain names,
+``builtin-appearance``, ``builtin-hierarchy``, ``builtin-graphseg``, ``builtin-slic``: plain names,
 see :data:`BUILTIN_PROBES`), the default probe of each axis
 (:data:`DEFAULT_PROBES`, :func:`default_probes`), and the model / file probes
 with spec syntax ``KIND:BODY``; :func:`probe_for_axis` builds the probe a
@@ -74,11 +74,12 @@ PROBE_KINDS = ("sam", "grounded", "gsam2-json", "png", "sam-json")
 #: Built-in probe name -> (axis, what it is).  ``builtin`` is the axis default.
 BUILTIN_PROBES = {
     "builtin-appearance": ("semantic", "weight-free appearance probe fitted on the scene's pre renderings"),
+    "builtin-hierarchy": ("structural", "weight-free multi-level segmentation (whole, part, sub-part)"),
     "builtin-graphseg": ("structural", "weight-free graph segmentation"),
     "builtin-slic": ("structural", "weight-free SLIC superpixels"),
 }
 #: The probe each axis uses when none is given.
-DEFAULT_PROBES = {"semantic": "builtin-appearance", "structural": "builtin-graphseg"}
+DEFAULT_PROBES = {"semantic": "builtin-appearance", "structural": "builtin-hierarchy"}
 
 PROBE_SPEC_HELP = (
     "probe name builtin (the axis default), "
@@ -110,8 +111,10 @@ def builtin_probe(name: str) -> Probe:
         return BuiltinAppearanceProbe()
     from r360gpu.probes.builtin_structural import BuiltinStructuralProbe, StructuralParams
 
-    if name == "builtin-graphseg":
+    if name == "builtin-hierarchy":
         return BuiltinStructuralProbe()
+    if name == "builtin-graphseg":
+        return BuiltinStructuralProbe(StructuralParams.graph())
     if name == "builtin-slic":
         return BuiltinStructuralProbe(StructuralParams.slic())
     raise InputError(f"unknown built-in probe {name!r} (built-ins: {', '.join(BUILTIN_PROBES)})")

@@ -7,7 +7,7 @@
 * :func:`doubtful_axes` -- axes whose probe is not "ok" in some scene (the
   Overall table marks them);
 * :func:`view_rows` -- every (scene, method, view) with its per-view axes;
-* :func:`worst_views` -- per method, the view that leaks most;
+* :func:`worst_views` -- per method, the view that leaks most (none when no view leaks);
 * :func:`expectation_checks` -- for bundles that state their methods' known
   failures (``scenes.S.expected``, from scene.toml ``[expected.METHOD]``):
   which axis should catch each failure and whether it did.
@@ -151,11 +151,19 @@ def view_rows(results: dict) -> list[dict]:
     return out
 
 
+def leaks(row: dict, low: float = LOW_AXIS) -> bool:
+    """Whether the view leaks: one of its removal axes (s_sem 0/1, acc_depth, s_str) is below ``low``,
+    the threshold at which the known-failure check counts a failure as caught."""
+    return any(row.get(k) is not None and math.isfinite(row[k]) and row[k] < low
+               for k in ("s_sem", "acc_depth", "s_str"))
+
+
 def worst_views(results: dict, rows: list[dict] | None = None) -> dict[str, dict]:
-    """Per method, the view row with the lowest :func:`leak_score` (first in display order on ties)."""
+    """Per method, the view row with the lowest :func:`leak_score` among the views that
+    :func:`leaks` (first in display order on ties); a method none of whose views leaks has none."""
     out: dict[str, dict] = {}
     for row in rows if rows is not None else view_rows(results):
-        if row["leak"] is None:
+        if row["leak"] is None or not leaks(row):
             continue
         best = out.get(row["method"])
         if best is None or row["leak"] < best["leak"]:

@@ -472,11 +472,14 @@ def worst_views_html(results: dict, out_dir: Path, rows: list[dict], problems: l
     """Per method, the view that leaks most (lowest mean of its per-view axes) as a thumbnail of
     I_post linked to its contact sheet."""
     worst = findings.worst_views(results, rows)
-    if not worst:
+    scored = list(dict.fromkeys(r["method"] for r in rows if r["leak"] is not None))
+    if not scored:
         return ""
-    h = ['<h3>Where each method leaks most</h3><p class="notes">Per method, the view with the lowest mean of '
-         "its per-view axes (s_sem 0/1 at xi = 0.3, acc_depth, s_str); I_post with the target outlined in "
-         "green. Click for the contact sheet.</p>", '<div class="thumbs">']
+    h = ['<h3>Where each method leaks most</h3><p class="notes">Per method, among the views where an axis '
+         f"is below {findings.LOW_AXIS:g} (s_sem 0/1 at xi = 0.3, acc_depth, s_str), the one with the lowest "
+         "mean of those axes; I_post with the target outlined in green. Click for the contact sheet.</p>",
+         '<div class="thumbs">']
+    clean = [m for m in method_names(results) if m in scored and m not in worst]
     for m in method_names(results):
         row = worst.get(m)
         if row is None:
@@ -488,6 +491,9 @@ def worst_views_html(results: dict, out_dir: Path, rows: list[dict], problems: l
                f"(mean {row['leak']:.2f})")
         h.append(f'<figure><a href="#{anchor}">{img}<figcaption>{cap}</figcaption></a></figure>')
     h.append("</div>")
+    if clean:
+        h.append(f'<p class="notes">No view leaks (every axis at or above {findings.LOW_AXIS:g} in every view): '
+                 + ", ".join(f"<b>{_e(m)}</b>" for m in clean) + ".</p>")
     return "\n".join(h)
 
 

@@ -90,15 +90,41 @@ def summary_lines(results: dict) -> list[str]:
             where = "; ".join(f"{a} in {', '.join(s)}" for a, s in results["validity"].items() if s)
             lines.append(f"  ! axis not 'ok' (weak or blind probe) in some scene: {where}")
     lines += control_lines(results)
+    lines += expectation_lines(results)
     t = results.get("timing") or {}
     if t:
         stages = ", ".join(f"{k} {v:.1f} s" for k, v in t.get("stages_s", {}).items())
         views = t.get("views", 0)
         total = t.get("total_s", 0.0) or 0.0
         rate = f", {views / total:.2f} views/s" if total > 0 and views else ""
-        lines.append(f"time: {total:.1f} s for {views} views{rate} ({stages})")
+        # The stage totals come from r360gpu.pipeline.run's timer: summed over the threads
+        # that ran each stage, so together they can exceed the wall time.
+        lines.append(f"time: {total:.1f} s wall for {views} views{rate}; "
+                     f"per stage, summed over threads (stages overlap): {stages}")
     for note in results.get("notes", []):
         lines.append(f"note: {note}")
+    return lines
+
+
+def expectation_lines(results: dict) -> list[str]:
+    """The known-failure check of bundles with ``[expected.METHOD]`` tables (as in the HTML
+    report): how many methods came out as expected, and one line per method that did not."""
+    from .findings import LOW_AXIS, expectation_checks
+
+    checks = expectation_checks(results)
+    if not checks:
+        return []
+    n_ok = sum(c.outcome in ("caught", "passes") for c in checks)
+    lines = [f"expected failures (scene.toml [expected.*]; caught = axis < {LOW_AXIS:g}): "
+             f"{n_ok} of {len(checks)} as expected"]
+    for c in checks:
+        if c.outcome in ("caught", "passes"):
+            continue
+        detail = ", ".join(f"{a} {'-' if v is None else f'{v:.3f}'}" + ("" if caught is None else
+                                                                        (" low" if caught else " not low"))
+                           for a, v, caught in c.checks)
+        should = ", ".join(c.caught_by) if c.caught_by else "no axis (no failure)"
+        lines.append(f"  {c.scene}/{c.method}: {c.outcome} ({detail}; expected low: {should})")
     return lines
 
 

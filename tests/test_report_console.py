@@ -1,0 +1,31 @@
+"""The console summary (r360gpu.report.outputs.summary_lines): the known-failure check and the time line."""
+from __future__ import annotations
+
+from r360gpu.report.findings import expectation_checks
+from r360gpu.report.outputs import expectation_lines, summary_lines
+from tests.report_fake import add_expected, fake_results
+
+
+def test_expectation_summary_on_the_console():
+    results = add_expected(fake_results(pictures=False))
+    checks = expectation_checks(results)
+    lines = expectation_lines(results)
+    n_ok = sum(c.outcome in ("caught", "passes") for c in checks)
+    assert lines[0].endswith(f"{n_ok} of {len(checks)} as expected")
+    missed = [c for c in checks if c.outcome not in ("caught", "passes")]
+    assert missed, "the fake results should hold a method that is not as expected"
+    assert len(lines) == 1 + len(missed)
+    for c, line in zip(missed, lines[1:]):
+        assert line.startswith(f"  {c.scene}/{c.method}: {c.outcome} (")
+        for axis, value, _ in c.checks:
+            assert f"{axis} {value:.3f}" in line
+    assert "\n".join(lines) in "\n".join(summary_lines(results))
+    assert expectation_lines(fake_results(pictures=False)) == []  # no [expected] tables: no lines
+
+
+def test_time_line_says_wall_and_summed_over_threads():
+    results = fake_results(pictures=False)
+    results["timing"] = {"stages_s": {"render": 30.0, "probe": 70.0}, "total_s": 50.0, "views": 10}
+    line = [x for x in summary_lines(results) if x.startswith("time:")][0]
+    assert line == ("time: 50.0 s wall for 10 views, 0.20 views/s; per stage, summed over threads "
+                    "(stages overlap): render 30.0 s, probe 70.0 s")
