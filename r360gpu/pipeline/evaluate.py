@@ -132,6 +132,17 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
                     scene_res = evaluate_scene(run, cache, sink, progress, executor, rendered=scenes.opener(i + 1))
                 finally:
                     run.release()
+            if opts.orbit:  # --orbit N: the scene from all around, under scenes.S.orbit (pipeline.orbit)
+                from .orbit import score_orbit
+
+                def open_orbit(b, o):
+                    return SceneRun(b, o, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
+                                    warnings=warnings)
+
+                with warning_log.where(scene=bundle.name):
+                    scene_res["orbit"] = score_orbit(run.bundle, opts, open_orbit,
+                                                     lambda r: evaluate_scene(r, cache, sink, progress), ctx=ctx,
+                                                     warn=warnings.add)
             views_of[bundle.name] = {v: k for k, v in enumerate(run.views)}
             if opts.compat:
                 from ..aggregate.compat import apply_compat

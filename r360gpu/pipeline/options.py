@@ -46,6 +46,7 @@ class EvaluateOptions:
     n_perm: int = 5000
     seed: int = 0
     antialiased: bool = False  # render every splat scene in the antialiased mode (score --antialiased)
+    orbit: int = 0  # score --orbit N: N more cameras around the target, results under scenes.S.orbit (.orbit)
 
     def __post_init__(self):
         from ..metrics.compat import check_compat
@@ -62,7 +63,7 @@ class EvaluateOptions:
         per-view value.
         """
         d = asdict(self)  # the GhtParams becomes {"nu", "tau", "kappa", "omega"}
-        for k in ("pictures", "n_boot", "n_perm", "seed", "controls"):
+        for k in ("pictures", "n_boot", "n_perm", "seed", "controls", "orbit"):
             d.pop(k)
         d["xis"] = [float(x) for x in self.xis]
         d["views"] = None if self.views is None else list(self.views)
