@@ -39,6 +39,9 @@ def add_scoring_options(p) -> None:
     g.add_argument("--orbit", type=int, default=0, metavar="N",
                    help="also score N cameras around the lifted target (splat scenes; results under "
                         "scenes.S.orbit, never mixed into the capture-view axes)")
+    g.add_argument("--residuals", action="store_true",
+                   help="write residuals/SCENE/METHOD.ply: each splat method's Gaussians with a 'residual' "
+                        "property (their weight in the target region of the views that flag evidence)")
     g.add_argument("--no-boundary", action="store_true", help="skip the mask erosion/dilation sweep")
     g.add_argument("--no-pictures", action="store_true", help="skip per-view contact sheets")
     g.add_argument("--no-controls", action="store_true",
@@ -158,6 +161,7 @@ def options_from_args(args):
         seed=args.seed,
         antialiased=getattr(args, "antialiased", False),
         orbit=_orbit_count(getattr(args, "orbit", 0)),
+        residuals=getattr(args, "residuals", False),
     )
 
 

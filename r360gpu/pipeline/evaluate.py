@@ -143,6 +143,10 @@ def _evaluate(loaded, opts, ctx, semantic_probes, structural_probes, cache, sink
                     scene_res["orbit"] = score_orbit(run.bundle, opts, open_orbit,
                                                      lambda r: evaluate_scene(r, cache, sink, progress), ctx=ctx,
                                                      warn=warnings.add)
+            if opts.residuals and out is not None:  # --residuals: the Gaussians behind the evidence
+                from .residuals import scene_residuals
+
+                scene_res["residuals"] = scene_residuals(run.bundle, scene_res, out, ctx=ctx, xis=opts.xis)
             views_of[bundle.name] = {v: k for k, v in enumerate(run.views)}
             if opts.compat:
                 from ..aggregate.compat import apply_compat
