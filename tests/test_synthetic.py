@@ -13,7 +13,7 @@ from r360gpu.io import load_cameras, load_gaussians, load_mask
 from r360gpu.metrics.geometric import acc_depth_view
 from r360gpu.render import NEAR_PLANE, Renderer
 from r360gpu.synthetic import (
-    METHODS, generate_benchmark, make_method, make_scene, target_masks, view_kinds, write_bundle,
+    DEFAULT_METHODS, METHODS, generate_benchmark, make_method, make_scene, target_masks, view_kinds, write_bundle,
 )
 from r360gpu.synthetic.methods import FLOATER_FRACTION, RETRAIN_POSITION_SIGMA
 from r360gpu.synthetic.primitives import Solid, sh_to_rgb
@@ -106,7 +106,7 @@ def test_bundle_files_load_back(tmp_path, scenes, masks, ctx):
     folder = write_bundle(sc, tmp_path / "room", seed=0, ctx=ctx)
     cfg = tomllib.loads((folder / "scene.toml").read_text(encoding="utf-8"))
     assert cfg["name"] == "room" and cfg["prompt"] == "sofa"
-    assert list(cfg["methods"]) == list(METHODS)
+    assert list(cfg["methods"]) == list(DEFAULT_METHODS)
 
     pre = load_gaussians(folder / cfg["pre"]["scene"])
     np.testing.assert_array_equal(pre.means, sc.pre.means)

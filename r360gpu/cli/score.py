@@ -35,6 +35,12 @@ def add_scoring_options(p) -> None:
                         "antialiased = true in scene.toml")
     add_views_option(g)
     g.add_argument("--lpips", metavar="ONNX", default=None, help="LPIPS ONNX model (else LPIPS is not computed)")
+    g.add_argument("--orbit", type=int, default=0, metavar="N",
+                   help="also score N cameras around the lifted target (splat scenes; results under "
+                        "scenes.S.orbit, never mixed into the capture-view axes)")
+    g.add_argument("--residuals", action="store_true",
+                   help="write residuals/SCENE/METHOD.ply: each splat method's Gaussians with a 'residual' "
+                        "property (their weight in the target region of the views that flag evidence)")
     g.add_argument("--no-boundary", action="store_true", help="skip the mask erosion/dilation sweep")
     g.add_argument("--no-pictures", action="store_true", help="skip per-view contact sheets")
     g.add_argument("--no-controls", action="store_true",
@@ -155,7 +161,17 @@ def options_from_args(args):
         n_perm=args.n_perm,
         seed=args.seed,
         antialiased=getattr(args, "antialiased", False),
+        orbit=_orbit_count(getattr(args, "orbit", 0)),
+        residuals=getattr(args, "residuals", False),
     )
+
+
+def _orbit_count(n: int) -> int:
+    from ..errors import InputError
+
+    if n < 0:
+        raise InputError(f"--orbit needs a number of cameras >= 0, got {n}")
+    return n
 
 
 def probe_from_spec(spec: str, axis: str):

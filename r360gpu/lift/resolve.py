@@ -83,3 +83,28 @@ def resolve_target(bundle, pre, *, ctx=None, warn=None):
               "given": sorted(v for v in bundle.views if v in given), "rendered": todo,
               "lifted_from": list(lifted.views)}
     return replace(bundle, masks=masks), record
+
+
+def scene_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
+    """The LiftedTarget of any bundle with cameras: its ``[target]``, else its views' masks lifted
+    (views with a camera and a non-empty mask)."""
+    if getattr(bundle, "target", None) is not None:
+        return lifted_target(bundle, gaussians, ctx=ctx, options=options, warn=warn)[0]
+    from ..io import load_mask
+
+    cams, masks = [], []
+    for v in bundle.views:
+        c = (bundle.cameras or {}).get(v)
+        m = bundle.masks.get(v)
+        if c is None or m is None:
+            continue
+        m = np.asarray(m) != 0 if isinstance(m, np.ndarray) else load_mask(m, shape=(c.height, c.width))
+        if m.any():
+            cams.append(c)
+            masks.append(m)
+    if not cams:
+        raise InputError(f"scene {bundle.name!r}: no view with a camera shows the target; cannot lift it")
+    lifted = lift_target(gaussians, cams, masks, ctx=ctx, options=options)
+    if not lifted.target.any():
+        raise InputError(f"scene {bundle.name!r}: the target masks lift to no Gaussian of pre")
+    return lifted

@@ -141,6 +141,21 @@ def _evaluate(loaded, opts, ctx, probes, cache, sink, out, progress, log, execut
                     scene_res = evaluate_scene(run, cache, sink, progress, executor, rendered=scenes.opener(i + 1))
                 finally:
                     run.release()
+            if opts.orbit:  # --orbit N: the scene from all around, under scenes.S.orbit (pipeline.orbit)
+                from .orbit import score_orbit
+
+                def open_orbit(b, o):
+                    return SceneRun(b, o, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
+                                    warnings=warnings)
+
+                with warning_log.where(scene=bundle.name):
+                    scene_res["orbit"] = score_orbit(run.bundle, opts, open_orbit,
+                                                     lambda r: evaluate_scene(r, cache, sink, progress), ctx=ctx,
+                                                     warn=warnings.add)
+            if opts.residuals and out is not None:  # --residuals: the Gaussians behind the evidence
+                from .residuals import scene_residuals
+
+                scene_res["residuals"] = scene_residuals(run.bundle, scene_res, out, ctx=ctx, xis=opts.xis)
             views_of[bundle.name] = {v: k for k, v in enumerate(run.views)}
             if opts.compat:
                 from ..aggregate.compat import apply_compat

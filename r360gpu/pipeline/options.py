@@ -47,6 +47,8 @@ class EvaluateOptions:
     n_perm: int = N_PERM
     seed: int = 0
     antialiased: bool = False  # render every splat scene in the antialiased mode (score --antialiased)
+    orbit: int = 0  # score --orbit N: N more cameras around the target, results under scenes.S.orbit (.orbit)
+    residuals: bool = False  # score --residuals: residuals/SCENE/METHOD.ply per splat method (.residuals)
 
     def __post_init__(self):
         from ..metrics.compat import check_compat
@@ -90,7 +92,7 @@ class EvaluateOptions:
         per-view value.
         """
         d = asdict(self)  # the GhtParams becomes {"nu", "tau", "kappa", "omega"}
-        for k in ("pictures", "n_boot", "n_perm", "seed", "controls"):
+        for k in ("pictures", "n_boot", "n_perm", "seed", "controls", "orbit", "residuals"):
             d.pop(k)
         d["xis"] = [float(x) for x in self.xis]
         d["views"] = None if self.views is None else list(self.views)

@@ -400,6 +400,11 @@ def build_results_tables(results: dict) -> tuple[list[Table], list[str]]:
     for key in ("scene_macro", "rank_agg", "reliability", "axis_association"):
         if key in agg_tables:
             tables.append(agg_tables[key])
+    from .orbit_table import orbit_table
+
+    orbit = orbit_table(results)  # score --orbit N: capture vs orbit, never in the axes above
+    if orbit is not None:
+        tables.append(orbit)
     for build, what in ((xi_table, "threshold (xi) sweep"), (boundary_table, "mask-boundary sweep")):
         t = build(results)
         if t is None:

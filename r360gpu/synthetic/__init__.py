@@ -3,9 +3,10 @@
 Each scene is a complete world of flat, textured 3D Gaussians (metres, z up)
 with one target object; from it come the original reconstruction (pre), the
 reference (the world without the target, including the background the target
-hid), target masks rendered per view, and five simulated removal methods with
+hid), target masks rendered per view, and simulated removal methods with
 known failure modes (:mod:`.methods`): ``clean``, ``floaters``,
-``recoloured``, ``hole`` and ``over_removal``.  Everything is written as
+``recoloured``, ``hole`` and ``over_removal`` (the default set), and
+``backside`` (by name: a residue only an orbit can see).  Everything is written as
 scene bundles (:mod:`.bundle`) that ``r360gpu score`` reads like real data.
 
 Scenes (:data:`SCENES`): ``room`` (a living room, prompt "sofa") and
@@ -33,12 +34,12 @@ from .bundle import CAMERA_FORMATS, SCENES, generate_benchmark, make_method, mak
 from .cameras import Rig, orbit_cameras, view_kinds
 from .garden import make_garden
 from .masks import target_masks
-from .methods import METHODS, clean, floaters, hole, over_removal, recoloured
+from .methods import DEFAULT_METHODS, METHODS, backside, clean, floaters, hole, over_removal, recoloured
 from .room import make_room
 from .scene import SyntheticScene, hidden_background
 
 __all__ = [
-    "CAMERA_FORMATS", "METHODS", "SCENES", "Rig", "SyntheticScene",
+    "CAMERA_FORMATS", "DEFAULT_METHODS", "METHODS", "backside", "SCENES", "Rig", "SyntheticScene",
     "generate_benchmark", "make_scene", "make_method", "write_bundle",
     "make_room", "make_garden", "clean", "floaters", "recoloured", "hole", "over_removal",
     "target_masks", "hidden_background", "orbit_cameras", "view_kinds",

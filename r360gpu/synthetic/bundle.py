@@ -37,7 +37,7 @@ from ..io import Gaussians, save_colmap, save_ply, save_transforms_json
 from ..util.atomic import write_bytes, write_text
 from .garden import make_garden
 from .masks import target_masks
-from .methods import EXPECTED, METHODS
+from .methods import DEFAULT_METHODS, EXPECTED, METHODS
 from .room import make_room
 from .scene import SyntheticScene
 
@@ -237,15 +237,16 @@ def write_bundle(scene: SyntheticScene, folder: str | os.PathLike, *, seed: int 
     is replaced) and return the folder.
 
     seed: the seed of the method edits (use the scene's seed).  methods:
-    names from :data:`~r360gpu.synthetic.methods.METHODS` (default: all, in
-    that order).  camera_format: "colmap" (``cameras/`` binary model) or
+    names from :data:`~r360gpu.synthetic.methods.METHODS` (default:
+    :data:`~r360gpu.synthetic.methods.DEFAULT_METHODS`, in that order).
+    camera_format: "colmap" (``cameras/`` binary model) or
     "transforms" (``transforms.json``).  ctx: GPU context for the mask renders.
     request: the arguments the bundle was made from, recorded in the marker
     with the files' SHA-256 so :func:`reusable_bundle` can tell it is current.
     kept: a :class:`~r360gpu.render.kept.KeptRenders` that receives the
     reference renders the masks are drawn from, for scoring to use.
     """
-    methods = list(METHODS) if methods is None else list(methods)
+    methods = list(DEFAULT_METHODS) if methods is None else list(methods)
     unknown = [m for m in methods if m not in METHODS]
     if unknown or not methods:
         raise InputError(f"unknown or no methods {unknown}; known: {', '.join(METHODS)}")

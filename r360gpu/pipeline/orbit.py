@@ -1,0 +1,122 @@
+"""Orbit scoring (``--orbit N``): the scene scored from all around the target, not only where the capture looked.
+
+For a scene whose pre is a splat scene with cameras: the target is lifted
+(:mod:`r360gpu.lift`), N cameras are placed around it
+(:func:`r360gpu.lift.orbit.orbit_cameras`), poses inside geometry or with the
+target occluded in pre are dropped (counted by reason), and pre, the
+reference and every splat method are rendered there and scored with the
+same probes, the masks being the lifted target's.  The result is a scene
+entry of its own (axes, RQS, views) that goes under ``scenes.S.orbit``,
+never into the capture-view axes.  A method given as renderings cannot be
+rendered elsewhere: it is listed under ``no_orbit`` ("renderings only").
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import InputError
+
+RENDERINGS_ONLY = "no orbit (renderings only)"
+
+
+def _is_scene(spec) -> bool:
+    from ..io import Gaussians
+
+    return isinstance(spec, Gaussians) or getattr(spec, "kind", None) == "scene"
+
+
+def _gaussians(spec):
+    from ..io import Gaussians, load_gaussians
+
+    if isinstance(spec, Gaussians):
+        return spec, None
+    settings = getattr(spec, "render", None)
+    from ..render.conventions import RenderOptions
+
+    return load_gaussians(spec.path), RenderOptions(**(settings.given() if settings is not None else {}))
+
+
+def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
+    """(orbit bundle or None, info) for ``bundle`` (its masks already resolved).
+
+    info: {"requested", "kept", "dropped": {reason: count}, "no_orbit": {method: why}} plus
+    "note" when no orbit is possible.
+    """
+    from ..bundle.model import Bundle
+    from ..lift.masks import TargetMaskRenderer
+    from ..lift.orbit import keep_pose, orbit_cameras
+    from ..lift.resolve import scene_target
+    from ..render import Renderer
+
+    info: dict = {"requested": int(n), "kept": 0, "dropped": {}, "no_orbit": {}}
+    if not _is_scene(bundle.pre) or not bundle.cameras:
+        info["note"] = "no orbit: pre is renderings only (or has no cameras)"
+        return None, info
+    for m, spec in bundle.methods.items():
+        if not _is_scene(spec):
+            info["no_orbit"][m] = RENDERINGS_ONLY
+    methods = {m: s for m, s in bundle.methods.items() if m not in info["no_orbit"]}
+    if not methods:
+        info["note"] = "no orbit: every method is renderings only"
+        return None, info
+    g, options = _gaussians(bundle.pre)
+    lifted = scene_target(bundle, g, ctx=ctx, options=options, warn=warn)
+    centre, _ = lifted.extent(g.means)
+    cams = orbit_cameras(centre, [bundle.cameras[v] for v in bundle.views if v in bundle.cameras], n)
+    pre_r = Renderer(g, ctx=ctx, options=options)
+    alone = Renderer(g.subset(lifted.target), ctx=ctx, options=options)
+    masks_r = TargetMaskRenderer(g, lifted.target, ctx=ctx, options=options)
+    kept, masks = [], {}
+    try:
+        for cam in cams:
+            pre = pre_r.render(cam)
+            mask = masks_r.mask(cam)
+            why = keep_pose(pre.alpha, pre.median_depth, mask, alone.render(cam).alpha >= 0.5,
+                            float(np.linalg.norm(cam.center - centre)))
+            if why is None:
+                kept.append(cam)
+                masks[cam.name] = mask
+            else:
+                info["dropped"][why] = info["dropped"].get(why, 0) + 1
+    finally:
+        for r in (pre_r, alone, masks_r):
+            r.release()
+    info["kept"] = len(kept)
+    if info["dropped"] and warn is not None:
+        warn(f"orbit: {sum(info['dropped'].values())} of {n} poses dropped ("
+             + ", ".join(f"{k}: {v}" for k, v in sorted(info["dropped"].items())) + ")")
+    if not kept:
+        info["note"] = "no orbit: every pose was dropped"
+        return None, info
+    reference = bundle.reference if bundle.reference is not None and _is_scene(bundle.reference) else None
+    if bundle.reference is not None and reference is None:
+        info["note"] = "reference is renderings only: the orbit is scored reference-free"
+    views = [c.name for c in kept]
+    orbit = Bundle(root=bundle.root, name=bundle.name, prompt=bundle.prompt, views=views,
+                   cameras={c.name: c for c in kept}, masks=masks, pre=bundle.pre, reference=reference,
+                   methods=methods, options=bundle.options, layout="objects",
+                   method_pres={m: s for m, s in bundle.method_pres.items() if m in methods and _is_scene(s)})
+    return orbit, info
+
+
+def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None) -> dict:
+    """The ``scenes.S.orbit`` entry: the orbit bundle scored like a scene, with ``info`` merged in.
+
+    open_run(bundle, opts) opens a SceneRun; evaluate_scene(run) scores it (the pipeline's own).
+    """
+    try:
+        orbit, info = orbit_bundle(bundle, opts.orbit, ctx=ctx, warn=warn)
+    except InputError as e:
+        if warn is not None:
+            warn(f"orbit: {e.problem}")
+        return {"requested": int(opts.orbit), "kept": 0, "note": f"no orbit: {e.problem}"}
+    if orbit is None:
+        return info
+    run = open_run(orbit, replace(opts, views=None, orbit=0))
+    try:
+        res = evaluate_scene(run)
+    finally:
+        run.release()
+    return {**res, **info}

@@ -1,0 +1,70 @@
+"""The capture-vs-orbit table (``score --orbit N``): each method's axes where the capture looked
+and from all around the target, side by side, and the orbit's worst views.
+
+The orbit's figures come from ``scenes.S.orbit`` (:mod:`r360gpu.pipeline.orbit`),
+a scene entry of its own: they never enter the capture-view axes, the
+aggregate tables or any rank.
+"""
+from __future__ import annotations
+
+from .tables import Cell, Table
+
+AXES = ("s_sem", "s_geo", "s_str", "rqs")
+LABELS = {"s_sem": "s_sem", "s_geo": "s_geo", "s_str": "s_str", "rqs": "RQS"}
+#: Worst orbit views listed per method.
+WORST_VIEWS = 3
+
+
+def _fmt(x) -> str:
+    return "—" if x is None else f"{x:.3f}"
+
+
+def worst_views(orbit: dict, method: str, xis, k: int = WORST_VIEWS) -> list[tuple[str, float]]:
+    """The ``k`` orbit views of ``method`` with the lowest single-view RQS, as (view, rqs)."""
+    from ..aggregate.results import method_axes
+    from ..metrics.record import ViewRecord
+
+    out = []
+    for d in orbit["methods"][method]["views"]:
+        axes = method_axes([ViewRecord.from_dict(d)], xis=xis)
+        if axes.get("rqs") is not None:
+            out.append((d["view"], float(axes["rqs"])))
+    return sorted(out, key=lambda t: t[1])[:k]
+
+
+def orbit_table(results: dict) -> Table | None:
+    """Scenes x methods: capture axes | orbit axes; None when no scene has an orbit."""
+    scenes = [s for s, e in results.get("scenes", {}).items() if "orbit" in e]
+    if not scenes:
+        return None
+    xis = tuple(results.get("options", {}).get("xis") or (0.3,))
+    rows, notes = [], []
+    for s in scenes:
+        entry, orbit = results["scenes"][s], results["scenes"][s]["orbit"]
+        for m, axes in entry["methods"].items():
+            capture = [_fmt(axes["axes"].get(a)) for a in AXES]
+            if m in orbit.get("methods", {}):
+                o = orbit["methods"][m]["axes"]
+                around = [_fmt(o.get(a)) for a in AXES]
+                worst = worst_views(orbit, m, xis)
+                if worst:
+                    notes.append(f"{s} / {m}: worst orbit views " + ", ".join(f"{v} (RQS {r:.3f})" for v, r in worst))
+            else:
+                why = orbit.get("no_orbit", {}).get(m) or orbit.get("note") or "no orbit"
+                around = [why] + [""] * (len(AXES) - 1)
+            rows.append([Cell(s), Cell(m)] + [Cell(c) for c in capture] + [Cell(c) for c in around])
+        dropped = orbit.get("dropped") or {}
+        notes.append(f"{s}: {orbit.get('kept', 0)} of {orbit.get('requested', 0)} orbit poses scored"
+                     + (" (dropped: " + ", ".join(f"{k} {v}" for k, v in sorted(dropped.items())) + ")"
+                        if dropped else ""))
+    notes.append("Orbit cameras ring the lifted target at the capture's distance and elevations; their "
+                 "scores are a separate scene entry, never mixed into the capture-view axes or ranks.")
+    return Table(
+        key="orbit",
+        title="Capture views vs orbit around the target.",
+        header=[Cell("Scene"), Cell("Method")] + [Cell(f"capture {LABELS[a]}") for a in AXES]
+        + [Cell(f"orbit {LABELS[a]}") for a in AXES],
+        rows=rows,
+        notes=tuple(notes),
+        label_columns=2,
+    )
