@@ -201,15 +201,18 @@ def score_and_report(bundles, out, args, executor=None, kept=None) -> int:
 
 def _score_and_report(bundles, out, args, executor, kept=None) -> int:
     from ..pipeline import evaluate
-    from ..report.html import REPORT_HTML
-    from ..report.outputs import summary_lines
-    from ..report.results_io import RESULTS_CSV, RESULTS_JSON
-    from ..report.results_tables import TABLES_MD, TABLES_TEX
 
     sem, stru = probes_from_args(args)
     results = evaluate(bundles, out=out, semantic_probes=sem, structural_probes=stru,
                        options=options_from_args(args), adapter=args.adapter, force=args.force,
                        progress=not args.quiet, executor=executor, kept=kept)
+    # Imported once scoring is done: report.html and report.outputs import matplotlib (0.3 s),
+    # which the first view does not need.
+    from ..report.html import REPORT_HTML
+    from ..report.outputs import summary_lines
+    from ..report.results_io import RESULTS_CSV, RESULTS_JSON
+    from ..report.results_tables import TABLES_MD, TABLES_TEX
+
     for line in summary_lines(results):
         print(line)
     print(f"\nreport: {Path(out) / REPORT_HTML}")

@@ -29,7 +29,12 @@ shapes; anything else is an InputError listing what was found):
   export's dummy image size baked in.  A decoder without ``low_res_masks``
   must return ``masks`` at ``orig_im_size``.  The point batch dimension is
   fixed to 1 in these exports, so prompts run one at a time unless the
-  model declares it dynamic.
+  model declares it dynamic (export with ``dynamic_axes`` ``{0: "prompts",
+  1: "num_points"}`` on ``point_coords`` and ``point_labels``, as
+  bench/parity_sam.py's ``export_onnx(batched_decoder=True)``: the automatic
+  mask generator then decodes ``points_per_batch`` prompts per run).  With
+  the ``onnx`` package installed the decoder's ``masks`` branch is cut from
+  the graph when ``low_res_masks`` exists (:func:`pruned_model_bytes`).
 
 ``sam2`` -- SAM 2 / 2.1 (samexporter ``export_sam2.py``, the
 ONNX-SAM2-Segment-Anything notebook):

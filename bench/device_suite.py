@@ -1,0 +1,216 @@
+"""One run of r360gpu's checks and benchmarks on a machine with a GPU, in one table, within 8 minutes.
+
+    python bench/device_suite.py [--public PATH] [--sam-onnx ENCODER DECODER] [--budget 480] [--small]
+
+Steps, each a fresh process with its share of the time left (a step that
+runs out is stopped and marked so; the next one still runs):
+
+1. ``r360gpu doctor``: the adapter, and every GPU kernel against its numpy
+   oracle (pass / fail);
+2. the renderer at 1M Gaussians, 1920x1080 (bench/bench_render.py): frames/s,
+   goal >= 100;
+3. ``r360gpu score`` against the public Remove360 scripts
+   (bench/bench_vs_public.py, 20 views of 1200x1000): both times and the
+   ratio; needs ``--public`` (a checkout of simonakocour/anything_left, or
+   its bare git directory), else skipped;
+4. the structural probe (bench/bench_amg.py ``--onnx``): r360gpu's SAM
+   automatic masks, 32x32 points on a 640x480 image, on onnxruntime's CUDA
+   provider when the installed onnxruntime has it (else its CPU provider,
+   said in the table); needs ``--sam-onnx`` (e.g. the random-weight ViT-B
+   exports bench/parity_sam.py writes), else the tiny stand-in graphs of
+   tests/onnx_graphs.py (they check the path, not the speed; marked so);
+5. ``r360gpu demo`` from nothing (bench/bench_demo.py's run): wall time,
+   goal < 5 s.
+
+``--small`` shrinks every workload (100k Gaussians at 480x270, 4 views of
+160x120, 8x8 points on 320x240, a 4-view 160x120 demo) so the suite runs on
+a CPU adapter (lavapipe) in a few minutes: that checks the suite, not the GPU.
+The table (Markdown) is printed last, with the adapter, the date and the
+load average; ``--out FILE`` also writes it there with every step's output.
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+
+
+def parse_args(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--public", type=Path, default=None, help="anything_left checkout or bare git dir (step 3)")
+    ap.add_argument("--sam-onnx", nargs=2, type=Path, default=None, metavar=("ENCODER", "DECODER"),
+                    help="a SAM ONNX pair for the probe step (step 4)")
+    ap.add_argument("--budget", type=float, default=480.0, help="seconds for the whole suite (default 480)")
+    ap.add_argument("--small", action="store_true", help="small workloads: checks the suite on a CPU adapter")
+    ap.add_argument("--adapter", default=None, help="r360gpu adapter choice passed to every step")
+    ap.add_argument("--out", type=Path, default=None, help="also write the table and each step's output here")
+    return ap.parse_args(argv)
+
+
+class Step:
+    """One command of the suite: what it printed, how long it took, the figure the table shows."""
+
+    def __init__(self, name: str, argv: list[str] | None, share: float, why_skipped: str = ""):
+        self.name, self.argv, self.share, self.why_skipped = name, argv, share, why_skipped
+        self.status, self.wall, self.output, self.figure, self.goal = "skipped", 0.0, "", why_skipped, ""
+
+    def run(self, env: dict, limit: float) -> None:
+        t = time.perf_counter()
+        try:
+            p = subprocess.run(self.argv, cwd=ROOT, env=env, capture_output=True, text=True, timeout=max(limit, 1.0))
+            self.output = p.stdout + p.stderr
+            self.status = "ok" if p.returncode == 0 else f"exit {p.returncode}"
+        except subprocess.TimeoutExpired as exc:
+            out = exc.stdout or b""
+            self.output = out.decode(errors="replace") if isinstance(out, bytes) else out
+            self.status = f"stopped at {limit:.0f} s"
+        self.wall = time.perf_counter() - t
+
+
+def last(pattern: str, text: str):
+    found = re.findall(pattern, text)
+    return found[-1] if found else None
+
+
+def describe(step: Step, small: bool, renders: int) -> None:
+    """Fill the table's figure and goal columns from what the step printed."""
+    out = step.output
+    if step.name == "doctor":
+        step.figure = last(r"adapter:\s+(.+)", out) or ""
+        failed = last(r"(\d+) check\(s\) FAILED", out)
+        step.figure += f"; {failed} check(s) FAILED" if failed else ("; all checks passed" if "all checks passed" in out
+                                                                   else "")
+    elif step.name == "render":
+        fps = last(rf"frames/s at {renders} Gaussians \S+: ([\d.]+)", out)
+        step.figure = f"{fps} frames/s" if fps else ""
+        step.goal = ">= 100 frames/s at 1M, 1080p" + (" (not this size)" if small else "")
+        if fps and not small:
+            step.goal += " MET" if float(fps) >= 100 else " NOT MET"
+    elif step.name == "vs public":
+        row = last(r"\| \d+ views [^|]+\| ([\d.]+) s \| ([\d.]+) s \| ([\d.]+)x", out)
+        step.figure = f"public {row[0]} s, r360gpu {row[1]} s, {row[2]}x" if row else ""
+    elif step.name == "probe":
+        line = last(r"(\S+ on \S+) \(batched decoder: (\w+)\)", out)
+        per = last(r"([\d.]+) s per image", out)
+        step.figure = (f"{per} s per image ({line[0]}, batched: {line[1]})" if line and per else "")
+    elif step.name == "demo":
+        secs = last(r"demo wall ([\d.]+) s", out)
+        step.figure = f"{secs} s" if secs else ""
+        step.goal = "< 5 s" + (" (not this size)" if small else (" MET" if secs and float(secs) < 5 else " NOT MET"))
+
+
+def stand_in_pair(folder: Path) -> tuple[Path, Path]:
+    """The tiny SAM stand-ins of tests/onnx_graphs.py (need the onnx package)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    import onnx_graphs
+
+    enc = onnx_graphs.sam_encoder_nchw(folder / "standin.encoder.onnx")
+    dec = onnx_graphs.sam_decoder(
+        folder / "standin.decoder.onnx", iou=[0.99, 0.95, 0.92, 0.93], radius=[80, 160, 168, 240],
+        slope=[1.0, 1.0, 1.0, 1e-5],
+    )
+    return enc, dec
+
+
+DEMO_SCRIPT = (
+    "import subprocess, sys, time; t = time.perf_counter(); "
+    "p = subprocess.run([sys.executable, '-m', 'r360gpu', 'demo', '--out', sys.argv[1], '--quiet'] + sys.argv[2:]); "
+    "print(f'demo wall {time.perf_counter() - t:.2f} s'); sys.exit(p.returncode)"
+)
+
+
+def build_steps(args, work: Path) -> list[Step]:
+    py = sys.executable
+    adapter = ["--adapter", args.adapter] if args.adapter else []
+    small = args.small
+    renders = 100_000 if small else 1_000_000
+    steps = [Step("doctor", [py, "-m", "r360gpu", "doctor", *adapter], 0.15)]
+    steps.append(Step("render", [py, str(HERE / "bench_render.py"), "--sizes", str(renders), "--repeat", "3",
+                                 "--no-oracle"] + (["--size", "480x270"] if small else []), 0.2))
+    if args.public is None:
+        steps.append(Step("vs public", None, 0.3, "no --public checkout given"))
+    else:
+        size = ["--views", "4", "--width", "160", "--height", "120"] if small else []
+        steps.append(Step("vs public", [py, str(HERE / "bench_vs_public.py"), "--public", str(args.public), *size],
+                          0.3))
+    pair, label = args.sam_onnx, ""
+    if pair is None:
+        try:
+            pair, label = stand_in_pair(work), "stand-in graphs (path check, not speed)"
+        except ImportError:
+            pair = None
+    if pair is None:
+        steps.append(Step("probe", None, 0.2, "no --sam-onnx pair and no onnx package for the stand-ins"))
+    else:
+        size = ["--points-per-side", "8", "--size", "320x240"] if small else []
+        step = Step("probe", [py, str(HERE / "bench_amg.py"), "--onnx", str(pair[0]), str(pair[1]),
+                              "--device", "auto", *size], 0.2)
+        step.goal = label
+        steps.append(step)
+    demo_size = ["--n-views", "4", "--width", "160", "--height", "120"] if small else []
+    steps.append(Step("demo", [py, "-c", DEMO_SCRIPT, str(work / "demo"), *adapter, *demo_size], 0.15))
+    return steps
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    started = time.perf_counter()
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
+    if args.adapter:
+        env["R360GPU_ADAPTER"] = args.adapter
+    load_before = os.getloadavg()
+    work = Path(tempfile.mkdtemp(prefix="r360-suite-"))
+    try:
+        steps = build_steps(args, work)
+        shares_left = sum(s.share for s in steps if s.argv)
+        for step in steps:
+            if not step.argv:
+                continue
+            left = args.budget - (time.perf_counter() - started)
+            # Each step may use its share of what is left, and what earlier steps did not use.
+            limit = left * step.share / shares_left if shares_left > 0 else left
+            shares_left -= step.share
+            if left < 5:
+                step.status, step.figure = "skipped", "suite budget spent"
+                continue
+            print(f"[{time.perf_counter() - started:5.0f} s] {step.name} (up to {limit:.0f} s) ...", flush=True)
+            step.run(env, limit)
+            describe(step, args.small, 100_000 if args.small else 1_000_000)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    total = time.perf_counter() - started
+    adapter = next((s.figure.split(";")[0] for s in steps if s.name == "doctor" and s.figure), "unknown adapter")
+    lines = [
+        f"## r360gpu device suite{' (--small)' if args.small else ''}: {adapter}",
+        f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC; {os.cpu_count()} CPU cores; "
+        f"load average {load_before[0]:.1f} before, {os.getloadavg()[0]:.1f} after; "
+        f"{total:.0f} s of a {args.budget:.0f} s budget",
+        "",
+        "| step | status | wall s | result | goal |",
+        "|---|---|---|---|---|",
+    ]
+    for s in steps:
+        lines.append(f"| {s.name} | {s.status} | {s.wall:.1f} | {s.figure} | {s.goal} |")
+    table = "\n".join(lines)
+    print()
+    print(table)
+    if args.out is not None:
+        logs = "\n\n".join(f"### {s.name} ({s.status})\n```\n{s.output.strip()[-6000:]}\n```" for s in steps if s.argv)
+        args.out.write_text(table + "\n\n" + logs + "\n")
+    ran = [s for s in steps if s.argv]
+    return 0 if ran and all(s.status == "ok" for s in ran) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
