@@ -145,13 +145,13 @@ def _evaluate(loaded, opts, ctx, probes, cache, sink, out, progress, log, execut
                 from .orbit import score_orbit
 
                 def open_orbit(b, o):
-                    return SceneRun(b, o, ctx, semantic_probes, structural_probes, cache=cache, timer=timer,
-                                    warnings=warnings)
+                    sem, stru, _ = scene_probes(b, probes[0], probes[1], compat=o.compat, defaults=probes[2])
+                    return SceneRun(b, o, ctx, sem, stru, cache=cache, timer=timer)
 
                 with warning_log.where(scene=bundle.name):
                     scene_res["orbit"] = score_orbit(run.bundle, opts, open_orbit,
                                                      lambda r: evaluate_scene(r, cache, sink, progress), ctx=ctx,
-                                                     warn=warnings.add)
+                                                     warn=warning_log.warn)
             if opts.residuals and out is not None:  # --residuals: the Gaussians behind the evidence
                 from .residuals import scene_residuals
 
