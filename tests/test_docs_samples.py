@@ -36,7 +36,7 @@ RUN_LANGS = {"sh", "python"}
 KNOWN_LANGS = RUN_LANGS | {"text", "toml"}
 BLOCK = re.compile(r"(?:^<!-- sample: (?P<marker>[^\n]*?) -->\n)?^```(?P<lang>[^\n`]*)\n(?P<body>.*?)^```$",
                    re.M | re.S)
-MAX_SKIPS = 4
+MAX_SKIPS = 5
 DEMO_ARGS = ["--n-views", "2", "--width", "96", "--height", "72", "--n-boot", "200", "--n-perm", "100"]
 
 
