@@ -89,7 +89,7 @@ def _same_renders(a: Path, b: Path, ctx, depth_rtol=1e-3):
     return sb
 
 
-def test_gsplat_normalised_scene_is_scored_with_frame_gsplat(synthetic, plain, tmp_path, ctx):
+def test_gsplat_normalised_scene_is_scored_with_frame_gsplat(synthetic, plain, tmp_path, ctx, capsys):
     """gsplat's simple_trainer (normalize_world_space=True) trains in the normalised world and saves its
     PLY there; frame = "gsplat" recomputes that world from the COLMAP model and its points3D."""
     folder = _copy(synthetic, tmp_path / "gsplat")
@@ -109,7 +109,8 @@ def test_gsplat_normalised_scene_is_scored_with_frame_gsplat(synthetic, plain, t
     b = load_bundle(folder)
     np.testing.assert_allclose(b.pre.frame.m, transform, atol=1e-9)
     _same_renders(plain[0], folder, ctx)
-    res = evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    assert main(["score", str(folder), "--out", str(tmp_path / "out"), *FAST]) == 0
+    res = json.loads((tmp_path / "out" / "results.json").read_text())
     assert res["scenes"]["room"]["frame_check"]["pre"]["level"] == "ok"
     for k in ("s_sem", "s_geo", "s_str", "iou_pre"):
         assert _axes(res)[k] == pytest.approx(_axes(plain[1])[k], abs=0.02), k

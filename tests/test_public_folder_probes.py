@@ -83,7 +83,7 @@ def test_compat_keeps_the_built_ins_and_says_so(folder, tmp_path, capsys):
     assert [p["name"] for p in res["probes"]["semantic"]] == ["builtin-appearance"]
 
 
-def test_sam_json_takes_the_folders_root(folder):
+def test_sam_json_takes_the_folders_root(folder, tmp_path, capsys):
     probe = probe_for_axis(f"sam-json:{folder}", "structural")
     assert isinstance(probe, PrecomputedStructuralProbe)
     assert probe.params()["paths"] == {"pre": str(folder / "masks"), "post": str(folder / "sam" / "after")}
@@ -92,6 +92,14 @@ def test_sam_json_takes_the_folders_root(folder):
     assert parse_probe_spec(f"sam-json:{folder}").params()["paths"]["pre"] == str(folder / "sam" / "before")
     assert parse_probe_spec(f"png:{folder}").params()["paths"] == {
         "pre": str(folder / "gsam2" / "before" / "mask"), "post": str(folder / "gsam2" / "after" / "mask")}
+    (folder / "sam" / "before" / "bedroom_table.json").unlink()
+    (folder / "sam" / "before").rmdir()
+    res, _ = _score([str(folder), "--structural-probe", f"sam-json:{folder}"], tmp_path, capsys)
+    sel = res["probes"]["selection"]["bedroom_table"]["structural"]
+    assert sel["source"] == "command line"
+    assert res["probes"]["structural"][0]["params"]["paths"] == {"pre": str(folder / "masks"),
+                                                                 "post": str(folder / "sam" / "after")}
+    assert res["scenes"]["bedroom_table"]["methods"]["after"]["axes"]["s_str"] == 0.0
 
 
 def test_spec_errors_name_the_path_and_show_a_spec_that_works(folder, tmp_path):

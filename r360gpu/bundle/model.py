@@ -280,7 +280,9 @@ class Bundle:
     def _source_settings(self, s: SourceSpec) -> dict:
         return {"kind": s.kind, "path": self._rel(s.path), "depth_scale": s.depth_scale,
                 "rgb_dir": s.rgb_dir and self._rel(s.rgb_dir), "depth_dir": s.depth_dir and self._rel(s.depth_dir),
-                "render": s.render.given(), **({"frame": s.frame.describe()} if hasattr(s.frame, "describe") else {})}
+                "render": s.render.given(),
+                # the frame's matrix (its origin names absolute paths: a moved bundle keeps its cache)
+                **({"frame": s.frame.matrix} if hasattr(s.frame, "matrix") else {})}
 
     def _referenced_files(self) -> list[Path]:
         files: list[Path] = []
