@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..util import warning_log
 
 
 @dataclass
@@ -142,7 +143,6 @@ class SceneRun:
         self.target_record = None
         if getattr(bundle, "target", None) is not None:  # [target]: a mask for every view (r360gpu.lift)
             from ..lift.resolve import resolve_target
-            from ..util import warning_log
 
             t0 = time.perf_counter()
             bundle, self.target_record = resolve_target(bundle, self.pre, ctx=ctx, warn=warning_log.warn)
@@ -318,7 +318,7 @@ class SceneRun:
                 cameras=None if self.bundle.cameras_path is None else str(self.bundle.cameras_path))
             if verdict.level == "refuse":
                 raise InputError(f"scene {self.bundle.name}: {message}")
-            self.warnings.add(message, scene=self.bundle.name, file=str(src.path))
+            warning_log.warn(message, scene=self.bundle.name, file=str(src.path))
         return out
 
     def describe_sources(self) -> dict:
