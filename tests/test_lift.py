@@ -11,7 +11,7 @@ from r360gpu.errors import InputError
 from r360gpu.gpu import GpuContext
 from r360gpu.io.camera import Camera
 from r360gpu.io.gaussians import Gaussians, random_gaussians
-from r360gpu.lift.device import SCALE, MaskLifter
+from r360gpu.lift.device import MaskLifter
 from r360gpu.lift.masks import MASK_SHARE, TargetMaskRenderer, label_scene, target_masks
 from r360gpu.lift.target import Box, decide, lift_target, load_indices, target_from_box, target_from_indices
 from r360gpu.render import render

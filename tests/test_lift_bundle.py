@@ -129,3 +129,19 @@ def test_bad_target_tables(bench, tmp_path):
         sub.mkdir()
         with pytest.raises(BundleError, match=match):
             load_bundle(_variant(folder, sub, table))
+
+
+def test_one_view_lift_is_warned_and_empty_masks_refused(bench, tmp_path, ctx):
+    folder, _ = bench
+    one = _object_views(folder)[:1]
+    bundle = load_bundle(_variant(folder, tmp_path, 'masks = "given"', one))
+    pre = SceneSource(bundle.pre.path, ctx=ctx)
+    said = []
+    resolved, record = resolve_target(bundle, pre, ctx=ctx, warn=said.append)
+    assert record["given"] == one and len(said) == 1 and "1 view" in said[0]
+    empty = {v: np.zeros((180, 240), bool) for v in one}
+    from dataclasses import replace
+
+    with pytest.raises(InputError, match="no given target mask shows the target"):
+        resolve_target(replace(bundle, masks=empty), pre, ctx=ctx)
+    pre.renderer.release()

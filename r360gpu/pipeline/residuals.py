@@ -35,8 +35,7 @@ def scene_residuals(bundle, scene_res: dict, out, *, ctx=None, xis=(0.3,)) -> di
             masks.append(np.asarray(mk) != 0 if isinstance(mk, np.ndarray)
                          else load_mask(mk, shape=(c.height, c.width)))
         r = residuals(g, cams, masks, flagged, ctx=ctx)
-        path = write_residual_ply(Path(out) / "residuals" / bundle.name / f"{m}.ply", g, r)
+        write_residual_ply(Path(out) / "residuals" / bundle.name / f"{m}.ply", g, r)
         out_entry[m] = {"file": str(Path("residuals") / bundle.name / f"{m}.ply"), "flagged_views": flagged,
                         "top": top_residuals(r, TOP).tolist(), "max": float(r.max()) if len(r) else 0.0}
-        del path
     return out_entry
