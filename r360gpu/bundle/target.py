@@ -33,7 +33,7 @@ TARGET_KEYS = ("masks", "indices", "property", "box")
 class TargetSpec:
     """A declared target: ``masks`` (folder Path, or {view: (H, W) bool} from objects), ``indices``
     (Path, or an int / bool array from objects), ``prop`` (PLY property), ``box``
-    (:class:`r360gpu.lift.target.Box`)."""
+    (:class:`r360gpu.io.box.Box`)."""
 
     masks: object = None
     indices: object = None
@@ -49,7 +49,7 @@ class TargetSpec:
 def parse_target_table(value, root: Path, bad) -> TargetSpec | None:
     """The [target] table (``bad(message)`` reports a problem); None when unusable."""
     from ..errors import InputError
-    from ..lift.target import Box
+    from ..io.box import Box
 
     if not isinstance(value, dict):
         bad("[target] must be a table with masks, indices or box")
@@ -130,7 +130,7 @@ def target_from_objects(target: dict, views: list[str]) -> TargetSpec:
     """A TargetSpec from ``scene_from_objects``'s ``target`` {"masks": {view: mask}, "indices": array,
     "box": table}."""
     from ..errors import InputError
-    from ..lift.target import Box
+    from ..io.box import Box
 
     if not isinstance(target, dict) or not set(target) & {"masks", "indices", "box"}:
         raise InputError("target must be a dict with 'masks', 'indices' or 'box'")

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..io.box import Box
 
 #: A Gaussian is target when at least this share of its compositing weight falls inside the masks.
 MIN_SHARE = 0.5
@@ -174,65 +175,6 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None) ->
             raise InputError(f"{path}: {len(vert)} vertices, pre has {n} Gaussians")
         return target_from_indices(n, np.asarray(vert[choice[0]]) != 0, where=str(path))
     raise InputError(f"{path}: target indices must be a .npy or .ply file")
-
-
-@dataclass(frozen=True)
-class Box:
-    """An oriented box: ``centre`` (3,), ``half`` (3,) half-extents along the box's axes,
-    ``rotation`` (3, 3) whose columns are the box's axes in world coordinates."""
-
-    centre: np.ndarray
-    half: np.ndarray
-    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
-
-    @classmethod
-    def from_table(cls, table: dict, *, where: str = "box") -> "Box":
-        """A box from ``{min, max}`` (axis-aligned) or ``{centre, size[, rotation]}`` where rotation is a
-        3x3 matrix (columns = box axes) or a (w, x, y, z) quaternion."""
-        def vec(key, k=3):
-            try:
-                v = np.asarray(table[key], np.float64).reshape(-1)
-            except (TypeError, ValueError):
-                raise InputError(f"{where}.{key} must be {k} numbers") from None
-            if v.shape != (k,) or not np.isfinite(v).all():
-                raise InputError(f"{where}.{key} must be {k} finite numbers, got {table[key]!r}")
-            return v
-
-        if not isinstance(table, dict):
-            raise InputError(f"{where} must be a table ({{min = [...], max = [...]}} or {{centre, size}})")
-        keys = set(table)
-        centre_key = "centre" if "centre" in keys else "center"
-        if keys == {"min", "max"}:
-            lo, hi = vec("min"), vec("max")
-            if np.any(hi < lo):
-                raise InputError(f"{where}: max must be >= min on every axis, got min={lo.tolist()} max={hi.tolist()}")
-            return cls(0.5 * (lo + hi), 0.5 * (hi - lo))
-        if centre_key in keys and "size" in keys and keys <= {centre_key, "size", "rotation"}:
-            size = vec("size")
-            if np.any(size < 0):
-                raise InputError(f"{where}.size must be >= 0, got {size.tolist()}")
-            rot = np.eye(3)
-            if "rotation" in table:
-                r = np.asarray(table["rotation"], np.float64)
-                if r.shape == (4,):
-                    if not np.isfinite(r).all() or np.linalg.norm(r) == 0:
-                        raise InputError(f"{where}.rotation quaternion must be finite and non-zero")
-                    w, x, y, z = r / np.linalg.norm(r)
-                    rot = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                                    [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                                    [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-                elif r.shape == (3, 3) and np.isfinite(r).all() and np.allclose(r.T @ r, np.eye(3), atol=1e-4):
-                    rot = r
-                else:
-                    raise InputError(f"{where}.rotation must be a 3x3 rotation matrix or a (w, x, y, z) quaternion")
-            return cls(vec(centre_key), 0.5 * size, rot)
-        raise InputError(f"{where} needs min and max, or centre and size (and optionally rotation); "
-                         f"got keys {', '.join(sorted(keys)) or 'none'}")
-
-    def contains(self, points: np.ndarray) -> np.ndarray:
-        """(N,) bool: points (N, 3) inside the box (boundary included)."""
-        local = (np.asarray(points, np.float64) - self.centre) @ self.rotation
-        return np.all(np.abs(local) <= self.half + 1e-12, axis=1)
 
 
 def target_from_box(means: np.ndarray, box: Box) -> LiftedTarget:
