@@ -797,20 +797,21 @@ def _(root):
     return score(b), "view_01.npy"
 
 
-@case("score-depth-jpeg-bytes-as-png", "error", "JPEG")
-def _(root):
+def _jpeg_depth_as_png(root: Path) -> Path:
     b = renders_bundle(root / "b", post_depth={"view_01": False})
     ok, buf = cv2.imencode(".jpg", np.full((H, W), 120, np.uint8))
     (b / "a" / "depth" / "view_01.png").write_bytes(buf.tobytes())
-    return score(b), "view_01.png"
+    return b
+
+
+@case("score-depth-jpeg-bytes-as-png", "error", "JPEG")
+def _(root):
+    return score(_jpeg_depth_as_png(root)), "view_01.png"
 
 
 @case("check-depth-jpeg-bytes-as-png", "error", "JPEG")
 def _(root):
-    b = renders_bundle(root / "b", post_depth={"view_01": False})
-    ok, buf = cv2.imencode(".jpg", np.full((H, W), 120, np.uint8))
-    (b / "a" / "depth" / "view_01.png").write_bytes(buf.tobytes())
-    return check(b), "view_01.png"
+    return check(_jpeg_depth_as_png(root)), "view_01.png"
 
 
 @case("check-depth-saved-as-jpg", "error", "view_02.jpg")
