@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -177,3 +176,20 @@ def test_the_patched_readers_are_every_module_that_reads_through_read_file():
     users = sorted(".".join(("r360gpu", *p.relative_to(root).with_suffix("").parts))
                    for p in root.rglob("*.py") if "filehash import read_file" in p.read_text(encoding="utf-8"))
     assert users == sorted(m.__name__ for m in READERS)
+
+
+def test_digests_are_remembered_only_for_settled_files(tmp_path, monkeypatch):
+    """A file written in the last 2 s may be rewritten in the same tick of the file system's clock
+    (same size, same times): its digest is not remembered.  An older one is, so a rerun reads nothing."""
+    p = tmp_path / "f.bin"
+    p.write_bytes(b"one")
+    filehash.forget()
+    filehash.content_digest(p)
+    assert str(p) not in filehash._memo
+    monkeypatch.setattr(filehash, "_SETTLED_NS", -1)  # as if the file were old
+    first = filehash.content_digest(p)
+    assert filehash._memo[str(p)][1] == first
+    reads = []
+    real_open = open
+    monkeypatch.setattr("builtins.open", lambda *a, **k: reads.append(a[0]) or real_open(*a, **k))
+    assert filehash.content_digest(p) == first and reads == []  # remembered: not read again

@@ -80,9 +80,9 @@ def _write_ply_ascii(p):
 
 
 def _write_splat(p):
-    from r360gpu.io import save_splat
+    from r360gpu.io import random_gaussians, save_splat
 
-    save_splat(p, _gaussians())
+    save_splat(p, random_gaussians(24, sh_degree=0, seed=3))  # a .splat holds SH degree 0 only
 
 
 def _write_cply(p):

@@ -11,18 +11,17 @@ from __future__ import annotations
 import dataclasses
 import sys
 import json
-from pathlib import Path
 
-import numpy as np
 import pytest
 
 from badinput_cases import SCORE_FLAGS, renders_bundle
-from bundle_factory import H, VIEWS, W, make_remove360, mask_image
+from bundle_factory import camera, make_bundle, make_remove360, mask_image, write_mask
 import r360gpu.pipeline  # noqa: F401 (loads r360gpu.pipeline.evaluate)
 from r360gpu import cli
-from r360gpu.bundle import SourceSpec, load_bundle, scene_from_objects
+from r360gpu.bundle import load_bundle, scene_from_objects
 from r360gpu.bundle.names import bad_name, name_problems
 from r360gpu.errors import InputError
+from r360gpu.io import load_colmap, save_colmap
 
 # (name, refused as a method name, refused as a scene or view name)
 NAMES = [
@@ -182,3 +181,20 @@ def test_view_names_from_mask_files_differing_only_in_case(tmp_path, capsys):
     (b / "masks" / "VIEW_00.png").write_bytes((b / "masks" / "view_00.png").read_bytes())
     assert cli.main(["check", str(b)]) == 2
     assert "differ only in case" in capsys.readouterr().out
+
+
+# --- names read from files: COLMAP text keeps them as written -------------------------------------------
+
+def test_colmap_text_keeps_the_spaces_of_an_image_name(tmp_path):
+    save_colmap(tmp_path / "m", [camera("a  b.jpg"), camera("c.jpg")], binary=False)
+    assert [c.name for c in load_colmap(tmp_path / "m")] == ["a  b.jpg", "c.jpg"]
+
+
+def test_a_mask_whose_view_nearly_matches_a_camera_is_explained(tmp_path, capsys):
+    b = make_bundle(tmp_path / "b")
+    save_colmap(b / "cameras", [camera("view_00.jpg"), camera("view_01.jpg"), camera("view  02.jpg")])
+    (b / "masks" / "view_02.png").unlink()
+    write_mask(b / "masks" / "view 02.png")
+    assert cli.main(["check", str(b)]) == 2
+    out = capsys.readouterr().out
+    assert "'view 02'" in out and "'view  02'" in out and "differ only slightly" in out

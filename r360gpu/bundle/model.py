@@ -200,14 +200,14 @@ class Bundle:
         """A hex SHA-256 that changes when anything the scores depend on may have changed.
 
         Hashed: the resolved settings (name, prompt, views, sources, options,
-        layout), the bytes of scene.toml, and the path, size and content
-        digest of every file the bundle reads: camera files, the masks and
-        renderings of the evaluation views, the splat files.  Digests are
-        remembered per file identity and ctime (:mod:`r360gpu.util.filehash`),
-        so an unchanged rerun reads nothing, while other bytes of the same
-        size with a restored mtime still change the fingerprint.  A missing
-        file is hashed as missing.  Paths are taken relative to the bundle
-        root when inside it.
+        layout), the bytes of scene.toml, and the path and content digest of
+        every file the bundle reads: camera files, the masks and renderings of
+        the evaluation views, the splat files.  Digests are remembered per
+        file identity and ctime once a file is 2 s old
+        (:mod:`r360gpu.util.filehash`), so an unchanged rerun reads nothing,
+        while other bytes of the same size with a restored mtime still change
+        the fingerprint.  A missing file is hashed as missing.  Paths are taken
+        relative to the bundle root when inside it.
         """
         return self.fingerprint_of(self.file_digests())
 

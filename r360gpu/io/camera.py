@@ -160,11 +160,11 @@ def checked_rotation(m, path: str | os.PathLike, what: str) -> np.ndarray:
     m = np.asarray(m, dtype=np.float64)
     if m.shape != (3, 3) or not np.isfinite(m).all():
         raise InputError(f"{what}: rotation must be a finite 3x3 matrix", path)
-    err = float(np.abs(m.T @ m - np.eye(3)).max())
-    if err > ROTATION_TOLERANCE or np.linalg.det(m) <= 0:
-        raise InputError(
-            f"{what}: not a rotation matrix (max |R^T R - I| = {err:.3g}, det = {np.linalg.det(m):.4g})",
-            path)
+    with np.errstate(over="ignore", invalid="ignore"):  # huge entries: err is inf (or nan), refused below
+        err = float(np.abs(m.T @ m - np.eye(3)).max())
+        det = float(np.linalg.det(m))
+    if not err <= ROTATION_TOLERANCE or not det > 0:
+        raise InputError(f"{what}: not a rotation matrix (max |R^T R - I| = {err:.3g}, det = {det:.4g})", path)
     return nearest_rotation(m)
 
 

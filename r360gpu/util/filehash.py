@@ -20,8 +20,9 @@ for it are the bytes its cache key was computed from
 (:func:`r360gpu.pipeline.cache.ViewCache.store_view`): a file replaced
 while a run reads it, and even restored afterwards, cannot leave a result
 of the other bytes under the original bytes' key.  A file that did not
-change while it was read also has its digest remembered for the next
-run's key, so an input read for scoring is not read again to be hashed.
+change while it was read (and is older than 2 s, see ``_SETTLED_NS``) also
+has its digest remembered for the next run's key, so an input read for
+scoring is not read again to be hashed.
 """
 from __future__ import annotations
 
