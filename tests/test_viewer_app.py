@@ -188,7 +188,7 @@ def test_focus_on_the_target(bundle, ctx, tmp_path):
     app.close()
 
 
-def test_screenshot_and_recording(bundle, ctx, tmp_path):
+def test_screenshot_and_recording(bundle, ctx, tmp_path, capsys):
     from r360gpu.viewer.capture import path_through
 
     app, canvas, clock = make_app(bundle, ctx, tmp_path)
@@ -196,6 +196,7 @@ def test_screenshot_and_recording(bundle, ctx, tmp_path):
     shot = tmp_path / "shot.png"
     app.request_screenshot("view", shot)
     draw(canvas, clock)
+    assert f"screenshot: {shot.resolve()}" in capsys.readouterr().out  # where it went, on the terminal
     import cv2
 
     saved = cv2.imread(str(shot), cv2.IMREAD_UNCHANGED)[..., [2, 1, 0]]

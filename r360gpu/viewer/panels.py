@@ -228,7 +228,9 @@ class Panels:
         self.range_widget("depth", "depth_auto", "depth_range", ov)
         self.range_widget("|dD|", "delta_auto", "delta_range", ov)
         for name, st in app.last_delta.items():
-            imgui.text(f"{name}: changed = |dD| > {st.threshold:.4g} (GHT)")
+            # GHT on this pane's own |dD| histogram: at the pane's resolution, so it can differ from
+            # the evaluation's t_depth (Metrics panel / report), which is computed at the evaluation size.
+            imgui.text(f"{name}: changed = |dD| > {st.threshold:.4g} (GHT at pane resolution)")
             imgui.text(f"    |dD| range {st.lo:.3g} .. {st.hi:.3g}")
         if ov.probes and app.probe_found:
             names = [f"{p.probe} ({p.kind}, {p.masks.shape[0]})" for p in app.probe_found]
@@ -348,7 +350,8 @@ class Panels:
             live = app.live.get(name)
             if live is not None:
                 stale = "  (moving...)" if app.live_stale else ""
-                imgui.text(f"live:   s_geo {_fmt(live.acc_depth)}  t_depth (GHT) {live.threshold:.4g}{stale}")
+                imgui.text(f"live:   s_geo {_fmt(live.acc_depth)}  t_depth (GHT, {live.width}x{live.height}) "
+                           f"{live.threshold:.4g}{stale}")
                 imgui.text(f"        {live.n_changed_in_mask}/{live.n_mask} target px changed")
                 imgui.text(f"        {live.mask_kind} mask, {live.width}x{live.height}")
         if app.live_note:
