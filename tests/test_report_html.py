@@ -74,6 +74,13 @@ def _decode(uri: str) -> np.ndarray:
     return img
 
 
+def _leaking(results: dict) -> dict:
+    """The methods with a 'leaks most' thumbnail (those with a view that leaks)."""
+    from r360gpu.report.findings import worst_views
+
+    return worst_views(results)
+
+
 def test_page_is_self_contained_and_every_image_decodes(report):
     results, out, path = report
     assert path == out / "report.html"
@@ -82,16 +89,20 @@ def test_page_is_self_contained_and_every_image_decodes(report):
     page.feed(text)
     page.close()
     assert page.stack == []
-    # overview chart + one worst-view thumbnail per method + one plot per (scene, method) + one sheet per view
+    # overview chart + one worst-view thumbnail per method that leaks + one plot per (scene, method)
+    # + one sheet per view
     n_methods = len(SCENES) * len(METHODS)
-    assert len(page.imgs) == 1 + len(METHODS) + n_methods + n_methods * len(VIEWS)
+    n_leaking = len(_leaking(results))
+    assert len(page.imgs) == 1 + n_leaking + n_methods + n_methods * len(VIEWS)
     for uri in page.imgs:
         img = _decode(uri)
         assert img.std() > 5  # not blank
     # no external resources; one inline script (table sorting, opening linked sections)
     assert page.tags.count("script") == 1 and "<script>" in text and "<script src" not in text
     assert "link" not in page.tags and "iframe" not in page.tags
-    assert all(u.startswith("#") for u in page.attrs_with_urls)
+    # links: in-page anchors, or the full-size PNG of an embedded sheet (a file beside the page)
+    files = [u for u in page.attrs_with_urls if not u.startswith("#")]
+    assert files and all((out / u).is_file() and u.startswith("pictures/") and u.endswith(".png") for u in files)
     assert "http://" not in text and "https://" not in text
     # embedded sheets are the files written by the picture functions (re-encoded as JPEG)
     from r360gpu.report.html import _jpeg_uri
@@ -168,7 +179,7 @@ def test_pick_views_and_limit(report, tmp_path):
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     text = write_html(results, copy, max_views=2).read_text(encoding="utf-8")
-    assert text.count("<img") == 1 + 3 + 6 + 6 * 2
+    assert text.count("<img") == 1 + len(_leaking(results)) + 6 + 6 * 2
     assert "Per-view contact sheets (2 of 3 views)" in text
     assert "every view's picture is in the pictures/room/clean folder" in text
 
@@ -224,7 +235,7 @@ def test_renders_in_headless_chromium(report, tmp_path):
     exe = _chromium()
     if exe is None:
         pytest.skip("Chromium is not installed (Debian package 'chromium'); the browser check needs it")
-    _, out, path = report
+    results, out, path = report
     shot = tmp_path / "shot.png"
     res = _run_chromium(exe, [f"--screenshot={shot}", "--window-size=1280,2000", path.as_uri()], tmp_path)
     assert res.returncode == 0, res.stderr[-2000:]
@@ -240,7 +251,7 @@ def test_renders_in_headless_chromium(report, tmp_path):
     dom = res.stdout
     start = dom.index('<pre id="r360-probe">') + len('<pre id="r360-probe">')
     boxes = json.loads(dom[start:dom.index("</pre>", start)].replace("&quot;", '"').replace("&amp;", "&"))
-    assert len(boxes) == 1 + len(METHODS) + len(SCENES) * len(METHODS) * (1 + len(VIEWS))
+    assert len(boxes) == 1 + len(_leaking(results)) + len(SCENES) * len(METHODS) * (1 + len(VIEWS))
     broken = [b for b in boxes if not b["ok"]]
     assert broken == []
     # every image laid out inside the screenshot shows content, not a blank box
@@ -339,7 +350,7 @@ def test_per_view_table_every_view_linked(checked_report):
     text = path.read_text(encoding="utf-8")
     assert text.count('<table class="sortable perview">') == len(SCENES)
     ids = set(re.findall(r'<figure id="(pic-[^"]+)"', text))
-    links = re.findall(r'<a href="#(pic-[^"]+)">sheet</a>', text)
+    links = re.findall(r'<a href="#(pic-[^"]+)" title="contact sheet">', text)
     assert len(links) == len(SCENES) * len(METHODS) * len(VIEWS) and set(links) == ids
     # every view's contact sheet shown, with its numbers beside it
     assert "Per-view contact sheets (3 views)" in text
@@ -416,3 +427,28 @@ def test_no_sideways_scroll_and_sorting_in_chromium(checked_report, tmp_path, wi
         assert got["asc"][-1] == "--" and got["desc"][-1] == "--"
     assert [float(x) for x in got["desc"] if x != "--"] == sorted(nums, reverse=True)
     assert sorted(got["before"]) == sorted(got["asc"])
+
+
+def test_first_screen_says_how_sure_the_ranking_is(checked_report):
+    results, _, path = checked_report
+    text = path.read_text(encoding="utf-8")
+    leaks = text[text.index('<section id="leaks">'):text.index('<section id="summary">')]
+    rel = results["aggregate"]["reliability"]
+    assert "How sure is the ranking" in leaks and "95% CI" in leaks and "P(beats " in leaks
+    assert leaks.index("How sure is the ranking") < leaks.index("Probe checks")  # right under the main table
+    for m, r in rel.items():
+        if r.get("ci_low") is not None:
+            assert f"[{r['ci_low']:.3f}, {r['ci_high']:.3f}]" in leaks
+    tables = text[text.index('<section id="tables">'):]
+    assert "95% CI" not in tables[:tables.index("</section>")]  # shown once
+
+
+def test_contact_sheets_link_to_the_full_size_png(checked_report):
+    results, out, path = checked_report
+    text = path.read_text(encoding="utf-8")
+    for s in SCENES:
+        for m in METHODS:
+            pics = results["scenes"][s]["methods"][m]["pictures"]
+            for rel in pics.values():
+                href = f'<a href="{rel}" title="full-size picture">'
+                assert href in text and (out / rel).is_file()

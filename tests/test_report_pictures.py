@@ -16,6 +16,7 @@ from r360gpu.report.contact_sheets import (
     view_numbers,
     CHANGED_IN_TARGET_RGB,
     MISSED_IN_TARGET_RGB,
+    NO_DEPTH_IN_TARGET_RGB,
     SEMANTIC_RGB,
     TARGET_RGB,
     THRESHOLD_RGB,
@@ -25,6 +26,7 @@ from r360gpu.report.contact_sheets import (
     depth_change_panel,
     mask_colors,
     mask_overlay,
+    no_depth_fraction,
     rgb8_at,
     sheet_image,
     view_contact_sheet,
@@ -130,6 +132,29 @@ def test_changed_panel_colours_and_outline(scene):
     assert inside_changed > 1000 and missed > 1000 and abs(inside_changed - missed) < 200
     with pytest.raises(InputError, match="changed mask is"):
         changed_panel(changed[:10], target)
+
+
+def test_no_depth_in_the_target_has_its_own_colour_count_and_legend(scene):
+    pre, target, delta = scene
+    changed = delta > 0.5
+    changed[60:, :] = False  # half of the target not changed ...
+    no_depth = np.zeros_like(changed)
+    no_depth[75:, :] = True  # ... of which a part has no depth after removal (a see-through hole)
+    p = changed_panel(changed, target, width=W, no_depth=no_depth)
+    holes, missed = _count(p, NO_DEPTH_IN_TARGET_RGB), _count(p, MISSED_IN_TARGET_RGB)
+    assert holes > 100 and missed > 100
+    assert holes + missed == _count(changed_panel(changed, target, width=W), MISSED_IN_TARGET_RGB)
+    t = target != 0
+    assert no_depth_fraction(no_depth, target) == float((no_depth & t).sum()) / t.sum()
+    assert no_depth_fraction(no_depth, np.zeros_like(t)) is None
+    with pytest.raises(InputError, match="no-depth mask is"):
+        changed_panel(changed, target, no_depth=no_depth[:10])
+    panels = view_panels(pre=pre, post=pre, target=target, changed=changed, no_depth=no_depth, width=W)
+    title = [t for t, _ in panels if t.startswith("changed")][0]
+    assert f"no depth in {no_depth_fraction(no_depth, target):.0%} of M" in title
+    assert any(c == NO_DEPTH_IN_TARGET_RGB for c, _ in legend_items(panels))
+    plain = view_panels(pre=pre, post=pre, target=target, changed=changed, no_depth=np.zeros_like(t), width=W)
+    assert not any(c == NO_DEPTH_IN_TARGET_RGB for c, _ in legend_items(plain))  # no hole: no legend entry
 
 
 def test_mask_overlay_is_seeded_and_outlined(scene):

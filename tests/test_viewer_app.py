@@ -188,7 +188,7 @@ def test_focus_on_the_target(bundle, ctx, tmp_path):
     app.close()
 
 
-def test_screenshot_and_recording(bundle, ctx, tmp_path):
+def test_screenshot_and_recording(bundle, ctx, tmp_path, capsys):
     from r360gpu.viewer.capture import path_through
 
     app, canvas, clock = make_app(bundle, ctx, tmp_path)
@@ -196,6 +196,7 @@ def test_screenshot_and_recording(bundle, ctx, tmp_path):
     shot = tmp_path / "shot.png"
     app.request_screenshot("view", shot)
     draw(canvas, clock)
+    assert f"screenshot: {shot.resolve()}" in capsys.readouterr().out  # where it went, on the terminal
     import cv2
 
     saved = cv2.imread(str(shot), cv2.IMREAD_UNCHANGED)[..., [2, 1, 0]]
@@ -238,12 +239,17 @@ def test_results_in_the_app(bundle, ctx, tmp_path):
     assert m.series("s_geo", bundle.views) == pytest.approx([0.1 * i for i in range(6)])
     assert m.series("s_sem", bundle.views)[:4] == [1.0, 1.0, 1.0, 0.0]  # IoU_post >= 0.3 is detected
     assert np.isnan(m.series("s_str", bundle.views)).all()
+    # worst view: lowest mean of (s_sem, s_geo): view 3, s_sem 0 and s_geo 0.3
+    assert m.worst_view(bundle.views) == bundle.views[3] and m.worst_view([]) is None
     assert res.probe_cache == tmp_path / ".r360cache" / "probes"
     with pytest.raises(Exception, match="no scene 'other'"):
         load_results(path, "other")
     # With panels on the offscreen canvas: the UI draws over the view.
     app, canvas, clock = make_app(bundle, ctx, tmp_path, size=(640, 400), gui=True, results=res)
     app.key("4")
+    assert app.state.name_a == "floaters"
+    app.key("j")  # J: the camera jumps to floaters' worst view
+    assert app.current_view() == bundle.views[3]
     with_ui = draw(canvas, clock)
     app.key("i")
     without = draw(canvas, clock)

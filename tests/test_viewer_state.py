@@ -129,8 +129,9 @@ def test_camera_and_capture_actions(s0):
 
 
 def test_unknown_keys_and_releases_do_nothing(s0):
-    for key in ("j", "F7", "~"):
+    for key in ("y", "F7", "~"):
         assert handle_key(s0, key, ()) == (s0, ())
+    assert handle_key(s0, "j", ()) == (s0, (Action("worst"),))  # J: worst view (the app picks it)
     assert handle_key(s0, "Tab", (), down=False) == (s0, ())
 
 

@@ -40,6 +40,8 @@ THRESHOLD_RGB = (0, 255, 255)
 CHANGED_IN_TARGET_RGB = (255, 215, 0)
 CHANGED_OUTSIDE_RGB = (165, 165, 165)
 MISSED_IN_TARGET_RGB = (110, 25, 25)
+#: In M with no depth after removal (nothing rendered there: a see-through hole).
+NO_DEPTH_IN_TARGET_RGB = (40, 120, 255)
 BACKGROUND_RGB = (35, 35, 35)
 
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
@@ -237,13 +239,16 @@ def depth_change_panel(delta, threshold: float | None, width: int = PANEL_WIDTH,
     return panel
 
 
-def changed_panel(changed, target, width: int = PANEL_WIDTH) -> np.ndarray:
+def changed_panel(changed, target, width: int = PANEL_WIDTH, no_depth=None) -> np.ndarray:
     """The changed-pixel mask against the target.
 
     changed: (H, W) bool, |dD| > t_depth (the GHT threshold).  target: (H, W) target mask M
-    (non-zero = target).  Colours: changed inside M yellow (what acc_depth
-    counts), unchanged inside M dark red (missed), changed outside M grey,
-    the rest dark; the outline of M in green.
+    (non-zero = target).  no_depth: (H, W) bool, no depth after removal (D_post
+    missing), or None.  Colours: changed inside M yellow (what acc_depth
+    counts), unchanged inside M dark red (missed), inside M with no depth after
+    removal blue (a see-through hole: dD is 0 there by the missing-depth rule, so
+    acc_depth does not count it either), changed outside M grey, the rest dark;
+    the outline of M in green.
     """
     width = _check_width(width)
     c = _mask(changed, "changed mask")
@@ -251,14 +256,33 @@ def changed_panel(changed, target, width: int = PANEL_WIDTH) -> np.ndarray:
     if c.shape != t.shape:
         raise InputError(f"changed mask is {c.shape[0]}x{c.shape[1]} but the target is {t.shape[0]}x{t.shape[1]}")
     size = panel_size(c.shape, width)
+    nd = None
+    if no_depth is not None:
+        nd = _mask(no_depth, "no-depth mask")
+        if nd.shape != t.shape:
+            raise InputError(f"no-depth mask is {nd.shape[0]}x{nd.shape[1]} but the target is "
+                             f"{t.shape[0]}x{t.shape[1]}")
+        nd = resize_mask(nd, size)
     c, t = resize_mask(c, size), resize_mask(t, size)
     img = np.empty((size[1], size[0], 3), np.uint8)
     img[:] = BACKGROUND_RGB
     img[c & ~t] = CHANGED_OUTSIDE_RGB
     img[~c & t] = MISSED_IN_TARGET_RGB
+    if nd is not None:
+        img[~c & t & nd] = NO_DEPTH_IN_TARGET_RGB
     img[c & t] = CHANGED_IN_TARGET_RGB
     _outline(img, t, TARGET_RGB)
     return img
+
+
+def no_depth_fraction(no_depth, target) -> float | None:
+    """Fraction of the target mask M with no depth after removal (None when M is empty)."""
+    t = _mask(target, "target mask")
+    nd = _mask(no_depth, "no-depth mask")
+    if nd.shape != t.shape:
+        raise InputError(f"no-depth mask is {nd.shape[0]}x{nd.shape[1]} but the target is {t.shape[0]}x{t.shape[1]}")
+    n = int(t.sum())
+    return float((nd & t).sum()) / n if n else None
 
 
 def mask_colors(n: int, seed: int = 0) -> np.ndarray:
@@ -325,6 +349,7 @@ LEGEND = {
     "target": (TARGET_RGB, "green outline: target mask M"),
     "changed_in": (CHANGED_IN_TARGET_RGB, "yellow: in M, depth changed (counted by acc_depth)"),
     "missed": (MISSED_IN_TARGET_RGB, "dark red: in M, depth unchanged (missed)"),
+    "no_depth": (NO_DEPTH_IN_TARGET_RGB, "blue: in M, no depth after removal (see-through hole, missed)"),
     "changed_out": (CHANGED_OUTSIDE_RGB, "light grey: outside M, depth changed"),
     "unchanged": (BACKGROUND_RGB, "dark grey: outside M, unchanged"),
     "threshold": (THRESHOLD_RGB, "cyan tick: GHT threshold t_depth on the |dD| scale"),
@@ -340,7 +365,7 @@ def legend_items(panels: Sequence[tuple[str, np.ndarray]]) -> list[tuple[tuple[i
     if "|dD|" in titles and "t_depth" in titles:
         keys.append("threshold")
     if "changed" in titles:
-        keys += ["changed_in", "missed", "changed_out", "unchanged"]
+        keys += ["changed_in", "missed"] + (["no_depth"] if "no depth" in titles else []) + ["changed_out", "unchanged"]
     if "semantic probe" in titles:
         keys.append("semantic")
     if any(t.split(" on ")[0] not in ("semantic probe",) and " on I_" in t for t, _ in panels):
@@ -531,6 +556,7 @@ def view_panels(
     delta=None,
     threshold: float | None = None,
     changed=None,
+    no_depth=None,
     semantic_post=None,
     semantic_pre=None,
     structural: Sequence[tuple[str, object, object]] = (),
@@ -548,6 +574,8 @@ def view_panels(
     changed: (H, W) bool changed mask; pass ``GeometricView.changed`` to show
         exactly the pixels acc_depth counted; default ``delta > threshold``
         when both are given.
+    no_depth: (H, W) bool, no depth after removal (D_post missing); its pixels
+        in M are drawn in their own colour and counted in the panel's title.
     semantic_post, semantic_pre: the semantic probe's predicted (union) masks
         on I_post / I_pre, drawn in magenta (skipped when None).
     structural: (title, rgb, masks) per structural panel, e.g.
@@ -570,7 +598,11 @@ def view_panels(
         if changed is None and threshold is not None:
             changed = np.abs(np.nan_to_num(np.asarray(delta, np.float64))) > float(threshold)
     if changed is not None:
-        out.append(("changed |dD| > t_depth (legend below)", changed_panel(changed, target, width)))
+        title = "changed |dD| > t_depth (legend below)"
+        hole = None if no_depth is None else no_depth_fraction(no_depth, target)
+        if hole:  # the share of M, so the figure does not depend on the panel's size
+            title = f"changed |dD| > t_depth; no depth in {hole:.0%} of M (legend below)"
+        out.append((title, changed_panel(changed, target, width, no_depth=no_depth)))
     if semantic_pre is not None:
         out.append(("semantic probe on I_pre",
                     once("semantic", (pre, semantic_pre, target),

@@ -33,6 +33,7 @@ import html
 import json
 import math
 import os
+import urllib.parse
 import warnings
 from pathlib import Path
 
@@ -96,7 +97,9 @@ table.kv td{white-space:normal;vertical-align:top;overflow-wrap:anywhere}table.k
 table.kv table.kv{margin:0;font-size:1em}
 table.sortable th{cursor:pointer;user-select:none}table.sortable th[aria-sort=ascending]::after{content:" \\25B2"}
 table.sortable th[aria-sort=descending]::after{content:" \\25BC"}
-table.perview td{padding:2px 6px}tr:target td{background:#ffe9a8}figure:target{outline:3px solid #e6a700}
+table.perview td{padding:2px 6px}table.perview th{white-space:normal;min-width:3.2em}
+@media (max-width:900px){body{padding:8px 10px 40px}table{font-size:0.8em}th,td{padding:2px 4px}
+ table.perview{font-size:0.76em}table.perview td,table.perview th{padding:2px 3px}}tr:target td{background:#ffe9a8}figure:target{outline:3px solid #e6a700}
 ul.best{margin:4px 0 8px}nav a{margin-right:12px}
 """
 
@@ -592,11 +595,11 @@ def per_view_table_html(results: dict, scene: str, rows: list[dict]) -> str:
     mode = structural_mode(results, scene)
     label = {"s_str": "s_str (sim_SAM)" if mode == "reference" else "s_str (1 - sim_SAM)",
              "s_sem": "s_sem (not found)"}
-    h = ['<table class="sortable perview"><caption>Per view (click a header to sort; s_sem is 1 when the '
+    h = ['<table class="sortable perview"><caption>Per view (click a header to sort, a view for its contact sheet; s_sem is 1 when the '
          'semantic probe no longer finds the object, IoU_post &lt; 0.3; t_depth is the GHT threshold; mean = mean '
          'of s_sem, acc_depth, s_str)</caption><thead><tr><th class="lab">Method</th><th class="lab">View</th>'
          + "".join(f'<th class="num">{_e(label.get(k, name))}</th>' for k, name, _ in cols)
-         + '<th class="lab">Sheet</th></tr></thead><tbody>']
+         + "</tr></thead><tbody>"]
     for r in rows:
         anchor = _pic_id(results, scene, r["method"], r["view"])
         cells = []
@@ -605,10 +608,11 @@ def per_view_table_html(results: dict, scene: str, rows: list[dict]) -> str:
             text = fmt_number(v, dec) if v is None or math.isfinite(v) else ("inf" if v > 0 else "-inf")
             data = "" if v is None else (repr(float(v)) if math.isfinite(v) else ("1e308" if v > 0 else "-1e308"))
             cells.append(f'<td class="num" data-v="{data}">{_e(text)}</td>')
-        link = f'<a href="#{anchor}">sheet</a>' if r.get("picture") else ""
+        # The view name links to its contact sheet (no column of its own: the table fits 800 px).
+        view = f'<a href="#{anchor}" title="contact sheet">{_e(r["view"])}</a>' if r.get("picture") else _e(r["view"])
         ex = " (excluded)" if r.get("excluded") else ""
         h.append(f'<tr id="row-{anchor}"><td class="lab">{_e(r["method"])}</td>'
-                 f'<td class="lab">{_e(r["view"])}{ex}</td>{"".join(cells)}<td class="lab">{link}</td></tr>')
+                 f'<td class="lab">{view}{ex}</td>{"".join(cells)}</tr>')
     h.append("</tbody></table>")
     return _scroll("\n".join(h))
 
@@ -670,8 +674,11 @@ def _method_section(results: dict, out_dir: Path, scene: str, method: str, probl
             fid = _pic_id(results, scene, method, str(view))
             back = f' <a href="#row-{fid}">(row)</a>'
             if uri:
-                img = _img(uri, f"{scene} / {method} / {view}")
-                h.append(f'<figure id="{fid}">{img}<figcaption>{_e(cap)}{back}</figcaption></figure>')
+                # The embedded copy is shrunk for the page; the link opens the full-size PNG beside it.
+                full = _e(urllib.parse.quote(str(pics[view]).replace(os.sep, "/")))
+                img = f'<a href="{full}" title="full-size picture">{_img(uri, f"{scene} / {method} / {view}")}</a>'
+                h.append(f'<figure id="{fid}">{img}<figcaption>{_e(cap)}{back} '
+                         f'<a href="{full}">(full size)</a></figcaption></figure>')
             else:
                 h.append(f'<figure id="{fid}"><div class="warn">{_e(why)}</div><figcaption>{_e(cap)}</figcaption>'
                          "</figure>")
@@ -757,6 +764,10 @@ def report_html(results: dict, out_dir: str | os.PathLike, *, max_views: int | N
     h.append(table_html(main, flags=flags))
     for n in doubt_notes:
         h.append(f'<p class="notes">{_e(n)}</p>')
+    tables, table_notes = build_results_tables(results)
+    reliability = next((t for t in tables if t.key == "reliability"), None)
+    if reliability is not None:  # how sure the ranking is, next to the ranking itself
+        h.append('<h3>How sure is the ranking</h3>' + table_html(reliability))
     h.append(verdicts_html(results))
     h.append(worst_views_html(results, out, rows, problems))
     h.append(controls_html(results))
@@ -786,11 +797,12 @@ def report_html(results: dict, out_dir: str | os.PathLike, *, max_views: int | N
     h.append("</section>")
 
     # Tables
-    tables, notes = build_results_tables(results)
     h.append('<section id="tables"><h2>Tables</h2>')
     for t in tables[1:]:
+        if t is reliability:
+            continue  # on the first screen
         h.append(f"<details open><summary>{_e(t.title)}</summary>{table_html(t, caption=False)}</details>")
-    for n in notes:
+    for n in table_notes:
         h.append(f'<p class="notes">Note: {_e(n)}</p>')
     h.append("</section>")
 

@@ -158,6 +158,17 @@ class ViewerApp:
             self.camera.set_camera(cam)
         self.teleported()
 
+    def jump_to_worst_view(self) -> None:
+        """Put the camera on scene A's worst evaluation view by the results file (J)."""
+        name = self.state.name_a
+        method = None if self.results is None else self.results.methods.get(name)
+        worst = None if method is None else method.worst_view(self.views)
+        if worst is None:
+            self.notify(f"no per-view results for {name!r}: open the viewer with --results and show a method as A")
+            return
+        self.jump_to_view(self.views.index(worst))
+        self.notify(f"worst view of {name}: {worst}")
+
     def snap(self) -> None:
         """Jump to the evaluation camera closest to the current pose."""
         if not self.cameras:

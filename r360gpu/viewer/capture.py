@@ -183,7 +183,7 @@ class Captures:
             self.pending.remove(shot)
             path = shot[1] or unique_path(self.folder / f"{self._name()}.png")
             self.last_shot = save_png(path, img)
-            self.app.notify(f"screenshot: {path}")
+            self._tell(path)
         if self.recorder is not None:
             # One frame per new camera: a resting camera adds nothing.
             key = camera_key(cam)
@@ -208,7 +208,13 @@ class Captures:
         img = read_texture(app.ctx.device, texture)
         path = path or unique_path(self.folder / f"{self._name()}_window.png")
         self.last_shot = save_png(path, img)
-        app.notify(f"screenshot: {path}")
+        self._tell(path)
+
+    def _tell(self, path: Path) -> None:
+        """Say where a capture went: in the status line, and on the terminal (the status line
+        can be out of sight in a small window)."""
+        self.app.notify(f"screenshot: {path}")
+        print(f"screenshot: {Path(path).resolve()}", flush=True)
 
     def fly_evaluation_path(self, steps: int = 8) -> None:
         """Record a fly-through of the evaluation cameras: ``steps`` frames from each to the next."""

@@ -42,6 +42,8 @@ class Input:
             app.jump_to_view(int(arg))
         elif k == "snap":
             app.snap()
+        elif k == "worst":
+            app.jump_to_worst_view()
         elif k == "reset":
             app.camera.reset()
             app.teleported()

@@ -34,6 +34,8 @@ PANEL_WIDTH = 330
 METRICS_WIDTH = 380
 #: Height of the Metrics dock when it runs along the bottom (logical px).
 METRICS_HEIGHT = 270
+#: Text lines kept at the bottom of the left panel for the status section.
+STATUS_LINES = 5
 LABEL_BG = (0.05, 0.05, 0.06, 0.75)
 LABEL_FG = (1.0, 1.0, 1.0, 1.0)
 MISSING_FG = (1.0, 0.85, 0.45, 1.0)
@@ -104,11 +106,14 @@ class Panels:
         self._dock_window(rect)
         imgui.begin("r360gpu viewer", None, _docked_flags())
         imgui.text(f"{app.bundle.name}  (prompt: {app.bundle.prompt})")
+        # The controls scroll in a child region that leaves room for the status lines, so the
+        # status (adapter, render size, messages such as where a capture went) stays in sight
+        # in a short window (1280x720) instead of below the panel's fold.
+        imgui.begin_child("controls", (0.0, -STATUS_LINES * imgui.get_text_line_height_with_spacing()))
         self.scenes_section()
         self.camera_section()
         self.overlay_section()
         self.capture_section()
-        self.status_section()
         if app.loop.docks is not None and app.loop.docks.metrics is None:
             # No room for the Metrics dock: its contents here, below the controls.
             if imgui.collapsing_header("Keys" if app.state.show_help else "Metrics",
@@ -117,6 +122,8 @@ class Panels:
                     self.help_contents()
                 else:
                     self.metrics_contents("left", None)
+        imgui.end_child()
+        self.status_section()
         imgui.end()
 
     # -- on the panes ------------------------------------------------------------
@@ -223,7 +230,9 @@ class Panels:
         self.range_widget("depth", "depth_auto", "depth_range", ov)
         self.range_widget("|dD|", "delta_auto", "delta_range", ov)
         for name, st in app.last_delta.items():
-            imgui.text(f"{name}: changed = |dD| > {st.threshold:.4g} (GHT)")
+            # GHT on this pane's own |dD| histogram: at the pane's resolution, so it can differ from
+            # the evaluation's t_depth (Metrics panel / report), which is computed at the evaluation size.
+            imgui.text(f"{name}: changed = |dD| > {st.threshold:.4g} (GHT at pane resolution)")
             imgui.text(f"    |dD| range {st.lo:.3g} .. {st.hi:.3g}")
         if ov.probes and app.probe_found:
             names = [f"{p.probe} ({p.kind}, {p.masks.shape[0]})" for p in app.probe_found]
@@ -343,7 +352,8 @@ class Panels:
             live = app.live.get(name)
             if live is not None:
                 stale = "  (moving...)" if app.live_stale else ""
-                imgui.text(f"live:   s_geo {_fmt(live.acc_depth)}  t_depth (GHT) {live.threshold:.4g}{stale}")
+                imgui.text(f"live:   s_geo {_fmt(live.acc_depth)}  t_depth (GHT, {live.width}x{live.height}) "
+                           f"{live.threshold:.4g}{stale}")
                 imgui.text(f"        {live.n_changed_in_mask}/{live.n_mask} target px changed")
                 imgui.text(f"        {live.mask_kind} mask, {live.width}x{live.height}")
         if app.live_note:

@@ -47,6 +47,18 @@ class MethodResults:
     axes: dict
     views: dict[str, ViewAxes] = field(default_factory=dict)
 
+    def worst_view(self, view_names: list[str]) -> str | None:
+        """The view of ``view_names`` with the lowest mean of its per-view axes (s_sem 0/1, s_geo,
+        s_str; the report's "leaks most" order), first on ties; None when no view has values."""
+        best, best_mean = None, None
+        for v in view_names:
+            va = self.views.get(v)
+            vals = [] if va is None else [x for x in (va.s_sem, va.s_geo, va.s_str)
+                                          if x is not None and x == x]
+            if vals and (best_mean is None or sum(vals) / len(vals) < best_mean):
+                best, best_mean = v, sum(vals) / len(vals)
+        return best
+
     def series(self, axis: str, view_names: list[str]) -> list[float]:
         """Values of ``axis`` along ``view_names`` (NaN where missing), for charts."""
         out = []

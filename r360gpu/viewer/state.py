@@ -56,6 +56,7 @@ KEY_BINDINGS = (
     ("L", "level the camera (remove roll)"),
     ("Left / Right or , / .", "previous / next evaluation camera"),
     ("Space", "snap to the closest evaluation camera"),
+    ("J", "jump to scene A's worst evaluation view (lowest mean of its per-view axes in the results file)"),
     ("Z", "overlay: depth of each shown scene"),
     ("X", "overlay: |dD| heat map against pre (dimmed below the GHT threshold)"),
     ("V", "overlay: changed mask (|dD| above the GHT threshold)"),
@@ -278,6 +279,8 @@ def handle_key(state: ViewerState, key: str, modifiers=(), *, down: bool = True)
         return s.at_view(target), (Action("view", target),)
     if key == " ":
         return s, (Action("snap"),) if s.n_views else ()
+    if low == "j":
+        return s, (Action("worst"),) if s.n_views else ()
     if low == "p":
         return s, (Action("screenshot", "window" if ("Shift" in mods or key == "P") else "view"),)
     if low == "k":
