@@ -16,6 +16,8 @@ background, seen mostly elsewhere, near 0.
 """
 from __future__ import annotations
 
+from ..protocol import AXES
+
 import os
 from pathlib import Path
 
@@ -39,7 +41,7 @@ def flagged_views(records, xis=(0.3,)) -> list[str]:
     for r in records:
         rec = ViewRecord.from_dict(r) if isinstance(r, dict) else r
         axes = method_axes([rec], xis=xis)
-        if any(axes.get(k) is not None and axes[k] < FLAG_BELOW for k in ("s_sem", "s_geo", "s_str")):
+        if any(axes.get(k) is not None and axes[k] < FLAG_BELOW for k in AXES):
             out.append(rec.view)
     return out
 

@@ -7,9 +7,11 @@ aggregate tables or any rank.
 """
 from __future__ import annotations
 
+from ..protocol import AXES
 from .tables import Cell, Table
 
-AXES = ("s_sem", "s_geo", "s_str", "rqs")
+#: The columns: the protocol's axes, then RQS.
+COLUMNS = (*AXES, "rqs")
 LABELS = {"s_sem": "s_sem", "s_geo": "s_geo", "s_str": "s_str", "rqs": "RQS"}
 #: Worst orbit views listed per method.
 WORST_VIEWS = 3
@@ -42,16 +44,16 @@ def orbit_table(results: dict) -> Table | None:
     for s in scenes:
         entry, orbit = results["scenes"][s], results["scenes"][s]["orbit"]
         for m, axes in entry["methods"].items():
-            capture = [_fmt(axes["axes"].get(a)) for a in AXES]
+            capture = [_fmt(axes["axes"].get(a)) for a in COLUMNS]
             if m in orbit.get("methods", {}):
                 o = orbit["methods"][m]["axes"]
-                around = [_fmt(o.get(a)) for a in AXES]
+                around = [_fmt(o.get(a)) for a in COLUMNS]
                 worst = worst_views(orbit, m, xis)
                 if worst:
                     notes.append(f"{s} / {m}: worst orbit views " + ", ".join(f"{v} (RQS {r:.3f})" for v, r in worst))
             else:
                 why = orbit.get("no_orbit", {}).get(m) or orbit.get("note") or "no orbit"
-                around = [why] + [""] * (len(AXES) - 1)
+                around = [why] + [""] * (len(COLUMNS) - 1)
             rows.append([Cell(s), Cell(m)] + [Cell(c) for c in capture] + [Cell(c) for c in around])
         dropped = orbit.get("dropped") or {}
         notes.append(f"{s}: {orbit.get('kept', 0)} of {orbit.get('requested', 0)} orbit poses scored"
@@ -62,8 +64,8 @@ def orbit_table(results: dict) -> Table | None:
     return Table(
         key="orbit",
         title="Capture views vs orbit around the target.",
-        header=[Cell("Scene"), Cell("Method")] + [Cell(f"capture {LABELS[a]}") for a in AXES]
-        + [Cell(f"orbit {LABELS[a]}") for a in AXES],
+        header=[Cell("Scene"), Cell("Method")] + [Cell(f"capture {LABELS[a]}") for a in COLUMNS]
+        + [Cell(f"orbit {LABELS[a]}") for a in COLUMNS],
         rows=rows,
         notes=tuple(notes),
         label_columns=2,
