@@ -73,7 +73,9 @@ def test_builtin_on_the_command_line_wins_and_folders_without_outputs_say_why(fo
     sel = res["probes"]["selection"]["bedroom_table"]
     assert sel["semantic"]["source"] == "default" and "no the folder's GSAM2" not in sel["semantic"]["why"]
     assert "has no the folder's" not in console and "gsam2/before/mask" in sel["semantic"]["why"]
-    assert sel["structural"]["probes"] == ["builtin-graphseg"] and "sam/after" in sel["structural"]["why"]
+    from r360gpu.probes.registry import DEFAULT_PROBES
+
+    assert sel["structural"]["probes"] == [DEFAULT_PROBES["structural"]] and "sam/after" in sel["structural"]["why"]
 
 
 def test_compat_keeps_the_built_ins_and_says_so(folder, tmp_path, capsys):
