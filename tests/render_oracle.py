@@ -106,28 +106,16 @@ def project(scene, camera, near: float = NEAR_PLANE, antialiased: bool = False, 
                 rect=np.stack([x0, y0, x1, y1], 1).astype(np.int64), visible=visible)
 
 
-def render(scene, camera, background=(0.0, 0.0, 0.0), near: float = NEAR_PLANE, window=None,
-           antialiased: bool = False, no_coverage_alpha: float = NO_COVERAGE_ALPHA,
-           principal_point: str = "camera") -> dict:
-    """Reference images: rgb (H, W, 3), alpha, depth, median_depth (H, W), float64,
-    and ``blended``: the number of pixel-Gaussian pairs composited.
-
-    window: optional (x0, y0, width, height) pixel region of the camera's image
-    to compute (the arrays then have that size); the default is the whole image.
-    The other options are those of :class:`r360gpu.render.conventions.RenderOptions`.
-    """
-    pr = project(scene, camera, near, antialiased, principal_point)
+def composite(pr: dict, camera, T: np.ndarray, window=None):
+    """Front-to-back compositing of projected Gaussians ``pr`` (:func:`project`) by the rasteriser's
+    rules, one step per Gaussian in depth order: yields ``(g, win, w, blend, test_t)`` where ``win``
+    is the Gaussian's pixel window (slices into ``T``), ``w = alpha T`` its compositing weight there
+    (0 where it does not blend), ``blend`` where it blends and ``test_t`` the transmittance after it.
+    ``T`` (H, W), the transmittance of ``window`` (x0, y0, width, height; default the whole image),
+    is updated after each step."""
     x_lo, y_lo, W, H = window or (0, 0, int(camera.width), int(camera.height))
-    T = np.ones((H, W))
-    color = np.zeros((H, W, 3))
-    sum_w = np.zeros((H, W))
-    sum_wz = np.zeros((H, W))
-    median = np.zeros((H, W))
-    median_found = np.zeros((H, W), bool)
     done = np.zeros((H, W), bool)
-    blended = 0
-    order = np.argsort(pr["depth"], kind="stable")
-    for g in order:
+    for g in np.argsort(pr["depth"], kind="stable"):
         if not pr["visible"][g]:
             continue
         x0, y0, x1, y1 = pr["rect"][g]
@@ -147,15 +135,37 @@ def render(scene, camera, background=(0.0, 0.0, 0.0), near: float = NEAR_PLANE, 
         stop = use & (test_t < T_MIN)
         done[win] |= stop
         blend = use & ~stop
+        yield g, win, np.where(blend, alpha * t_old, 0.0), blend, test_t
+        T[win] = np.where(blend, test_t, t_old)
+
+
+def render(scene, camera, background=(0.0, 0.0, 0.0), near: float = NEAR_PLANE, window=None,
+           antialiased: bool = False, no_coverage_alpha: float = NO_COVERAGE_ALPHA,
+           principal_point: str = "camera") -> dict:
+    """Reference images: rgb (H, W, 3), alpha, depth, median_depth (H, W), float64,
+    and ``blended``: the number of pixel-Gaussian pairs composited.
+
+    window: optional (x0, y0, width, height) pixel region of the camera's image
+    to compute (the arrays then have that size); the default is the whole image.
+    The other options are those of :class:`r360gpu.render.conventions.RenderOptions`.
+    """
+    pr = project(scene, camera, near, antialiased, principal_point)
+    _, _, W, H = window or (0, 0, int(camera.width), int(camera.height))
+    T = np.ones((H, W))
+    color = np.zeros((H, W, 3))
+    sum_w = np.zeros((H, W))
+    sum_wz = np.zeros((H, W))
+    median = np.zeros((H, W))
+    median_found = np.zeros((H, W), bool)
+    blended = 0
+    for g, win, w, blend, test_t in composite(pr, camera, T, window):
         blended += int(blend.sum())
-        w = np.where(blend, alpha * t_old, 0.0)
         color[win] += w[..., None] * pr["rgb"][g]
         sum_w[win] += w
         sum_wz[win] += w * pr["depth"][g]
         first = blend & ~median_found[win] & (test_t <= MEDIAN_T)
         median[win] = np.where(first, pr["depth"][g], median[win])
         median_found[win] |= first
-        T[win] = np.where(blend, test_t, t_old)
     alpha_img = 1 - T
     covered = (alpha_img >= no_coverage_alpha) & (sum_w > 0)
     depth = np.where(covered, sum_wz / np.where(sum_w > 0, sum_w, 1), 0.0)
