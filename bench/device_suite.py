@@ -143,14 +143,15 @@ def build_steps(args, work: Path) -> list[Step]:
         size = ["--views", "4", "--width", "160", "--height", "120"] if small else []
         steps.append(Step("vs public", [py, str(HERE / "bench_vs_public.py"), "--public", str(args.public), *size],
                           0.3))
-    pair, label = args.sam_onnx, ""
+    pair, label, why = args.sam_onnx, "", ""
     if pair is None:
         try:
             pair, label = stand_in_pair(work), "stand-in graphs (path check, not speed)"
-        except ImportError:
-            pair = None
+        except ImportError as exc:
+            # The reason goes in the table: on the first H100 run "onnx" was installed and still failed.
+            pair, why = None, f"no --sam-onnx pair, and the stand-in graphs could not be built ({exc})".replace("|", "/")
     if pair is None:
-        steps.append(Step("probe", None, 0.2, "no --sam-onnx pair and no onnx package for the stand-ins"))
+        steps.append(Step("probe", None, 0.2, why))
     else:
         size = ["--points-per-side", "8", "--size", "320x240"] if small else []
         step = Step("probe", [py, str(HERE / "bench_amg.py"), "--onnx", str(pair[0]), str(pair[1]),
