@@ -342,3 +342,47 @@ def test_a_scene_that_cannot_be_opened_ahead_fails_at_its_turn(tmp_path, ctx, mo
     monkeypatch.setattr(st, "render_on_device", lambda run, v: rendered.append(run.bundle.name) or real_render(run, v))
     evaluate([room, garden], out=tmp_path / "out", options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
     assert rendered.count("room") == 0 and rendered.count("garden") == 4  # every room view was cached
+
+
+def test_host_threads_scale_with_cores_and_the_variable_is_checked(monkeypatch):
+    import importlib
+    import os
+
+    import pytest
+
+    from r360gpu.errors import InputError
+    ev = importlib.import_module("r360gpu.pipeline.evaluate")  # the package exports a function of that name
+
+    monkeypatch.delenv("R360GPU_HOST_THREADS", raising=False)
+    for cores, want in ((None, 2), (1, 2), (2, 2), (4, 2), (6, 4), (16, ev.MAX_HOST_THREADS), (128, ev.MAX_HOST_THREADS)):
+        monkeypatch.setattr(os, "cpu_count", lambda c=cores: c)
+        assert ev.host_threads() == want, cores
+    monkeypatch.setenv("R360GPU_HOST_THREADS", "3")
+    assert ev.host_threads() == 3
+    for bad in ("0", "-2", "two", "1.5"):
+        monkeypatch.setenv("R360GPU_HOST_THREADS", bad)
+        with pytest.raises(InputError, match="R360GPU_HOST_THREADS"):
+            ev.host_threads()
+    # one view ahead per host thread, still within the memory budget
+    assert ev._in_flight(20 << 20, 8) == (8, ev.writer_threads(8) + 1) == (8, 5)  # a view waiting per writer
+    assert ev._in_flight(ev.MEMORY_BUDGET // 2, 8) == (1, 1)
+
+
+def test_results_do_not_depend_on_the_number_of_host_threads(tmp_path, ctx, monkeypatch):
+    """1 host thread and 1 writer against 4 host threads and 2 writers: the same results and pictures."""
+    import cv2
+    import numpy as np
+
+    root = make_bundle(tmp_path / "b")
+    runs, sheets = {}, {}
+    for n in ("1", "4"):
+        monkeypatch.setenv("R360GPU_HOST_THREADS", n)
+        out = tmp_path / f"out{n}"
+        res = evaluate(load_bundle(root), out=out, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+        runs[n] = {k: v for k, v in res.items() if k not in ("created", "timing")}
+        sheets[n] = {p.relative_to(out).as_posix(): cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+                     for p in sorted((out / "pictures").rglob("*.png"))}
+    assert runs["1"] == runs["4"]
+    assert sheets["1"] and sheets["1"].keys() == sheets["4"].keys()
+    for k, a in sheets["1"].items():
+        assert np.array_equal(a, sheets["4"][k]), k

@@ -71,6 +71,7 @@ def _load_and_evaluate(bundles, out, semantic_probes, structural_probes, options
 
     opts = options or EvaluateOptions()
     opts._check()  # before any work, also when a field was changed after the options were built
+    host_threads()  # R360GPU_HOST_THREADS too
     if executor is not None or ray_address is not None:
         from .distributed import open_executor
 
@@ -286,10 +287,35 @@ def missing_methods(bundles) -> list[str]:
     return lines
 
 
-#: Views whose host-side work (reading, probes) may run ahead of the view being measured.
+#: Views whose host-side work (reading, probes) may run ahead of the view being measured, at least.
 LOOKAHEAD = 2
-#: Threads for the host-side work; the GPU thread and the writer thread come on top.
-HOST_THREADS = 2
+#: Threads for the host-side work at most; the GPU thread and the writer thread come on top.
+MAX_HOST_THREADS = 8
+
+
+def host_threads() -> int:
+    """Threads that read a view's files and run its probes, several views at once.
+
+    One per CPU core beyond the GPU and writer threads, between 2 and
+    :data:`MAX_HOST_THREADS`: the probes spend most of their time in OpenCV and
+    numpy, which release the GIL, so a many-core machine runs that many views'
+    probes at once (the built-in probes' Python parts still share one core's
+    worth of GIL).  ``R360GPU_HOST_THREADS`` sets the count (at least 1), e.g.
+    to compare counts in a benchmark.  Results do not depend on it: views are
+    measured and written in their order whatever finishes first.
+    """
+    import os
+
+    given = os.environ.get("R360GPU_HOST_THREADS", "").strip()
+    if given:
+        try:
+            n = int(given)
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise InputError(f"R360GPU_HOST_THREADS must be a whole number >= 1, got {given!r}")
+        return n
+    return max(2, min(MAX_HOST_THREADS, (os.cpu_count() or 2) - 2))
 
 
 def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool, executor=None,
@@ -382,10 +408,11 @@ def _cached_views(run: SceneRun, cache: RunCache, sink: PictureSink):
 def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rendered=None):
     """Score ``views``, yielding (view, cells) in order, with the stages overlapped:
 
-    this (the GPU) thread renders on the device and measures; ``HOST_THREADS``
-    threads read renders, masks and run the probes up to ``LOOKAHEAD`` views
-    ahead; one writer thread writes the pictures and then the view's cache
-    cells (so a cached cell always has its picture).  Once the first view's
+    this (the GPU) thread renders on the device and measures; :func:`host_threads`
+    threads read renders, masks and run the probes, one view ahead per thread
+    (at least ``LOOKAHEAD``); :func:`writer_threads` writer threads write each
+    view's pictures and then its cache cells (so a cached cell always has its
+    picture).  Once the first view's
     size is known (when it is rendered, or when its files are read), fewer
     views are kept in flight when they would hold more than ``MEMORY_BUDGET``
     bytes (large images: 4K and up).  ``rendered`` is called once the last
@@ -401,7 +428,8 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rende
         return
     # files read by the host threads: a view's size is known once its first one is read
     host_sources = any(on_host(source) for _, _, source in view_sources(run))
-    host = ThreadPoolExecutor(max_workers=HOST_THREADS, thread_name_prefix="r360-host")
+    threads = host_threads()
+    host = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="r360-host")
     writer = None
     lookahead = 0  # until the first view's size is known
     inflight: deque = deque()
@@ -419,8 +447,8 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rende
                 with warning_log.where(view=v):
                     data = render_on_device(run, v)
                 if writer is None and not host_sources:  # every image is here: its size is known now
-                    lookahead, bound = _in_flight(_view_bytes(data))
-                    writer = BackgroundWriter(bound=bound)
+                    lookahead, bound = _in_flight(_view_bytes(data), threads)
+                    writer = BackgroundWriter(bound=bound, workers=writer_threads(threads))
                 # contextvars do not follow work into a pool: the run's warning log and the
                 # view's place in it go along explicitly
                 inflight.append((v, host.submit(contextvars.copy_context().run, _gather, run, data)))
@@ -429,8 +457,8 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rende
             v, fut = inflight.popleft()
             data = fut.result()
             if writer is None:
-                lookahead, bound = _in_flight(_view_bytes(data))
-                writer = BackgroundWriter(bound=bound)
+                lookahead, bound = _in_flight(_view_bytes(data), threads)
+                writer = BackgroundWriter(bound=bound, workers=writer_threads(threads))
             with warning_log.where(view=v):
                 cells, geos = measure(run, data, sink)
                 jobs = picture_jobs(run, data, geos, cells) if sink.enabled else []
@@ -462,11 +490,21 @@ def _view_bytes(data) -> int:
     return sum(getattr(a, "nbytes", 0) for im in imgs if im is not None for a in (im.rgb, im.depth, im.alpha))
 
 
-def _in_flight(view_bytes: int) -> tuple[int, int]:
-    """(views read ahead, views waiting for the writer) within MEMORY_BUDGET (at least 0 and 1)."""
+def _in_flight(view_bytes: int, threads: int = 1) -> tuple[int, int]:
+    """(views read ahead, views waiting for the writers) within MEMORY_BUDGET (at least 0 and 1).
+
+    Up to one view ahead per host thread (at least LOOKAHEAD), so every thread
+    has a view to work on, and a view waiting for each writer."""
+    ahead = max(LOOKAHEAD, threads)
     slots = MEMORY_BUDGET // max(1, view_bytes)
-    lookahead = min(LOOKAHEAD, max(0, slots // 2))
-    return lookahead, min(LOOKAHEAD + 1, max(1, slots - lookahead))
+    lookahead = min(ahead, max(0, slots // 2))
+    return lookahead, min(max(LOOKAHEAD + 1, writer_threads(threads) + 1), max(1, slots - lookahead))
+
+
+def writer_threads(threads: int) -> int:
+    """Writer threads beside ``threads`` host threads: a contact sheet costs about a third of a view's
+    probes on one core, so one writer per two host threads (one on a 2-core machine)."""
+    return max(1, threads // 2)
 
 
 def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, cells: dict, jobs: list) -> None:

@@ -1,8 +1,10 @@
-"""A background writer: jobs run in order on one thread, at most ``bound`` waiting.
+"""A background writer: jobs run off the submitting thread, at most ``bound`` waiting.
 
 Pictures and view-cache files are written here, off the GPU thread; the
 bound keeps memory flat when writing is slower than scoring (the submitting
-thread then waits).  The first error is raised again by :meth:`close`.
+thread then waits).  With one worker (the default) jobs run in order; with
+several they run at once, so each job must touch only its own files (a
+view's pictures and cells).  The first error is raised again by :meth:`close`.
 """
 from __future__ import annotations
 
@@ -11,8 +13,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 
 class BackgroundWriter:
-    def __init__(self, bound: int = 4, name: str = "r360-writer"):
-        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix=name)
+    def __init__(self, bound: int = 4, name: str = "r360-writer", workers: int = 1):
+        self._pool = ThreadPoolExecutor(max_workers=max(1, int(workers)), thread_name_prefix=name)
         self._slots = threading.BoundedSemaphore(bound)
         self._futures: list = []
 
