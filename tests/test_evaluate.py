@@ -178,3 +178,53 @@ def test_every_source_is_rendered_once_per_view(bundle, ctx, monkeypatch):
     n_sources = 2 + len(res["scenes"]["room"]["methods"])  # pre, reference, methods
     assert len(calls) == n_sources * len(res["scenes"]["room"]["views"])
     assert set(calls.values()) == {1}
+
+
+def test_scenes_from_objects_rescored_when_what_they_hold_changes(bundle, tmp_path, ctx):
+    """The per-view cache of a scene built from objects is keyed by what is scored, not by its
+    description: Gaussians of the same count with other values, moved cameras and a changed
+    target each give fresh results; renders held on the device are never cached (their content
+    is not known without reading them back)."""
+    import numpy as np
+
+    import r360gpu
+    from r360gpu.bundle import load_bundle
+    from r360gpu.io import Camera, build_gaussians, load_gaussians, load_mask
+    from r360gpu.render import Renderer
+    from r360gpu.render.sources import DeviceViewsSource
+
+    b = load_bundle(bundle)
+    views = b.views[:2]
+    masks = {v: load_mask(b.masks[v]) for v in views}
+    pre_g = load_gaussians(b.pre.path)
+    post = load_gaussians(b.methods["floaters"].path)
+    brighter = build_gaussians(post.means, post.scales, post.quats, post.opacities, post.sh + 0.5, source="edit")
+    opts = r360gpu.EvaluateOptions(pictures=False, boundary=False, **OPTS)
+    out = tmp_path / "o"
+
+    def run(method, cameras=b.cameras, masks=masks, at=out):
+        scene = r360gpu.scene_from_objects("room", "sofa", masks, pre_g, {"m": method}, cameras=cameras)
+        return r360gpu.evaluate(scene, out=at, ctx=ctx, options=opts, progress=False)["scenes"]["room"]["methods"]["m"]
+
+    def fresh(method, **kw):
+        return run(method, at=None, **kw)
+
+    first = run(post)
+    assert first["views"] == fresh(post)["views"]
+    edited = run(brighter)  # same count, other colours: scored again
+    assert edited["views"] == fresh(brighter)["views"] and edited["views"] != first["views"]
+    moved = {v: Camera(c.R, c.t, c.fx * 1.1, c.fy * 1.1, c.cx, c.cy, c.width, c.height, c.name)
+             for v, c in b.cameras.items()}
+    assert run(post, cameras=moved)["views"] == fresh(post, cameras=moved)["views"] != first["views"]
+    shifted = {v: np.roll(m, 7, axis=1) for v, m in masks.items()}
+    assert run(post, masks=shifted)["views"] == fresh(post, masks=shifted)["views"] != first["views"]
+    assert run(post)["views"] == first["views"]  # unchanged: the cache still serves it
+
+    dev_out = tmp_path / "dev"
+    for g in (post, brighter):
+        dev = DeviceViewsSource({v: Renderer(g, ctx=ctx).render_device(b.cameras[v]) for v in views}, ctx=ctx)
+        pre_dev = DeviceViewsSource({v: Renderer(pre_g, ctx=ctx).render_device(b.cameras[v]) for v in views}, ctx=ctx)
+        scene = r360gpu.scene_from_objects("room", "sofa", masks, pre_dev, {"m": dev})
+        got = r360gpu.evaluate(scene, out=dev_out, ctx=ctx, options=opts, progress=False)
+        assert got["scenes"]["room"]["methods"]["m"]["views"] == fresh(g)["views"]
+    assert not list(dev_out.rglob("views"))  # nothing cached for device renders

@@ -147,11 +147,14 @@ class ViewCache:
         write_json(self._path(method, view), cell, allow_nan=False, sync=False, indent=None)
 
 
-def fingerprint(bundle, sources, digests: dict | None = None) -> str:
-    """The bundle's file fingerprint, or for scenes built from objects a hash
-    of the sources' descriptions and the target masks.
+def fingerprint(bundle, sources, digests: dict | None = None) -> str | None:
+    """The bundle's file fingerprint, or for scenes built from objects a hash of
+    what is scored: the sources' descriptions and, for Gaussians in memory,
+    their values; the cameras; the target masks.  None when a source's content
+    cannot be known without reading it back (renders held on the device): such
+    a scene is scored anew every run, and nothing of it is cached.
 
-    sources: [pre, reference or None, *methods], the opened sources.
+    sources: [pre, reference or None, *methods, *own pres], the opened sources.
     digests: the bundle's :meth:`~r360gpu.bundle.Bundle.file_digests`, when the run keeps them.
     """
     from ..bundle import is_from_objects
@@ -160,11 +163,50 @@ def fingerprint(bundle, sources, digests: dict | None = None) -> str:
         return bundle.fingerprint() if digests is None else bundle.fingerprint_of(digests)
     h = hashlib.sha256()
     for s in sources:
+        if s is not None and getattr(s, "kind", None) == "device":
+            return None
         h.update(json.dumps(None if s is None else s.describe(), sort_keys=True, default=str).encode())
+        if s is not None and s.path == "<in memory>" and getattr(s, "gaussians", None) is not None:
+            # the description holds the count, not the values: two edits of the same size must not share results
+            h.update(s.gaussians.content_digest().encode())
+        h.update(repr(getattr(s, "background", None)).encode())
     for v in bundle.views:
-        m = bundle.masks[v]
+        cam = (bundle.cameras or {}).get(v)
+        if cam is not None:  # every value exactly (repr(float) round-trips)
+            h.update(np.asarray(cam.R, np.float64).tobytes() + np.asarray(cam.t, np.float64).tobytes())
+            h.update(repr((cam.fx, cam.fy, cam.cx, cam.cy, cam.width, cam.height)).encode())
+        m = bundle.masks.get(v)
         h.update(np.ascontiguousarray(m).tobytes() if isinstance(m, np.ndarray) else str(m).encode())
+    _update_target(h, getattr(bundle, "target", None))
     return h.hexdigest()
+
+
+def _update_target(h, spec) -> None:
+    """Add a declared target (indices, box, masks of some views) to a from-objects fingerprint."""
+    if spec is None:
+        h.update(b"no target")
+        return
+    for name in ("indices", "prop", "box", "masks"):
+        h.update(name.encode())
+        _update_value(h, getattr(spec, name, None))
+
+
+def _update_value(h, value) -> None:
+    """Every value exactly: arrays by their bytes, dicts by sorted key, dataclasses (a Box) field by field."""
+    import dataclasses
+
+    if isinstance(value, dict):
+        for k in sorted(value, key=str):
+            h.update(repr(k).encode())
+            _update_value(h, value[k])
+    elif isinstance(value, np.ndarray):
+        h.update(str((value.dtype, value.shape)).encode() + np.ascontiguousarray(value).tobytes())
+    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+        h.update(type(value).__name__.encode())
+        for f in dataclasses.fields(value):
+            _update_value(h, getattr(value, f.name))
+    else:
+        h.update(repr(value).encode())
 
 
 def changed_inputs(keyed: dict | None, files: list, decoded: dict | None = None) -> list[str]:

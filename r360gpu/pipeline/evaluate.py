@@ -389,6 +389,8 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
 
 def _cached_views(run: SceneRun, cache: RunCache, sink: PictureSink):
     """(view cache, {view: cells} of the views it has, views to score)."""
+    if run.fingerprint is None:  # renders held on the device: what they hold is not known, nothing is cached
+        return None, {}, list(run.views)
     view_cache = cache.views(run.bundle.name, {
         "bundle": run.fingerprint, "options": run.opts.scoring_key(), "probes": run.probes_desc, "mode": run.mode,
         "depth": run.depth_mode, "lpips": run.lpips.describe() if run.lpips else None})

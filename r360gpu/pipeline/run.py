@@ -177,10 +177,11 @@ class SceneRun:
             self._fit_key = digest({"bundle": self.fingerprint, "views": self._fit_views(), "depth": self.depth_mode,
                                     "pre": self.pre.describe(), "probes": self._describe(),
                                     "own_pres": {n: src.describe() for n, src in self.pres.items() if n != "pre"}})
-            recorded = cache.load_fit(self._fit_key)
+            recorded = None if self.fingerprint is None else cache.load_fit(self._fit_key)
             if recorded is None:
                 self.fit()
-                cache.store_fit(self._fit_key, self._describe())
+                if self.fingerprint is not None:
+                    cache.store_fit(self._fit_key, self._describe())
             else:
                 self.fit_pending = True
         self.probes_desc = recorded if self.fit_pending else self._describe()
@@ -296,7 +297,7 @@ class SceneRun:
             if getattr(src, "kind", None) != "scene" or self.camera(pick[0]) is None:
                 continue  # renders made elsewhere are images already: no frame to get wrong
             key = digest({"frame_check": self.fingerprint, "views": pick, "source": src.describe()})
-            recorded = cache.load_fit(key, "frames")
+            recorded = None if self.fingerprint is None else cache.load_fit(key, "frames")
             if recorded is not None:
                 verdict = frame_check.FrameVerdict.from_dict(recorded)
             else:
@@ -308,7 +309,8 @@ class SceneRun:
                     seen.append(frame_check.view_coverage(v, img.alpha, self.mask(v), host_depth(img.depth, self.ctx)))
                 verdict = frame_check.frame_verdict(seen)
                 self.timer.add("frame check", t0)
-                cache.store_fit(key, verdict.to_dict(), "frames")
+                if self.fingerprint is not None:
+                    cache.store_fit(key, verdict.to_dict(), "frames")
             out[name] = verdict.to_dict()
             if verdict.level == "ok":
                 continue
