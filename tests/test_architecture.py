@@ -146,7 +146,7 @@ def test_the_doc_states_the_same_table():
 
 @pytest.mark.parametrize("src, expect", [
     ("from ..pipeline import evaluate\n", {"r360gpu.pipeline"}),
-    ("from . import _json\n", {"r360gpu.metrics._json"}),
+    ("from . import json_values\n", {"r360gpu.metrics.json_values"}),
     ("from .semantic import acc_seg\n", {"r360gpu.metrics.semantic"}),
     ("import r360gpu.render.sort\n", {"r360gpu.render.sort"}),
     ("def f():\n    from ..report.html import x\n", {"r360gpu.report.html"}),
