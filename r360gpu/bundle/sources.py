@@ -20,6 +20,8 @@ _PLY_MAGIC = (b"ply\n", b"ply\r\n")
 
 
 def check_scene(spec: SourceSpec, label: str, problems: list[Problem], *, deep: bool = False) -> SourceSpec | None:
+    """The scene source with its path resolved (an INRIA output folder -> its latest iteration's PLY),
+    or None after appending why the file is not a loadable splat scene (``label`` names the source)."""
     p = Path(spec.path)
     try:
         if not p.exists():
@@ -111,6 +113,8 @@ def _check_ply(p: Path) -> None:
 
 def check_renders(spec: SourceSpec, label: str, views: list[str], sizes: dict[str, tuple[int, int]], *,
                    depth_required: bool, where: str, problems: list[Problem], deep: bool = False) -> None:
+    """Append a problem for every evaluation view whose RGB (or, when the source has or needs one,
+    depth) file is missing, unreadable or of another size than the view's mask (``sizes``)."""
     rgb_ok = spec.rgb_dir is not None and spec.rgb_dir.is_dir()
     if not rgb_ok:
         folder = spec.rgb_dir or spec.path
