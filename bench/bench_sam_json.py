@@ -34,7 +34,7 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
 
-    from r360gpu.probes.precomputed import read_sam_json, read_sam_records
+    from r360gpu.probes.sam_records import read_sam_json, read_sam_records
 
     rng = np.random.default_rng(0)
     with tempfile.TemporaryDirectory() as tmp:

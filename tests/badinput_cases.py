@@ -711,7 +711,7 @@ def _(root):
 # --- precomputed probes ---------------------------------------------------------------------------
 
 def _amg_folder(folder: Path, n: int, seed: int) -> None:
-    from r360gpu.probes.precomputed import AMG_HEADER
+    from r360gpu.probes.amg_folders import AMG_HEADER
 
     folder.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)

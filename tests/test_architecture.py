@@ -146,7 +146,7 @@ def test_the_doc_states_the_same_table():
 
 @pytest.mark.parametrize("src, expect", [
     ("from ..pipeline import evaluate\n", {"r360gpu.pipeline"}),
-    ("from . import _json\n", {"r360gpu.metrics._json"}),
+    ("from . import json_values\n", {"r360gpu.metrics.json_values"}),
     ("from .semantic import acc_seg\n", {"r360gpu.metrics.semantic"}),
     ("import r360gpu.render.sort\n", {"r360gpu.render.sort"}),
     ("def f():\n    from ..report.html import x\n", {"r360gpu.report.html"}),
@@ -160,3 +160,44 @@ def test_import_parser(src, expect):
 def test_an_edge_up_the_flow_is_reported():
     edges = {"report": {"pipeline": ["report/html.py"]}, "pipeline": {"report": ["pipeline/evaluate.py"]}}
     assert violations(edges) == ["report -> pipeline (report/html.py)"]
+
+
+def private_imports(source: str, pkg: list[str]) -> list[str]:
+    """``module.name`` of every private name (``_x``, or anything in a ``_x`` module) that ``source``,
+    a module of package ``pkg``, imports from ANOTHER r360gpu package (a package's private helpers
+    are its own; another package gets a public name)."""
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level:
+            base = pkg[: len(pkg) - (node.level - 1)] + (node.module.split(".") if node.module else [])
+        else:
+            base = (node.module or "").split(".")
+        if base[0] != "r360gpu" or _unit(".".join(base + ["x"])) == _unit(".".join(pkg + ["x"])):
+            continue
+        for a in node.names:
+            dotted = ".".join(base + [a.name])
+            if any(p.startswith("_") and not p.startswith("__") for p in dotted.split(".")[1:]):
+                out.append(dotted)
+    return out
+
+
+def test_no_private_name_is_imported_across_packages():
+    bad = []
+    for path in sorted(PKG.rglob("*.py")):
+        mod = _module_name(path)
+        pkg = mod if path.name == "__init__.py" else mod[:-1]
+        bad += [f"{path.relative_to(PKG)}: {d}" for d in private_imports(path.read_text(encoding="utf-8"), pkg)]
+    assert not bad, "private names imported from another package (give them a public name):\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize("pkg, src, expect", [
+    ("report", "from ..metrics import _json\n", ["r360gpu.metrics._json"]),
+    ("pipeline", "def f():\n    from ..bundle.load import _parse_source\n", ["r360gpu.bundle.load._parse_source"]),
+    ("report", "from r360gpu.metrics._masks import where\n", ["r360gpu.metrics._masks.where"]),
+    ("report", "from ..metrics import json_values\nfrom .. import __version__\n", []),
+    ("metrics", "from ._masks import where\nfrom .semantic import _private\n", []),  # inside its own package
+])
+def test_private_import_parser(pkg, src, expect):
+    assert private_imports(src, ["r360gpu", pkg]) == expect

@@ -196,13 +196,13 @@ def _in_view(fn):
 
 
 def _read_sam(p):
-    from r360gpu.probes.precomputed import read_sam_json
+    from r360gpu.probes.sam_records import read_sam_json
 
     return read_sam_json(p)
 
 
 def _read_gsam2(p):
-    from r360gpu.probes.precomputed import read_gsam2_json
+    from r360gpu.probes.gsam2_dumps import read_gsam2_json
 
     return read_gsam2_json(p, "box")
 

@@ -16,20 +16,12 @@ import pytest
 from r360gpu.errors import InputError, R360Warning
 from r360gpu.probes import rle
 from r360gpu.probes.base import ProbeView
-from r360gpu.probes.precomputed import (
-    Gsam2JsonDir,
-    PngMaskDir,
-    PrecomputedSemanticProbe,
-    PrecomputedStructuralProbe,
-    SamJsonDir,
-    label_matches,
-    prompt_phrases,
-    read_gsam2_json,
-    read_mask_png,
-    read_sam_json,
-    remove360_sources,
-    resize_nearest,
-)
+from r360gpu.probes.gsam2_dumps import Gsam2JsonDir, read_gsam2_json
+from r360gpu.probes.mask_dirs import PngMaskDir, read_mask_png
+from r360gpu.probes.precomputed import PrecomputedSemanticProbe, PrecomputedStructuralProbe, remove360_sources
+from r360gpu.probes.prompt_rule import label_matches, prompt_phrases
+from r360gpu.probes.sam_records import SamJsonDir, read_sam_json
+from r360gpu.util.resize import resize_nearest
 
 DATA = Path(__file__).parent / "data" / "probes"
 

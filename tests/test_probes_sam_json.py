@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from r360gpu.errors import InputError
-from r360gpu.probes import precomputed as P
+from r360gpu.probes import sam_records as P
 from r360gpu.probes import sam_json
 
 

@@ -75,7 +75,7 @@ def test_bundle_and_renderer_accept_the_same_values():
 
 
 def _accepts_toml(key, v) -> bool:
-    from r360gpu.bundle.load import _parse_render_settings
+    from r360gpu.bundle.scene_toml import _parse_render_settings
 
     problems = []
     _parse_render_settings({key: v}, "[pre]", problems.append, scene=True)

@@ -8,7 +8,7 @@ import math
 import pytest
 
 from r360gpu.errors import InputError
-from r360gpu.metrics import _json
+from r360gpu.metrics import json_values
 from r360gpu.metrics.record import ViewRecord
 from r360gpu.report.results_io import (
     RESULTS_SCHEMA,
@@ -46,7 +46,7 @@ def test_json_is_strict_and_round_trips(results, written):
     out, (jpath, cpath) = written
     assert jpath == out / "results.json" and cpath == out / "results.csv"
     doc = _strict(jpath.read_text(encoding="utf-8"))
-    assert doc == _json.enc_tree(results)
+    assert doc == json_values.enc_tree(results)
     back = read_results(out)  # the folder works too
     assert back == doc
     assert read_results(jpath) == doc
@@ -64,7 +64,7 @@ def test_json_is_strict_and_round_trips(results, written):
 
 
 def test_non_finite_axis_values_are_tagged(results, tmp_path):
-    doc = json.loads(json.dumps(_json.enc_tree(results)))
+    doc = json.loads(json.dumps(json_values.enc_tree(results)))
     doc["scenes"]["room"]["methods"]["clean"]["axes"]["psnr"] = math.inf
     write_results(doc, tmp_path)
     text = (tmp_path / "results.json").read_text()

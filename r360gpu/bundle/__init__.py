@@ -16,7 +16,9 @@ problem), :func:`check_bundle` (the problems as a list), :func:`inspect_bundle`.
 """
 from __future__ import annotations
 
-from .load import CONFIG_NAME, check_bundle, inspect_bundle, load_bundle, view_name
+from .load import check_bundle, inspect_bundle, load_bundle
+from .scene_toml import CONFIG_NAME
+from .views import view_name
 from .model import (DEPTH_MODES, RESERVED_METHOD_NAMES, Bundle, BundleError, BundleOptions, Problem,
                     SourceSpec)
 from .group import group_pairs, group_scene, load_benchmark, parse_method_folders

@@ -110,6 +110,23 @@ class Problem:
         return f"{self.path}: {self.message}" if self.path else self.message
 
 
+#: Beyond this many problems of one kind in one folder, the rest is summarised in one line.
+MAX_LISTED = 10
+
+
+def listed_names(names: list[str]) -> str:
+    """The first :data:`MAX_LISTED` names, quoted, and how many more (for a problem's message)."""
+    listed = ", ".join(repr(v) for v in names[:MAX_LISTED])
+    return listed + (f" and {len(names) - MAX_LISTED} more" if len(names) > MAX_LISTED else "")
+
+
+def add_capped(problems: list[Problem], listed: list[Problem], folder: str, what: str) -> None:
+    """Append the first :data:`MAX_LISTED` of ``listed`` to ``problems``, the rest as one line."""
+    problems.extend(listed[:MAX_LISTED])
+    if len(listed) > MAX_LISTED:
+        problems.append(Problem(folder, f"... and {len(listed) - MAX_LISTED} more {what} with problems"))
+
+
 class BundleError(InputError):
     """A bundle that cannot be used; ``problems`` lists every problem found, the message one per line."""
 
@@ -330,7 +347,7 @@ def _camera_files(path: Path) -> list[Path]:
 
 @dataclass
 class Draft:
-    """A bundle as declared, before its files are checked (built by :mod:`.load` from
+    """A bundle as declared, before its files are checked (built by :mod:`.scene_toml` from
     scene.toml and by :mod:`.remove360_layout` from a public Remove360 folder).
 
     ``view_patterns`` None means "every view with a mask"; ``patterns_origin``

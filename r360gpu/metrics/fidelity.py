@@ -51,7 +51,7 @@ import numpy as np
 from ..errors import InputError
 from ..kernels.ssim import image_hwc, ssim_mse_many
 from ..probes.base import file_sha256
-from . import _json
+from . import json_values
 
 SSIM_WIN = 11
 SSIM_SIGMA = 1.5
@@ -259,7 +259,7 @@ class FidelityView:
     def to_dict(self) -> dict:
         return {
             "mse": self.mse,
-            "psnr": _json.enc_float(self.psnr),
+            "psnr": json_values.enc_float(self.psnr),
             "ssim": self.ssim,
             "lpips": self.lpips,
             "lpips_reason": self.lpips_reason,
@@ -269,13 +269,13 @@ class FidelityView:
     @classmethod
     def from_dict(cls, d: dict) -> "FidelityView":
         what = "fidelity view record"
-        f = lambda k: _json.field(d, k, what)  # noqa: E731
+        f = lambda k: json_values.field(d, k, what)  # noqa: E731
         lp = f("lpips")
         return cls(
-            mse=_json.dec_float(f("mse"), what),
-            psnr=_json.dec_float(f("psnr"), what),
-            ssim=_json.dec_float(f("ssim"), what),
-            lpips=None if lp is None else _json.dec_float(lp, what),
+            mse=json_values.dec_float(f("mse"), what),
+            psnr=json_values.dec_float(f("psnr"), what),
+            ssim=json_values.dec_float(f("ssim"), what),
+            lpips=None if lp is None else json_values.dec_float(lp, what),
             lpips_reason=f("lpips_reason"),
             lpips_model=None if f("lpips_model") is None else dict(f("lpips_model")),
         )
@@ -338,7 +338,7 @@ class FidelitySummary:
     def to_dict(self) -> dict:
         return {
             "n_views": self.n_views,
-            "psnr": _json.enc_float(self.psnr),
+            "psnr": json_values.enc_float(self.psnr),
             "psnr_n_identical": self.psnr_n_identical,
             "ssim": self.ssim,
             "lpips": self.lpips,

@@ -10,7 +10,7 @@ fidelity values.
 
 ``to_dict()`` gives strict JSON (``json.dumps(..., allow_nan=False)`` works;
 non-finite floats such as an identical-image PSNR are tagged, see
-:mod:`r360gpu.metrics._json`) and ``from_dict(to_dict())`` returns an equal
+:mod:`r360gpu.metrics.json_values`) and ``from_dict(to_dict())`` returns an equal
 record: Python writes floats with ``repr``, which round-trips exactly.
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from ..errors import InputError
 from ..protocol import VIEW_RECORD_SCHEMA
-from . import _json
+from . import json_values
 from .fidelity import FidelityView
 from .geometric import GeometricView
 from .semantic import SemanticView
@@ -84,30 +84,30 @@ class ViewRecord:
             "view": self.view,
             "scene": self.scene,
             "method": self.method,
-            "probes": _json.enc_tree(list(self.probes)),
+            "probes": json_values.enc_tree(list(self.probes)),
             "semantic": {k: v.to_dict() for k, v in self.semantic.items()},
             "structural": {k: v.to_dict() for k, v in self.structural.items()},
-            "geometric": None if self.geometric is None else _json.enc_tree(self.geometric),
+            "geometric": None if self.geometric is None else json_values.enc_tree(self.geometric),
             "fidelity": None if self.fidelity is None else self.fidelity.to_dict(),
         }
 
     @classmethod
     def from_dict(cls, d: dict) -> "ViewRecord":
         what = "view record"
-        schema = _json.field(d, "schema", what)
+        schema = json_values.field(d, "schema", what)
         if schema != SCHEMA:
             raise InputError(f"{what}: unknown schema {schema!r} (expected {SCHEMA!r})")
-        f = lambda k: _json.field(d, k, what)  # noqa: E731
+        f = lambda k: json_values.field(d, k, what)  # noqa: E731
         geo = f("geometric")
         fid = f("fidelity")
         return cls(
             view=str(f("view")),
             scene=str(f("scene")),
             method=str(f("method")),
-            probes=tuple(_json.dec_tree(p) for p in f("probes")),
+            probes=tuple(json_values.dec_tree(p) for p in f("probes")),
             semantic={str(k): SemanticView.from_dict(v) for k, v in f("semantic").items()},
             structural={str(k): StructuralView.from_dict(v) for k, v in f("structural").items()},
-            geometric=None if geo is None else _json.dec_tree(geo),
+            geometric=None if geo is None else json_values.dec_tree(geo),
             fidelity=None if fid is None else FidelityView.from_dict(fid),
         )
 

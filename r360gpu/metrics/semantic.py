@@ -37,7 +37,7 @@ import numpy as np
 from ..errors import InputError
 from ..kernels import mask_iou as K
 from ..protocol import XI_DEFAULT, XI_SWEEP
-from . import _json
+from . import json_values
 from ._masks import mask_stack, probe_name, target_mask
 
 
@@ -89,7 +89,7 @@ class SemanticView:
             "iou_pre": self.iou_pre,
             "iou_post": self.iou_post,
             "iou_drop": self.iou_drop,
-            "detected": {_json.xi_key(x): v for x, v in self.detected_at().items()},
+            "detected": {json_values.xi_key(x): v for x, v in self.detected_at().items()},
             "empty_target": self.empty_target,
             "area_target": self.area_target,
             "area_pred_pre": self.area_pred_pre,
@@ -103,7 +103,7 @@ class SemanticView:
     @classmethod
     def from_dict(cls, d: dict) -> "SemanticView":
         what = "semantic view record"
-        f = lambda k: _json.field(d, k, what)  # noqa: E731
+        f = lambda k: json_values.field(d, k, what)  # noqa: E731
         return cls(
             iou_pre=float(f("iou_pre")),
             iou_post=float(f("iou_post")),
@@ -239,7 +239,7 @@ class SemanticSummary:
             "iou_pre": self.iou_pre,
             "iou_post": self.iou_post,
             "iou_drop": self.iou_drop,
-            "acc_seg": {_json.xi_key(x): v for x, v in self.acc_seg.items()},
+            "acc_seg": {json_values.xi_key(x): v for x, v in self.acc_seg.items()},
             "s_sem": self.s_sem,
         }
 

@@ -55,7 +55,7 @@ from ..kernels import mask_iou as K
 from ..gpu.context import get_context
 from ..kernels import morph
 from ..protocol import BOUNDARY_PX, RETAIN_IOU, XI_DEFAULT, XI_SWEEP
-from . import _json
+from . import json_values
 from .geometric import GeometricView, GhtParams, acc_depth_view
 from .semantic import (
     SemanticView,
@@ -238,7 +238,7 @@ class BoundaryTable:
 
 
 def _acc_seg_row(xi: float) -> str:
-    return f"acc_seg@{_json.xi_key(xi)}"
+    return f"acc_seg@{json_values.xi_key(xi)}"
 
 
 def boundary_sensitivity(

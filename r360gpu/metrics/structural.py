@@ -56,7 +56,7 @@ import numpy as np
 from ..errors import InputError
 from ..kernels import mask_iou as K
 from ..protocol import RETAIN_IOU, STRUCTURAL_MODES
-from . import _json
+from . import json_values
 from ._masks import mask_stack, probe_name, target_mask
 
 MODES = STRUCTURAL_MODES  # short local name
@@ -124,7 +124,7 @@ class StructuralView:
     @classmethod
     def from_dict(cls, d: dict) -> "StructuralView":
         what = "structural view record"
-        f = lambda k: _json.field(d, k, what)  # noqa: E731
+        f = lambda k: json_values.field(d, k, what)  # noqa: E731
         pairs = tuple((int(p[0]), int(p[1])) for p in f("pairs"))
         ious = tuple(float(x) for x in f("pair_iou"))
         if len(pairs) != len(ious):

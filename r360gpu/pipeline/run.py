@@ -60,7 +60,7 @@ class Timer:
 def select_views(names: list[str], patterns, where=None) -> list[str]:
     """The views whose name matches one of the glob patterns (all without patterns).
 
-    As ``check --views`` does (bundle.load), every pattern must select
+    As ``check --views`` does (bundle.views), every pattern must select
     something: a plain name that is not an evaluation view (no mask, no
     camera) or a glob that matches none is an InputError naming ``where``.
     """
@@ -150,7 +150,7 @@ class SceneRun:
             timer.add("target", t0)
         self._masks: dict = {}
         self._fit_renders: dict = {}
-        from ..bundle.load import require_target
+        from ..bundle.views import require_target
         from .cache import digest, fingerprint
 
         require_target(self.views, self.mask, bundle.masks)

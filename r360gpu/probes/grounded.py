@@ -35,7 +35,7 @@ periods removed.  No box NMS (as Grounded-SAM-2).
 Instances: with ``phrase_match`` (default) only detections whose phrase
 equals one of the prompt's '.'-separated phrases are kept -- the rule the
 public Remove360 conversion of Grounded-SAM-2 dumps applies
-(:func:`r360gpu.probes.precomputed.label_matches`).  Each kept box (scaled
+(:func:`r360gpu.probes.prompt_rule.label_matches`).  Each kept box (scaled
 to pixels, cxcywh -> xyxy) prompts the SAM decoder as its two corners
 (labels 2 and 3); the mask is the single-mask output (token 0 of a SAM
 decoder, ``multimask_output=False`` as Grounded-SAM) or, for decoders
@@ -57,7 +57,7 @@ import numpy as np
 from r360gpu.errors import InputError, R360Error
 from r360gpu.probes.base import ProbeView, SemanticPrediction, SemanticProbe, file_sha256
 from r360gpu.probes.onnx_models import OnnxModel, SamModels
-from r360gpu.probes.precomputed import PROMPT_RULE, label_matches
+from r360gpu.probes.prompt_rule import PROMPT_RULE, label_matches
 from r360gpu.probes.preprocess import as_rgb01, dino_encoder_input, dino_input_shape
 
 __all__ = [

@@ -303,7 +303,7 @@ def _rendering_dirs(spec: str, kind: str, body: str) -> tuple[dict[str, Path], s
     # sub-folder of the post folder named like the method (post/<method>/).
     post = dirs.get("post")
     if post is not None:
-        from r360gpu.probes.precomputed import is_amg_view_folder
+        from r360gpu.probes.amg_folders import is_amg_view_folder
 
         # (SAM amg.py output holds one folder per view, with metadata.csv: not method folders.)
         for sub in sorted(p for p in post.iterdir() if p.is_dir() and p.name != "mask"
@@ -329,7 +329,7 @@ def public_dirs(root: Path, kind: str) -> dict[str, Path]:
 
 
 def _has_amg_folders(d: Path) -> bool:
-    from r360gpu.probes.precomputed import is_amg_view_folder
+    from r360gpu.probes.amg_folders import is_amg_view_folder
 
     return any(p.is_dir() and is_amg_view_folder(p) for p in d.iterdir())
 

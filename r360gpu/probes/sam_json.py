@@ -16,7 +16,7 @@ values (", " or "," separators; see :func:`parse_bool_grid`, the path for
 such text ``np.array(list) != 0`` gives the same mask.  Any other file (ragged rows,
 empty lists, floats such as ``1.0``, indented files, malformed JSON, ...) is
 read the standard way, so results and error messages are exactly those of
-:func:`r360gpu.probes.precomputed.read_sam_records`
+:func:`r360gpu.probes.sam_records.read_sam_records`
 (tests/test_probes_sam_json.py).
 """
 from __future__ import annotations

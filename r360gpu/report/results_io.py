@@ -11,7 +11,7 @@ results.json is the one document an evaluation run produces (structure in
 
 It is written as strict JSON: non-finite floats (an identical-image PSNR is
 +inf) are tagged ``{"__float__": "inf"}`` as in the per-view records
-(:mod:`r360gpu.metrics._json`), so ``json.dumps(..., allow_nan=False)``
+(:mod:`r360gpu.metrics.json_values`), so ``json.dumps(..., allow_nan=False)``
 succeeds and any JSON reader accepts the file.  :func:`read_results` returns
 the document as stored (tags kept); :func:`number` turns a stored value back
 into a float.
@@ -28,7 +28,7 @@ import os
 from pathlib import Path
 
 from ..errors import InputError
-from ..metrics import _json
+from ..metrics import json_values
 from ..protocol import RESULTS_SCHEMA, STRUCTURAL_MODES  # RESULTS_SCHEMA: format tag of results.json
 from ..util.atomic import write_bytes, write_text
 
@@ -48,7 +48,7 @@ def number(value) -> float | None:
         return float(value)
     if isinstance(value, dict):
         try:
-            return _json.dec_float(value)
+            return json_values.dec_float(value)
         except InputError:
             return None
     return None
@@ -151,7 +151,7 @@ def check_results(doc) -> list[str]:
 
 def results_json_text(results: dict) -> str:
     """results.json's text: strict JSON (non-finite floats tagged), 2-space indent, trailing newline."""
-    return json.dumps(_json.enc_tree(results), indent=2, allow_nan=False, ensure_ascii=False) + "\n"
+    return json.dumps(json_values.enc_tree(results), indent=2, allow_nan=False, ensure_ascii=False) + "\n"
 
 
 def write_results_json(results: dict, path: str | os.PathLike) -> Path:

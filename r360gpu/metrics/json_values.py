@@ -1,4 +1,4 @@
-"""Lossless JSON helpers for the per-view records.
+"""Lossless JSON values for the per-view records and results.json (floats, inf and NaN included).
 
 Python writes floats with ``repr``, which round-trips exactly; only the
 non-finite values (an identical-image PSNR is +inf) have no JSON form.  They
