@@ -15,11 +15,14 @@
 //
 // Entry points (one chunk of rows at a time):
 //   delta_minmax   dD -> delta[]; min/max of dD -> stats[0], stats[1]
-//                  (u32 bit patterns: dD >= 0, so u32 order = float order)
+//                  (u32 bit patterns: dD >= 0, so u32 order = float order);
+//                  the pixels with no depth after removal (D_post invalid)
+//                  -> nd_words[] (bit b of word g is pixel 32 g + b, as
+//                  changed_words; zero-initialised by the host)
 //   histo          256-bin histogram, workgroup-shared atomics (GPUs)
 //   histo_private  256-bin histogram, per-invocation private counts (CPU adapters)
 //   changed        changed bits -> changed_words[]; |changed & M| -> stats[2];
-//                  |M| -> stats[3]
+//                  |M| -> stats[3]; |no depth after removal & M| -> stats[4]
 
 //!include common.wgsl
 
@@ -42,6 +45,7 @@ struct Params {
 @group(0) @binding(5) var<storage, read_write> hist: array<atomic<u32>>;
 @group(0) @binding(6) var<storage, read> m_words: array<u32>;
 @group(0) @binding(7) var<storage, read_write> changed_words: array<u32>;
+@group(0) @binding(8) var<storage, read_write> nd_words: array<atomic<u32>>;
 
 const F32_MAX: f32 = 3.40282347e38;
 
@@ -82,9 +86,17 @@ fn delta_minmax(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
         if (q < nq) {
             let a = d_pre[q];
             let b = d_post[q];
-            let d = select(vec4<f32>(0.0), abs(a - b), valid4(a) & valid4(b));
+            let vb = valid4(b);
+            let d = select(vec4<f32>(0.0), abs(a - b), valid4(a) & vb);
             delta[q] = d;
             let inside = lanes(q);
+            // vec4 q holds pixels 4q..4q+3: bits 4(q % 8).. of word q / 8 (8 vec4s a word,
+            // written by up to 8 invocations: an atomic OR).
+            let nd = (!vb) & inside;
+            let nib = select(0u, 1u, nd.x) | select(0u, 2u, nd.y) | select(0u, 4u, nd.z) | select(0u, 8u, nd.w);
+            if (nib != 0u) {
+                atomicOr(&nd_words[q / 8u], nib << (4u * (q % 8u)));
+            }
             lo = min(lo, select(vec4<f32>(F32_MAX), d, inside));
             hi = max(hi, select(vec4<f32>(0.0), d, inside));
         }
@@ -164,6 +176,7 @@ fn histo_private(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
 const CWG: u32 = 64u;
 var<workgroup> wg_in: atomic<u32>;
 var<workgroup> wg_m: atomic<u32>;
+var<workgroup> wg_nd: atomic<u32>;
 
 @compute @workgroup_size(CWG)
 fn changed(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
@@ -171,6 +184,7 @@ fn changed(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
     if (lid == 0u) {
         atomicStore(&wg_in, 0u);
         atomicStore(&wg_m, 0u);
+        atomicStore(&wg_nd, 0u);
     }
     workgroupBarrier();
     let g = workgroup_index(wid, nwg) * CWG + lid;
@@ -187,16 +201,21 @@ fn changed(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
         let m = m_words[g];
         let s_in = countOneBits(v & m);
         let s_m = countOneBits(m);
+        let s_nd = countOneBits(atomicLoad(&nd_words[g]) & m);
         if (s_in != 0u) {
             atomicAdd(&wg_in, s_in);
         }
         if (s_m != 0u) {
             atomicAdd(&wg_m, s_m);
         }
+        if (s_nd != 0u) {
+            atomicAdd(&wg_nd, s_nd);
+        }
     }
     workgroupBarrier();
     if (lid == 0u) {
         atomicAdd(&stats[2], atomicLoad(&wg_in));
         atomicAdd(&stats[3], atomicLoad(&wg_m));
+        atomicAdd(&stats[4], atomicLoad(&wg_nd));
     }
 }

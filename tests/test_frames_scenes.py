@@ -10,35 +10,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from frame_class import APPLIED, moved_gaussians
 from gsplat_oracle import normalize_world
 from r360gpu.bundle import load_bundle
 from r360gpu.cli import main
 from r360gpu.errors import InputError
-from r360gpu.io import Gaussians, load_cameras, load_gaussians, save_cameras_json, save_ply, save_transforms_json
+from r360gpu.io import load_cameras, load_gaussians, save_cameras_json, save_ply, save_transforms_json
 from r360gpu.io.colmap_points import save_points3d
 from r360gpu.io.frames import Frame
-from r360gpu.io.rotation import rotmat_to_quat
 from r360gpu.pipeline import EvaluateOptions, evaluate
 from r360gpu.render.sources import open_source
 from r360gpu.synthetic import make_scene, write_bundle
 
 OPTS = dict(n_boot=200, n_perm=100, boundary=False, pictures=False, controls=False)
 FAST = ["--no-pictures", "--no-boundary", "--no-controls", "--n-boot", "200", "--n-perm", "100", "--quiet"]
-# ns-process-data's applied_transform (COLMAP world -> transforms.json world)
-APPLIED = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0], [0, -1.0, 0, 0]])
-
-
-def moved_gaussians(g: Gaussians, frame: Frame) -> Gaussians:
-    """``g`` as a trainer working in ``frame`` holds it (SH degree 0: a rotated world would need
-    rotated SH coefficients, which is why r360gpu moves cameras, not Gaussians)."""
-    g = g.with_sh_degree(0)
-    q = rotmat_to_quat(frame.rotation)
-    w1, v1 = q[0], q[1:]
-    w2, v2 = g.quats[:, 0].astype(np.float64), g.quats[:, 1:].astype(np.float64)
-    quats = np.concatenate([(w1 * w2 - v2 @ v1)[:, None], w1 * v2 + w2[:, None] * v1 + np.cross(v1, v2)], axis=1)
-    return Gaussians(frame.points(g.means), g.scales * frame.scale, quats, g.opacities, g.sh)
-
-
 @pytest.fixture(scope="module")
 def synthetic(tmp_path_factory, ctx):
     """A small synthetic room (COLMAP cameras) with its pre and 'clean' method at SH degree 0."""
@@ -120,7 +105,17 @@ def test_gsplat_normalised_scene_is_scored_with_frame_gsplat(synthetic, plain, t
     res = evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
     assert res["scenes"]["room"]["frame_check"]["pre"]["level"] == "warn"
     warned = [w["message"] for w in res["warnings"] if "different world frames" in w["message"]]
-    assert warned and 'frame = "gsplat"' in warned[0]
+    assert warned and 'frame = "gsplat"' in warned[0] and "--frame gsplat" in warned[0]
+    # the remedy from the command line: --frame gsplat, for check and score alike
+    capsys.readouterr()
+    assert main(["check", str(folder), "--frame", "gsplat"]) == 0
+    assert main(["score", str(folder), "--out", str(tmp_path / "out-cli"), "--frame", "gsplat", *FAST]) == 0
+    cli = json.loads((tmp_path / "out-cli" / "results.json").read_text())
+    assert cli["scenes"]["room"]["frame_check"]["pre"]["level"] == "ok"
+    assert cli["scenes"]["room"]["sources"]["pre"]["frame"]["matrix"] == [list(r) for r in b.pre.frame.matrix]
+    assert not [w for w in cli["warnings"] if "world frames" in w["message"]]
+    for k in ("s_sem", "s_geo", "s_str", "iou_pre"):
+        assert _axes(cli)[k] == _axes(json.loads((tmp_path / "out" / "results.json").read_text()))[k], k
 
 
 def test_cameras_that_see_nothing_are_refused(synthetic, tmp_path, ctx, capsys):
@@ -214,3 +209,26 @@ def test_inria_output_folder_scored_as_the_walkthrough_says(synthetic, tmp_path,
     assert res["scenes"]["room"]["frame_check"]["pre"]["level"] == "ok"
     assert res["scenes"]["room"]["sources"]["pre"]["path"].endswith("iteration_30000/point_cloud.ply")
     assert 0.0 <= _axes(res)["rqs"] <= 1.0
+
+
+def test_frame_option_is_validated(synthetic, tmp_path, capsys):
+    """--frame takes the keywords of scene.toml's frame key or an existing file; anything else is one
+    line and exit 2, before any work; a bundle of renders only has no frame to set."""
+    for cmd in (["check", str(synthetic)], ["score", str(synthetic), "--out", str(tmp_path / "o")]):
+        with pytest.raises(SystemExit) as e:
+            main([*cmd, "--frame", "gsplat-normalised"])
+        assert e.value.code == 2
+        err = capsys.readouterr().err
+        assert "'gsplat-normalised' is neither one of auto, cameras, gsplat, gsplat-noflip nor an existing file" in err
+        assert "Traceback" not in err
+    assert not (tmp_path / "o").exists()
+    dp = tmp_path / "dataparser_transforms.json"
+    dp.write_text(json.dumps({"transform": np.eye(4)[:3].tolist(), "scale": 1.0}))
+    from r360gpu.cli.frame_option import frame_value
+
+    assert frame_value(str(dp)) == str(dp.resolve()) and frame_value("cameras") == "cameras"
+    assert main(["check", str(synthetic), "--frame", str(dp)]) == 0
+    renders = Path(__file__).parent / "data" / "compat_public" / "office_chair"  # a public folder: renders only
+    capsys.readouterr()
+    assert main(["check", str(renders), "--frame", "gsplat"]) == 2
+    assert "--frame gsplat applies to splat scenes" in capsys.readouterr().out

@@ -13,8 +13,8 @@ from r360gpu.io import Camera, load_cameras, save_colmap, save_transforms_json
 from r360gpu.io.colmap_points import read_points3d, save_points3d
 from r360gpu.io.frames import Frame, gsplat_frame, gsplat_normalization, nerfstudio_frame, resolve_frame
 from r360gpu.io.rotation import quat_to_rotmat
-from r360gpu.metrics.frame_check import (EDGE_RATIO_MIN, FrameVerdict, frame_verdict, mismatch_message,
-                                         silhouette_edges, view_coverage)
+from r360gpu.metrics.frame_check import (AGREEMENT_MIN, FrameVerdict, backprojected, check_views, cone_agreement,
+                                         frame_verdict, mismatch_message, outline_step, view_coverage)
 
 
 def look_at(centre, target=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), name="v", w=40, h=30) -> Camera:
@@ -281,23 +281,102 @@ def test_the_frame_is_part_of_the_fingerprint(tmp_path):
     assert load_bundle(root).fingerprint() != plain
 
 
-def test_silhouette_edges_follow_the_object_not_the_mask():
-    """An object standing out of its background has depth edges along its mask; a mask that is
-    elsewhere (cameras in another frame) has none."""
+def test_the_outline_step_follows_the_object_not_the_mask():
+    """An object standing out of its background is nearer just inside its mask than just outside
+    all along the outline; a mask that is elsewhere (cameras in another frame) lies on the wall."""
     yy, xx = np.mgrid[0:60, 0:80]
     depth = 4.0 + 0.01 * xx + 0.02 * np.sin(yy / 3.0)  # a slanted, slightly rippled wall
     obj = (abs(xx - 30) < 10) & (abs(yy - 25) < 12)
     depth = np.where(obj, 2.0, depth).astype(np.float32)
-    assert silhouette_edges(depth, obj) > 5 * EDGE_RATIO_MIN
-    elsewhere = np.roll(obj, 35, axis=1)
-    assert silhouette_edges(depth, elsewhere) < EDGE_RATIO_MIN
-    assert silhouette_edges(depth, np.zeros_like(obj)) is None
     alpha = np.ones(depth.shape, np.float32)
-    ok = [view_coverage(f"v{i}", alpha, obj, depth) for i in range(3)]
-    off = [view_coverage(f"v{i}", alpha, elsewhere, depth) for i in range(3)]
-    assert frame_verdict(ok).level == "ok" and frame_verdict(off).level == "warn"
-    msg = mismatch_message(frame_verdict(off), source="pre.ply", frame="nerfstudio x", cameras=None)
-    assert "no depth edges along the target masks' outlines" in msg and "moved by nerfstudio x" in msg
+    assert outline_step(depth, alpha, obj) == 1.0
+    elsewhere = np.roll(obj, 35, axis=1)
+    assert outline_step(depth, alpha, elsewhere) == 0.0
+    assert outline_step(depth, alpha, np.zeros_like(obj)) is None
+    floating = np.where(obj, 1.0, 0.0).astype(np.float32)  # nothing rendered around it: in front of empty space
+    assert outline_step(depth, floating, obj) == 1.0
     nan = depth.copy()
-    nan[:5] = np.nan
-    assert silhouette_edges(nan, obj) > EDGE_RATIO_MIN
+    nan[:20] = np.nan  # the upper outline not rendered: measured on the rest
+    assert outline_step(nan, alpha, obj) == 1.0
+    assert outline_step(depth, np.zeros_like(alpha), obj) is None  # nothing solid inside: not measured
+
+
+def _cube_views(shift=(0.0, 0.0, 0.0)):
+    """Four cameras around a cube of points at the origin: each camera's mask is the cube's
+    footprint; the points are the cube moved by ``shift`` (a mismatched frame when non-zero)."""
+    g = np.linspace(-0.4, 0.4, 9)
+    cube = np.stack(np.meshgrid(g, g, g), axis=-1).reshape(-1, 3)
+    cams = [look_at((4 * np.cos(a), 4 * np.sin(a), 1.0), name=f"v{i}", w=80, h=60)
+            for i, a in enumerate(np.radians([0, 70, 140, 250]))]
+    views = []
+    for cam in cams:
+        u, v = cam.project(cube)[0].T
+        mask = np.zeros((60, 80), np.uint8)
+        mask[np.clip(v.astype(int), 0, 59), np.clip(u.astype(int), 0, 79)] = 1
+        import cv2
+
+        mask = cv2.dilate(mask, np.ones((5, 5), np.uint8)) > 0
+        views.append((cam, cube + np.asarray(shift), mask))
+    return views
+
+
+def test_cone_agreement_is_high_where_the_masks_cones_meet_and_low_elsewhere():
+    assert cone_agreement(_cube_views()) == 1.0
+    assert cone_agreement(_cube_views((2.0, -2.0, 0.0))) == 0.0
+    assert cone_agreement(_cube_views((0.0, 0.0, 1.5))) == 0.0
+    # moved along some cameras' lines of sight, the points stay in those views' masks: the cones
+    # alone let part of such a shift pass (why the check also reads the outline step)
+    assert 0.3 < cone_agreement(_cube_views((1.5, 0.0, 0.0))) < 0.9
+    assert cone_agreement(_cube_views()[:1]) is None  # one view: no pairs
+    behind = [(c, np.array([[0.0, 0.0, 100.0]]), m) for c, _, m in _cube_views()]
+    assert cone_agreement(behind) is None  # fewer than MIN_PIXELS points in any other image
+
+
+def test_backprojection_inverts_the_camera():
+    cam = look_at((3.0, 1.0, 1.0), w=80, h=60)
+    rows, cols = np.mgrid[0:60, 0:80]
+    depth = (2.0 + 0.01 * cols).astype(np.float32)
+    mask = np.zeros((60, 80), bool)
+    mask[20:40, 30:50] = True
+    pts = backprojected(cam, np.ones((60, 80), np.float32), depth, mask)
+    assert len(pts) == 18 * 18  # eroded by one pixel
+    uv, z = cam.project(pts)
+    assert np.allclose(uv % 1.0, 0.5) and np.allclose(z, 2.0 + 0.01 * np.floor(uv[:, 0]), rtol=1e-6)
+    small = backprojected(cam.resized(40, 30), np.ones((60, 80), np.float32), depth, mask)
+    assert np.allclose(small, pts)  # a camera of another size is resized to the image
+
+
+def test_check_views_flags_a_mask_off_the_object():
+    """An object in front of a wall seen by two cameras: its masks fit (ok); the masks of a
+    world moved 1.5 units aside do not (warn, with the agreement in the message)."""
+    cams = [look_at((4.0, 0.0, 0.0), name="a", w=80, h=60), look_at((0.0, 4.0, 0.0), name="b", w=80, h=60)]
+
+    def views(offset):
+        out = []
+        for cam in cams:
+            rows, cols = np.mgrid[0:60, 0:80]
+            ray = np.stack([(cols + 0.5 - cam.cx) / cam.fx, (rows + 0.5 - cam.cy) / cam.fy, np.ones((60, 80))], -1)
+            d = np.full((60, 80), 6.0)  # a far backdrop
+            # a ball of radius 0.6 at the origin: depth of the nearer hit along each pixel's ray
+            o = cam.center
+            dirs = ray @ cam.R  # world directions (not unit): point = o + z * dirs
+            b = dirs @ o
+            a = (dirs ** 2).sum(-1)
+            disc = b ** 2 - a * (o @ o - 0.36)
+            hit = disc > 0
+            z = (-b - np.sqrt(np.where(hit, disc, 0))) / a
+            d = np.where(hit, z, d).astype(np.float32)
+            uv = cam.project(np.asarray(offset, float)[None])[0][0]
+            mask = (cols - uv[0]) ** 2 + (rows - uv[1]) ** 2 < (0.6 * cam.fx / 4.0) ** 2
+            out.append((cam.name, cam, np.ones((60, 80), np.float32), d, mask))
+        return out
+
+    ok = check_views(views((0.0, 0.0, 0.0)))
+    assert ok.level == "ok" and ok.agreement > AGREEMENT_MIN and ok.cones == 1.0
+    off = check_views(views((1.5, -1.5, 0.0)))
+    assert off.level == "warn" and off.agreement < AGREEMENT_MIN
+    msg = mismatch_message(off, source="pre.ply", frame="nerfstudio x", cameras=None)
+    assert "renders no object where the target masks are" in msg and "moved by nerfstudio x" in msg
+    assert f"agreement {off.agreement:.2f}" in msg
+    one = check_views(views((0.0, 0.0, 0.0))[:1])
+    assert one.cones is None and one.agreement is None and one.level == "ok"  # one view: coverage only

@@ -10,7 +10,7 @@ from hypothesis.extra import numpy as hnp
 from r360gpu.errors import InputError
 from r360gpu.kernels import depth_change as K
 
-from oracles import depth_change_oracle
+from oracles import depth_change_oracle, no_depth_oracle
 
 
 @pytest.fixture(autouse=True, params=["gpu-histo", "gpu-histo_private", "cpu"])
@@ -46,6 +46,7 @@ def _run(ctx, pre, post, mask, t):
     np.testing.assert_array_equal(stage.hist, hist)
     np.testing.assert_array_equal(res.changed, changed)
     assert (res.n_changed_in_mask, res.n_mask) == (n_in, n_m)
+    assert res.n_no_depth_in_mask == no_depth_oracle(post, mask)
     return stage, res
 
 
@@ -76,6 +77,29 @@ def test_missing_and_non_finite_depths_give_zero_change(ctx):
     stage, res = _run(ctx, pre, post, mask, 3.0)
     assert not res.changed[:5, :10].any()
     assert np.isfinite(stage.lo) and np.isfinite(stage.hi)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (3, 1), (31, 45), (70, 50)])
+def test_no_depth_after_removal_in_the_mask_is_counted(ctx, small_ctx, shape):
+    """A see-through hole: D_post missing (0, NaN, +/-Inf, negative) inside M, whatever D_pre is; counted
+    by both passes as the oracle counts it (only where M is), never as changed; 4 KiB bindings split
+    the 70 x 50 view into row chunks whose no-depth words must line up with the mask's."""
+    rng = np.random.default_rng(sum(shape) + 3)
+    pre, post, mask = _scene(rng, *shape)
+    flat = post.reshape(-1)
+    holes = rng.random(flat.size) < 0.35
+    flat[holes] = rng.choice(np.array([0.0, np.nan, np.inf, -np.inf, -1.5], np.float32), int(holes.sum()))
+    pre.reshape(-1)[rng.random(flat.size) < 0.1] = 0.0  # missing before too: still no depth after removal
+    for c in (ctx, small_ctx):
+        for m in (mask, np.zeros_like(mask), np.ones_like(mask)):
+            stage = K.delta_histogram(pre, post, ctx=c)
+            res = K.changed_in_mask(stage, m, 0.0, ctx=c)
+            assert res.n_no_depth_in_mask == no_depth_oracle(post, m)
+            assert not (res.changed & ~(np.isfinite(post) & (post > 0))).any()
+    one = np.full(shape, 2.0, np.float32)
+    one.flat[-1] = np.nan  # exactly one hole, in the last pixel (the last, partly filled word)
+    res = K.changed_in_mask(K.delta_histogram(one * 2, one, ctx=ctx), np.ones(shape, bool), 0.0, ctx=ctx)
+    assert res.n_no_depth_in_mask == 1
 
 
 def test_constant_and_identical_depths(ctx):
@@ -124,6 +148,8 @@ def test_device_depth_inputs(ctx, small_ctx):
         _, lo, hi, hist, changed, n_in, n_m = depth_change_oracle(pre, post, mask, 40.0)
         np.testing.assert_array_equal(stage.hist, hist)
         np.testing.assert_array_equal(res.changed, changed)
+        assert (res.n_changed_in_mask, res.n_mask) == (n_in, n_m)
+        assert res.n_no_depth_in_mask == no_depth_oracle(post, mask)
 
 
 @settings(max_examples=20, deadline=None)
@@ -165,6 +191,7 @@ def test_batched_methods_equal_the_oracle(ctx, small_ctx, shape):
             np.testing.assert_array_equal(st.hist, hist)
             np.testing.assert_array_equal(r.changed, changed)
             assert (r.n_changed_in_mask, r.n_mask) == (n_in, n_m)
+            assert r.n_no_depth_in_mask == no_depth_oracle(d, mask)
     assert K.delta_histograms(pre, [], ctx=ctx) == [] and K.changed_in_masks([], mask, [], ctx=ctx) == []
     with pytest.raises(InputError, match="D_post is"):
         K.delta_histograms(pre, [post, post[:, :-1] if shape[1] > 1 else post[:0]], ctx=ctx)

@@ -78,3 +78,29 @@ def test_ght_parameters_are_passed_through(ctx):
     _, _, _, hist, _, _, _ = depth_change_oracle(pre, post, mask, 0)
     assert b.split == ght(hist, nu=0.0, tau=0.0).threshold
     assert a.split == ght(hist).threshold
+
+
+@pytest.mark.parametrize("compat", [False, "public", "public-default"])
+def test_a_see_through_hole_is_counted_and_changes_nothing_else(ctx, compat):
+    """Pixels of M with no depth after removal (a see-through hole) are counted per view, in every
+    mode, as the kernels' oracle counts them; acc_depth, the threshold and the changed mask are
+    those of the same view measured before the count existed (the count is new, nothing else)."""
+    from r360gpu.metrics.geometric import acc_depth_views
+
+    from oracles import no_depth_oracle
+
+    rng = np.random.default_rng(3)
+    pre, post, mask = _object_scene(rng)
+    holed = post.copy()
+    holed[22:30, 55:63] = 0.0  # 8 x 5 of them inside M (columns 55..59), 3 columns outside
+    holed[31, 31] = np.nan
+    if compat:
+        pre, holed = np.round(pre * 40).astype(np.uint8), np.round(np.nan_to_num(holed) * 40).astype(np.uint8)
+    v = acc_depth_view(pre, holed, mask, compat=compat, ctx=ctx)
+    n_holes = 8 * 5 + 1  # the NaN is level 0 in the 8-bit images
+    assert v.n_no_depth_in_mask == no_depth_oracle(holed, mask) == n_holes
+    assert v.summary()["n_no_depth_in_mask"] == n_holes
+    assert acc_depth_views(pre, [holed, pre], mask, compat=compat, ctx=ctx)[0].summary() == v.summary()
+    assert acc_depth_view(pre, holed, np.zeros_like(mask), compat=compat, ctx=ctx).n_no_depth_in_mask == 0
+    if not compat:  # dD is 0 there by the missing-depth rule: never "changed"
+        assert not v.changed[22:30, 55:63].any()

@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 from r360gpu.report.findings import expectation_checks
-from r360gpu.report.outputs import expectation_lines, summary_lines
-from tests.report_fake import add_expected, fake_results
+from r360gpu.report.outputs import expectation_lines, no_depth_lines, summary_lines
+from tests.report_fake import VIEWS, add_expected, fake_results, no_depth
 
 
 def test_expectation_summary_on_the_console():
@@ -29,3 +29,22 @@ def test_time_line_says_wall_and_summed_over_threads():
     line = [x for x in summary_lines(results) if x.startswith("time:")][0]
     assert line == ("time: 50.0 s wall for 10 views, 0.20 views/s; per stage, summed over threads "
                     "(stages overlap): render 30.0 s, probe 70.0 s")
+
+
+def test_see_through_holes_on_the_console():
+    """Views with pixels of M that have no depth after removal: per (scene, method), how many views and
+    pixels, and the view with the most; nothing for a method without any."""
+    results = fake_results(pictures=False)
+    lines = no_depth_lines(results)
+    counts = [no_depth("room", "ghost", v) for v in VIEWS]
+    holed = [v for v, n in zip(VIEWS, counts) if n]
+    worst = max(holed, key=lambda v: no_depth("room", "ghost", v))
+    assert lines == ["no depth after removal in the target (see-through holes; acc_depth counts them as unchanged):",
+                     f"  room/ghost: {len(holed)} of {len(VIEWS)} views, {sum(counts)} px in all "
+                     f"(most: {worst}, {no_depth('room', 'ghost', worst)} px)"]
+    assert "\n".join(lines) in "\n".join(summary_lines(results))
+    for scene in results["scenes"].values():
+        for entry in scene["methods"].values():
+            for rec in entry["views"]:
+                rec["geometric"]["n_no_depth_in_mask"] = 0
+    assert no_depth_lines(results) == []

@@ -360,6 +360,27 @@ def test_per_view_table_every_view_linked(checked_report):
     assert rec.index('<table class="kv">') < 60 and "0.3: 1.000, 0.5: 1.000" in rec[:6000]
 
 
+def test_per_view_table_counts_see_through_holes_where_a_scene_has_them(checked_report):
+    """The count of target pixels with no depth after removal is a column of the per-view table of
+    a scene with a hole (the fake's ghost in the room), explained in the caption; a scene without
+    any hole keeps its table as it was."""
+    from report_fake import no_depth
+
+    _, _, path = checked_report
+    text = path.read_text(encoding="utf-8")
+    tables = re.findall(r'<table class="sortable perview">.*?</table>', text, re.S)
+    room, garden = tables
+    assert '<th class="num">no depth</th>' in room and "a see-through hole that acc_depth counts" in room
+    assert "no depth" not in garden
+    heads = re.findall(r"<th[^>]*>(.*?)</th>", room)
+    col = heads.index("no depth") - 2  # after Method and View
+    for v in VIEWS:
+        row = re.search(rf'<tr id="row-[^"]*"><td class="lab">ghost</td><td class="lab">(?:<a [^>]*>)?{v}<(.*?)</tr>',
+                        room, re.S)
+        cells = re.findall(r'<td class="num" data-v="([^"]*)">', row.group(1))
+        assert float(cells[col]) == no_depth("room", "ghost", v)
+
+
 def test_note_box_one_item_per_probe(checked_report):
     _, _, path = checked_report
     text = path.read_text(encoding="utf-8")

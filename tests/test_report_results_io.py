@@ -22,7 +22,7 @@ from r360gpu.report.results_io import (
     write_results,
 )
 
-from report_fake import METHODS, SCENES, SEM_PROBE, STR_PROBE, VIEWS, fake_results
+from report_fake import METHODS, SCENES, SEM_PROBE, STR_PROBE, VIEWS, fake_results, no_depth
 
 
 @pytest.fixture(scope="module")
@@ -93,6 +93,7 @@ def test_csv_has_one_row_per_view_with_exact_values(results, written):
         assert r[f"detected@0.3:{SEM_PROBE}"] == ("true" if sem["iou_post"] >= 0.3 else "false")
         assert float(r[f"sim_sam:{STR_PROBE}"]) == rec["structural"][STR_PROBE]["sim_sam"]
         assert float(r["threshold"]) == rec["geometric"]["threshold"]
+        assert int(r["n_no_depth_in_mask"]) == rec["geometric"]["n_no_depth_in_mask"] == no_depth(r["scene"], r["method"], r["view"])
         assert float(r["ssim"]) == rec["fidelity"]["ssim"]
     blurry = [r for r in rows if r["scene"] == "room" and r["method"] == "blurry"]
     assert [r[f"detected@0.3:{SEM_PROBE}"] for r in blurry] == ["false", "true", "true"]

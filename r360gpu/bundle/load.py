@@ -41,33 +41,37 @@ from .views import cameras_by_view, check_masks, list_masks, select_views
 
 
 def load_bundle(path: str | os.PathLike | Bundle, *, views: list[str] | None = None, prompt: str | None = None,
-                method_name: str | None = None) -> Bundle:
+                method_name: str | None = None, frame: str | None = None) -> Bundle:
     """Load a bundle folder (or its scene.toml); raise :class:`BundleError` listing every problem.
 
     views: glob patterns over view names replacing scene.toml's ``views``.
     prompt: replaces scene.toml's ``prompt`` (for the Remove360 layout: instead
     of prompt.txt).  method_name: name of the Remove360 layout's method
-    (default "after"); not used for scene.toml bundles.
+    (default "after"); not used for scene.toml bundles.  frame: replaces
+    scene.toml's top-level ``frame`` (the default of every splat scene; a
+    source's own ``frame`` key still wins), e.g. ``"gsplat"`` (``--frame``).
     Masks are checked from their PNG headers (see the module docstring).
     A :class:`Bundle` already loaded is returned as it is.
     """
     if isinstance(path, Bundle):
         return path
-    bundle, problems = inspect_bundle(path, views=views, prompt=prompt, method_name=method_name, deep=False)
+    bundle, problems = inspect_bundle(path, views=views, prompt=prompt, method_name=method_name, frame=frame,
+                                      deep=False)
     if problems:
         raise BundleError(path, problems)
     return bundle
 
 
 def check_bundle(path: str | os.PathLike, *, views: list[str] | None = None, prompt: str | None = None,
-                 method_name: str | None = None) -> list[Problem]:
+                 method_name: str | None = None, frame: str | None = None) -> list[Problem]:
     """Every problem of a bundle ([] when it is valid); arguments as :func:`load_bundle`.
     Unlike :func:`load_bundle`, decodes every mask."""
-    return inspect_bundle(path, views=views, prompt=prompt, method_name=method_name, deep=True)[1]
+    return inspect_bundle(path, views=views, prompt=prompt, method_name=method_name, frame=frame, deep=True)[1]
 
 
 def inspect_bundle(path: str | os.PathLike, *, views: list[str] | None = None, prompt: str | None = None,
-                   method_name: str | None = None, deep: bool = True) -> tuple[Bundle | None, list[Problem]]:
+                   method_name: str | None = None, frame: str | None = None,
+                   deep: bool = True) -> tuple[Bundle | None, list[Problem]]:
     """``(bundle, problems)``: the bundle (None when there is any problem) and every problem found.
 
     deep: also decode every mask (else only PNG headers are read).
@@ -85,6 +89,11 @@ def inspect_bundle(path: str | os.PathLike, *, views: list[str] | None = None, p
             draft.view_patterns, draft.patterns_origin = list(views), "--views"
     if draft is None:
         return None, problems
+    if frame is not None:  # --frame: the default frame of every splat scene, as a top-level frame key
+        if not any(s is not None and s.kind == "scene" for s in (draft.pre, draft.reference, *draft.methods.values())):
+            problems.append(Problem(str(root), f"--frame {frame} applies to splat scenes; this bundle has "
+                                               f"renders only (images already in the cameras' frame)"))
+        draft.frame = frame
     bundle = _resolve(draft, problems, deep=deep)
     return (None if problems else bundle), problems
 

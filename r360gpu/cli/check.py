@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 
 from ..bundle import DEFAULT_METHOD_NAME, PROMPT_FILE, Bundle, inspect_bundle
+from .frame_option import add_frame_option
 from .lists import add_views_option
 
 
@@ -31,6 +32,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help=f"category prompt (replaces the bundle's; Remove360 folders: instead of {PROMPT_FILE})")
     p.add_argument("--method-name", default=None, metavar="NAME",
                    help=f"name of a Remove360 folder's method (default: {DEFAULT_METHOD_NAME!r})")
+    add_frame_option(p)
     p.set_defaults(func=run)
     return p
 
@@ -47,7 +49,7 @@ def _run(args: argparse.Namespace) -> int:
     n_bad = n_problems = 0
     for path in args.bundles:
         bundle, problems = inspect_bundle(path, views=args.views, prompt=args.prompt,
-                                          method_name=args.method_name, deep=True)
+                                          method_name=args.method_name, frame=args.frame, deep=True)
         for problem in problems:
             print(problem)
         if problems:

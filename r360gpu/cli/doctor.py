@@ -23,7 +23,7 @@ def register(sub) -> None:
 def _checks(ctx, rng):
     """(name, callable returning (ok, detail)) for every kernel."""
     from ..kernels import depth_change, mask_iou
-    from ..kernels.reference import depth_change_reference, mask_iou_reference
+    from ..kernels.reference import depth_change_reference, mask_iou_reference, no_depth_in_mask_reference
 
     def iou_random():
         a = rng.random((6, 67, 45)) < 0.3
@@ -70,6 +70,7 @@ def _checks(ctx, rng):
         res = depth_change.changed_in_mask(st, mask, 100.5, ctx=ctx)
         _, lo, hi, hist, changed, n_in, n_m = depth_change_reference(pre, post, mask, 100.5)
         ok = (st.lo, st.hi) == (lo, hi) and (st.hist == hist).all() and (res.changed == changed).all()
+        ok = ok and res.n_no_depth_in_mask == no_depth_in_mask_reference(post, mask)
         return ok and (res.n_changed_in_mask, res.n_mask) == (n_in, n_m), "45x67 depths with missing values"
 
     def ssim_kernel():

@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..protocol import N_BOOT, N_PERM, XI_DEFAULT, XI_SWEEP
+from .frame_option import add_frame_option
 from .lists import ListAction, add_views_option
 
 
@@ -93,6 +94,7 @@ def register(sub) -> None:
     g.add_argument("--scene-name", default=None, metavar="NAME",
                    help="scene name of the METHOD=FOLDER folders (default: the folder name), or of the one "
                         "bundle given")
+    add_frame_option(g)
     add_scoring_options(p)
     add_ray_options(p)
     p.set_defaults(func=run)
@@ -238,8 +240,12 @@ def bundles_from_args(args) -> list:
         reason = bad_name(args.scene_name)
         if reason:
             raise InputError(f"--scene-name {args.scene_name!r} {reason} (it names output folders)")
+    if getattr(args, "frame", None) is not None and (pairs or args.benchmark):
+        raise InputError("--frame applies to BUNDLE folders with splat scenes, not to METHOD=FOLDER folders or "
+                         "--benchmark roots (set frame in their scene.toml)")
     views = list(args.views) if args.views else None  # validated as `check --views` does
-    bundles = [load_bundle(p, views=views, prompt=args.prompt, method_name=args.method_name) for p in plain]
+    bundles = [load_bundle(p, views=views, prompt=args.prompt, method_name=args.method_name,
+                           frame=getattr(args, "frame", None)) for p in plain]
     if args.scene_name and not pairs:
         bundles = [replace(bundles[0], name=args.scene_name)]
     bundles += group_pairs(pairs, scene_name=args.scene_name, prompt=args.prompt)

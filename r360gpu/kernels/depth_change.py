@@ -16,6 +16,11 @@ Conventions (written once, here):
   exactly with the histogram split.  In depth units the threshold is the
   upper edge of the last unchanged bin
   (:func:`r360gpu.metrics.ght.threshold_value`).
+* A pixel has *no depth after removal* when ``D_post`` is not valid there
+  (whatever ``D_pre`` is).  Inside the target mask such a pixel is a
+  see-through hole: ``dD`` is 0 there by the missing-depth rule, so it is
+  never *changed*; the second pass counts these pixels
+  (``n_no_depth_in_mask``) so the hole is reported, not only drawn.
 
 The two GPU passes are split so the host can run GHT (``r360gpu.metrics``)
 on the 256 bins in between:
@@ -83,6 +88,7 @@ class _Chunk:
     r0: int
     r1: int
     delta: object  # GPUBuffer: dD of rows r0:r1, flat, padded to whole 32-pixel words
+    no_depth: object = None  # GPUBuffer: bit words of the pixels with no D_post (as the changed words)
 
 
 @dataclass
@@ -97,6 +103,7 @@ class DeltaHistogram:
     hist: np.ndarray  # (256,) int64
     chunks: list[_Chunk] = field(default_factory=list)
     bins_host: np.ndarray | None = None  # bin(dD) (H, W) uint8 on the host path (no chunks then)
+    no_depth_host: np.ndarray | None = None  # (H, W) bool, D_post invalid, on the host path
 
 
 def bin_scale(lo: float, hi: float) -> np.float32:
@@ -201,13 +208,14 @@ def delta_histograms(d_pre, d_posts, *, ctx: GpuContext | None = None) -> list[D
         b_pre = _upload_rows(ctx, d_pre, r0, r1, "pre")
         for k, d in enumerate(posts):
             delta = ctx.buffer(_padded(n_px) * 4, label="delta")
+            no_depth = ctx.buffer(_padded(n_px) // 8, label="no_depth_words")  # new buffers are zeroed
             ctx.dispatch(
                 enc, pipe,
                 [params, b_pre, _upload_rows(ctx, d, r0, r1, ("post", k)), delta,
-                 BufferRange(stats, k * stride, 16)],
+                 BufferRange(stats, k * stride, 16), None, None, None, no_depth],
                 ctx.grid(math.ceil(n_px / _PX_PER_GROUP["delta_minmax"])),
             )
-            res[k].chunks.append(_Chunk(r0, r1, delta))
+            res[k].chunks.append(_Chunk(r0, r1, delta, no_depth))
     ctx.submit(enc)
     st = ctx.read(stats, np.uint32, n * stride // 4).reshape(n, -1)
     hist = ctx.buffer(n * stride * 4, label="hist")  # 256 u32 per image, stride-aligned
@@ -235,20 +243,28 @@ def _valid(d: np.ndarray) -> np.ndarray:
     return (d > 0) & (d < np.float32(np.inf))  # finite and > 0 (NaN compares False)
 
 
+def no_depth(d) -> np.ndarray:
+    """bool (H, W): no depth at the pixel, by the rule above (not finite or <= 0 once in float32),
+    for a host depth image of any real dtype (a PNG's uint8 levels too: 0 is missing)."""
+    with np.errstate(over="ignore"):
+        return ~_valid(np.asarray(d, dtype=np.float32))
+
+
 def _delta_histogram_host(d_pre: np.ndarray, d_post: np.ndarray, valid_pre: np.ndarray) -> DeltaHistogram:
     """The first pass in numpy, with the kernel's float32 operations; keeps the bins for the second."""
     h, w = d_pre.shape
     with np.errstate(invalid="ignore", over="ignore"):  # inf - inf: zeroed below with the other missing pixels
         delta = np.subtract(d_pre, d_post)
     np.abs(delta, out=delta)
-    invalid = _valid(d_post)
-    np.logical_and(invalid, valid_pre, out=invalid)
+    valid_post = _valid(d_post)
+    invalid = np.logical_and(valid_pre, valid_post)
     np.logical_not(invalid, out=invalid)
     np.copyto(delta, 0, where=invalid)
     lo, hi = float(delta.min()), float(delta.max())
     scale = bin_scale(lo, hi)
     bins = _bins(delta, lo, scale)
-    return DeltaHistogram(h, w, lo, hi, scale, _histogram(bins), bins_host=bins)
+    return DeltaHistogram(h, w, lo, hi, scale, _histogram(bins), bins_host=bins,
+                          no_depth_host=np.logical_not(valid_post, out=valid_post))
 
 
 #: Pixels per cv2.calcHist call: its float32 counts are exact integers up to 2^24.
@@ -277,11 +293,13 @@ def _bins(delta: np.ndarray, lo: float, scale: np.float32) -> np.ndarray:
 
 @dataclass
 class ChangedResult:
-    """Second pass: ``changed`` bool (H, W); counts inside the target mask."""
+    """Second pass: ``changed`` bool (H, W); counts inside the target mask: changed pixels, all
+    pixels, and pixels with no depth after removal (a see-through hole, never changed)."""
 
     changed: np.ndarray
     n_changed_in_mask: int
     n_mask: int
+    n_no_depth_in_mask: int = 0
 
 
 def changed_in_mask(stage: DeltaHistogram, mask, t: float, *, ctx: GpuContext | None = None) -> ChangedResult:
@@ -321,7 +339,8 @@ def changed_in_masks(stages, mask, ts, *, ctx: GpuContext | None = None) -> list
         n_mask = int(np.count_nonzero(inside))
         for k, (stage, t) in enumerate(zip(stages, ts)):
             changed = stage.bins_host > _split_f32(t)
-            out[k] = ChangedResult(changed, int(np.count_nonzero(changed & inside)), n_mask)
+            out[k] = ChangedResult(changed, int(np.count_nonzero(changed & inside)), n_mask,
+                                   int(np.count_nonzero(stage.no_depth_host & inside)))
         return out
     n = len(stages)
     stride = _STATS_STRIDE
@@ -343,7 +362,8 @@ def changed_in_masks(stages, mask, ts, *, ctx: GpuContext | None = None) -> list
             params = ctx.uniform(n_px, 0, 0, 0, np.float32(stage.lo), stage.scale, _split_f32(t), 0)
             ctx.dispatch(
                 enc, pipe,
-                [params, None, None, c.delta, BufferRange(stats, k * stride, 16), None, m_bufs[c.r0], words],
+                [params, None, None, c.delta, BufferRange(stats, k * stride, 32), None, m_bufs[c.r0], words,
+                 c.no_depth],
                 ctx.grid(math.ceil(n_words / workgroup_threads(SHADER, "changed"))),
             )
             pending.append((k, c, words, n_words))
@@ -353,5 +373,6 @@ def changed_in_masks(stages, mask, ts, *, ctx: GpuContext | None = None) -> list
         out[k].changed[c.r0 : c.r1] = bits[: (c.r1 - c.r0) * w].view(bool).reshape(c.r1 - c.r0, w)
     st = ctx.read(stats, np.uint32, n * stride // 4).reshape(n, -1)
     for k in range(n):
-        out[k].n_changed_in_mask, out[k].n_mask = int(st[k, 2]), int(st[k, 3])
+        out[k].n_changed_in_mask, out[k].n_mask, out[k].n_no_depth_in_mask = (int(st[k, 2]), int(st[k, 3]),
+                                                                               int(st[k, 4]))
     return out

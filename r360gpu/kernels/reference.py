@@ -43,6 +43,14 @@ def depth_change_reference(d_pre, d_post, mask, t):
     return d, lo, hi, hist, changed, int((changed & mask).sum()), int(mask.sum())
 
 
+def no_depth_in_mask_reference(d_post, mask) -> int:
+    """Pixels of ``mask`` where D_post is missing (not finite or <= 0): no depth after removal."""
+    b = np.asarray(d_post, np.float32)
+    with np.errstate(invalid="ignore"):
+        missing = ~(np.isfinite(b) & (b > 0))
+    return int((missing & (np.asarray(mask) != 0)).sum())
+
+
 def ssim_reference(x, y, data_range: float = 1.0):
     """Mean SSIM and MSE of two (H, W, C) float64 images by the window definition:
     every 11 x 11 window wholly inside the image, the 2-D Gaussian weights

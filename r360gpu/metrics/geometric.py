@@ -9,6 +9,12 @@ missing-depth rule and 8-bit thresholding (:mod:`r360gpu.metrics.compat`) to
 the depth arrays given.  A view whose target mask is empty is excluded
 (``acc_depth = None``), never scored 0 or 1; the public scripts score it 0,
 which :mod:`r360gpu.metrics.compat_public` reproduces on public folders.
+
+Every view also counts ``n_no_depth_in_mask``: the pixels of M with no depth
+after removal (D_post missing: not finite or <= 0), a see-through hole.  dD is
+0 there by the missing-depth rule, so acc_depth counts such a pixel as
+unchanged; the count says how much of M that is (in every mode; it changes
+no other value).
 """
 from __future__ import annotations
 
@@ -50,6 +56,8 @@ class GeometricView:
     changed: (H, W) bool changed-pixel mask (for heat maps).
     n_mask, n_changed_in_mask: pixel counts behind acc_depth.
     mode: "float", "public" or "public-default".
+    n_no_depth_in_mask: pixels of M with no depth after removal (D_post
+        missing; a see-through hole, never counted as changed in float mode).
     """
 
     acc_depth: float | None
@@ -63,6 +71,7 @@ class GeometricView:
     n_mask: int
     n_changed_in_mask: int
     mode: str
+    n_no_depth_in_mask: int = 0
 
     def summary(self) -> dict:
         """JSON-ready scalars (no images)."""
@@ -76,6 +85,7 @@ class GeometricView:
             "n_mask": self.n_mask,
             "n_changed_in_mask": self.n_changed_in_mask,
             "mode": self.mode,
+            "n_no_depth_in_mask": self.n_no_depth_in_mask,
         }
 
 
@@ -111,12 +121,14 @@ def acc_depth_view(
         res = public_changed(delta, mode, **p)
         n_mask = int(m.sum())
         n_in = int((res.changed & m).sum())
-        return _view(n_in, n_mask, float(res.threshold), float(res.threshold), 0.0, 255.0, res.hist, res.changed, mode)
+        return _view(n_in, n_mask, float(res.threshold), float(res.threshold), 0.0, 255.0, res.hist, res.changed, mode,
+                     _no_depth_in_mask(d_post, m))
     stage = kernel.delta_histogram(d_pre, d_post, ctx=ctx)
     split = ght(stage.hist, **p).threshold
     res = kernel.changed_in_mask(stage, m, split, ctx=ctx)
     xi = threshold_value(split, stage.lo, stage.hi, kernel.N_BINS)
-    return _view(res.n_changed_in_mask, res.n_mask, xi, split, stage.lo, stage.hi, stage.hist, res.changed, "float")
+    return _view(res.n_changed_in_mask, res.n_mask, xi, split, stage.lo, stage.hi, stage.hist, res.changed, "float",
+                 res.n_no_depth_in_mask)
 
 
 def acc_depth_views(
@@ -141,15 +153,21 @@ def acc_depth_views(
     res = kernel.changed_in_masks(stages, m, splits, ctx=ctx)
     return [
         _view(r.n_changed_in_mask, r.n_mask, threshold_value(t, st.lo, st.hi, kernel.N_BINS), t, st.lo, st.hi,
-              st.hist, r.changed, "float")
+              st.hist, r.changed, "float", r.n_no_depth_in_mask)
         for st, t, r in zip(stages, splits, res)
     ]
 
 
-def _view(n_in, n_mask, threshold, split, lo, hi, hist, changed, mode) -> GeometricView:
+def _no_depth_in_mask(d_post, m: np.ndarray) -> int:
+    """Pixels of ``m`` where the host depth ``d_post`` is missing (the kernel's rule)."""
+    return int(np.count_nonzero(kernel.no_depth(d_post) & m))
+
+
+def _view(n_in, n_mask, threshold, split, lo, hi, hist, changed, mode, n_no_depth=0) -> GeometricView:
     excluded = n_mask == 0
     acc = None if excluded else n_in / n_mask
-    return GeometricView(acc, excluded, threshold, split, lo, hi, np.asarray(hist, np.int64), changed, n_mask, n_in, mode)
+    return GeometricView(acc, excluded, threshold, split, lo, hi, np.asarray(hist, np.int64), changed, n_mask, n_in, mode,
+                         int(n_no_depth))
 
 
 def acc_depth(views: list[GeometricView]) -> tuple[float | None, int]:

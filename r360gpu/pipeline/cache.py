@@ -33,6 +33,9 @@ import numpy as np
 from .. import __version__
 
 CACHE_DIR = ".r360cache"
+#: What a view cell holds, in the view cache key: a cell written before a per-view value was added
+#: lacks it, so it must miss (2: geometric records count n_no_depth_in_mask).
+CELL_FORMAT = 2
 
 
 def digest(obj) -> str:
@@ -81,7 +84,8 @@ class RunCache:
     def views(self, scene: str, key_parts: dict) -> "ViewCache | None":
         if self.root is None:
             return None
-        return ViewCache(self.root / "views" / digest({"version": __version__, **key_parts}) / scene, self.out)
+        return ViewCache(self.root / "views" / digest({"version": __version__, "cells": CELL_FORMAT, **key_parts})
+                         / scene, self.out)
 
 
 class ViewCache:

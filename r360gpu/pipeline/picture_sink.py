@@ -36,6 +36,7 @@ class PictureSink:
         the first structural probe; record: the view's record (its numbers
         are drawn on the sheet, so they survive copying it).
         """
+        from ..kernels.depth_change import no_depth
         from ..metrics.compat import compat_quantise, depth_delta
         from ..report.contact_sheets import view_contact_sheet
 
@@ -53,7 +54,7 @@ class PictureSink:
             self.out / rel, title=f"{scene} / {method} / {view}", pre=small.rgb(pre_rgb), post=small.rgb(post_rgb),
             target=small.mask(mask), ref=None if ref_rgb is None else small.rgb(ref_rgb), delta=delta,
             threshold=threshold, changed=None if changed is None else small.mask(changed),
-            no_depth=None if geo is None else small.mask(_no_depth(post_depth)),
+            no_depth=None if geo is None else small.mask(no_depth(post_depth)),
             semantic_pre=None if semantic is None else small.union(semantic[0]),
             semantic_post=None if semantic is None else small.union(semantic[1]),
             structural=[(t, small.rgb(rgb), small.masks(ms.masks)) for t, rgb, ms in structural],
@@ -68,13 +69,6 @@ class PictureSink:
         shrink, panels = _Shrink.for_view(jobs[0]["pre_rgb"]), ByIdentity()  # panels of I_pre, I_ref: made once
         for job in jobs:
             self.method_view(**job, _shrink=shrink, _panels=panels)
-
-
-def _no_depth(depth) -> np.ndarray:
-    """bool (H, W): no depth there (not finite or <= 0: the depth kernels' "missing" rule)."""
-    d = np.asarray(depth)
-    with np.errstate(invalid="ignore"):
-        return ~(np.isfinite(d) & (d > 0))
 
 
 class _Shrink:

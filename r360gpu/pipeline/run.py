@@ -287,16 +287,15 @@ class SceneRun:
         from ..render.sources import host_depth
         from .cache import digest
 
-        with_target = [v for v in self.views if self.mask(v).any()]
-        if not with_target:
+        pick = frame_check.checked_views([v for v in self.views if self.mask(v).any()])
+        if not pick:
             return {}
-        idx = np.linspace(0, len(with_target) - 1, min(frame_check.CHECK_VIEWS, len(with_target)))
-        pick = list(dict.fromkeys(with_target[i] for i in idx.round().astype(int)))
         out = {}
         for name, src in self.pres.items():
             if getattr(src, "kind", None) != "scene" or self.camera(pick[0]) is None:
                 continue  # renders made elsewhere are images already: no frame to get wrong
-            key = digest({"frame_check": self.fingerprint, "views": pick, "source": src.describe()})
+            key = digest({"frame_check": self.fingerprint, "views": pick, "source": src.describe(),
+                          "check": frame_check.CHECK_VERSION})
             recorded = None if self.fingerprint is None else cache.load_fit(key, "frames")
             if recorded is not None:
                 verdict = frame_check.FrameVerdict.from_dict(recorded)
@@ -306,8 +305,8 @@ class SceneRun:
                 for v in pick:
                     img = self.images(src, v)
                     self._fit_renders[name, v] = img  # render_pre takes it when the view is scored
-                    seen.append(frame_check.view_coverage(v, img.alpha, self.mask(v), host_depth(img.depth, self.ctx)))
-                verdict = frame_check.frame_verdict(seen)
+                    seen.append((v, self.camera(v), img.alpha, host_depth(img.depth, self.ctx), self.mask(v)))
+                verdict = frame_check.check_views(seen)
                 self.timer.add("frame check", t0)
                 if self.fingerprint is not None:
                     cache.store_fit(key, verdict.to_dict(), "frames")

@@ -104,7 +104,8 @@ def controls(results: dict) -> list[tuple[str, str, dict]]:
 
 def _view_axes(rec: dict, xi: float = XI_DEFAULT) -> dict:
     """Per-view values of one view record: iou_pre, iou_post (most alarming probe), s_sem (1 when no
-    probe finds the object at ``xi``), acc_depth, t_depth, sim_sam, s_str, psnr, ssim, lpips."""
+    probe finds the object at ``xi``), acc_depth, t_depth, no_depth (pixels of M with no depth after
+    removal: a see-through hole), sim_sam, s_str, psnr, ssim, lpips."""
     out: dict = {"view": str(rec.get("view"))}
     sems = [v for v in (rec.get("semantic") or {}).values() if isinstance(v, dict)]
     scored = [v for v in sems if not v.get("empty_target")]
@@ -116,6 +117,7 @@ def _view_axes(rec: dict, xi: float = XI_DEFAULT) -> dict:
     if geo and not geo.get("excluded"):
         out["acc_depth"] = number(geo.get("acc_depth"))
         out["t_depth"] = number(geo.get("threshold"))
+        out["no_depth"] = number(geo.get("n_no_depth_in_mask"))  # None in results written before the count
     strs = [v for v in (rec.get("structural") or {}).values() if isinstance(v, dict) and not v.get("empty_target")]
     if strs:
         worst = min(strs, key=lambda v: number(v.get("s_str")) if number(v.get("s_str")) is not None else 1.0)

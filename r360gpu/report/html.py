@@ -581,7 +581,8 @@ def expectations_html(results: dict) -> str:
 # -- per scene ---------------------------------------------------------------------------
 
 _VIEW_COLUMNS = (("iou_pre", "IoU_pre", 2), ("iou_post", "IoU_post", 2), ("s_sem", "s_sem", 0),
-                 ("acc_depth", "acc_depth", 3), ("t_depth", "t_depth", 3), ("s_str", "s_str", 3),
+                 ("acc_depth", "acc_depth", 3), ("t_depth", "t_depth", 3), ("no_depth", "no depth", 0),
+                 ("s_str", "s_str", 3),
                  ("psnr", "PSNR", 1), ("ssim", "SSIM", 3), ("lpips", "LPIPS", 3), ("leak", "mean", 3))
 
 
@@ -592,12 +593,16 @@ def per_view_table_html(results: dict, scene: str, rows: list[dict]) -> str:
     if not rows:
         return ""
     cols = [c for c in _VIEW_COLUMNS if any(r.get(c[0]) is not None for r in rows)]
+    # The see-through-hole count is shown where the scene has a hole (a column of zeros says nothing).
+    cols = [c for c in cols if c[0] != "no_depth" or any(r.get("no_depth") for r in rows)]
     mode = structural_mode(results, scene)
     label = {"s_str": "s_str (sim_SAM)" if mode == "reference" else "s_str (1 - sim_SAM)",
              "s_sem": "s_sem (not found)"}
     h = ['<table class="sortable perview"><caption>Per view (click a header to sort, a view for its contact sheet; s_sem is 1 when the '
-         'semantic probe no longer finds the object, IoU_post &lt; 0.3; t_depth is the GHT threshold; mean = mean '
-         'of s_sem, acc_depth, s_str)</caption><thead><tr><th class="lab">Method</th><th class="lab">View</th>'
+         'semantic probe no longer finds the object, IoU_post &lt; 0.3; t_depth is the GHT threshold; '
+         + ('no depth: pixels of the target with no depth after removal, a see-through hole that acc_depth counts '
+            'as unchanged; ' if any(c[0] == "no_depth" for c in cols) else '')
+         + 'mean = mean of s_sem, acc_depth, s_str)</caption><thead><tr><th class="lab">Method</th><th class="lab">View</th>'
          + "".join(f'<th class="num">{_e(label.get(k, name))}</th>' for k, name, _ in cols)
          + "</tr></thead><tbody>"]
     for r in rows:

@@ -91,6 +91,7 @@ def summary_lines(results: dict) -> list[str]:
             lines.append(f"  ! axis not 'ok' (weak or blind probe) in some scene: {where}")
     lines += control_lines(results)
     lines += expectation_lines(results)
+    lines += no_depth_lines(results)
     t = results.get("timing") or {}
     if t:
         stages = ", ".join(f"{k} {v:.1f} s" for k, v in t.get("stages_s", {}).items())
@@ -103,6 +104,29 @@ def summary_lines(results: dict) -> list[str]:
                      f"per stage, summed over threads (stages overlap): {stages}")
     for note in results.get("notes", []):
         lines.append(f"note: {note}")
+    return lines
+
+
+def no_depth_lines(results: dict) -> list[str]:
+    """The views with pixels of M that have no depth after removal (``n_no_depth_in_mask`` > 0: a
+    see-through hole, which acc_depth counts as unchanged), per (scene, method): how many views,
+    how many pixels, and the view with the most.  Nothing when no view has such a pixel."""
+    from .findings import view_rows
+
+    by: dict = {}
+    for row in view_rows(results):
+        by.setdefault((row["scene"], row["method"]), []).append(row)
+    holed = {k: [r for r in rows if r.get("no_depth")] for k, rows in by.items()}
+    if not any(holed.values()):
+        return []
+    lines = ["no depth after removal in the target (see-through holes; acc_depth counts them as unchanged):"]
+    for (scene, method), rows in holed.items():
+        if not rows:
+            continue
+        n_views = len(by[scene, method])
+        worst = max(rows, key=lambda r: r["no_depth"])
+        lines.append(f"  {scene}/{method}: {len(rows)} of {n_views} views, {sum(int(r['no_depth']) for r in rows)} px "
+                     f"in all (most: {worst['view']}, {int(worst['no_depth'])} px)")
     return lines
 
 

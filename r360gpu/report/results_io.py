@@ -246,7 +246,8 @@ def results_csv_rows(results: dict) -> tuple[list[str], list[list[str]]]:
       ``s_str:P`` (oriented score), ``n_a:P``, ``n_b:P`` (retained masks);
     * geometric: ``acc_depth`` (empty when excluded), ``geo_excluded``,
       ``threshold`` (xi_depth; depth units, or the 8-bit level in compat
-      mode), ``geo_mode``, ``n_mask``, ``n_changed_in_mask``;
+      mode), ``geo_mode``, ``n_mask``, ``n_changed_in_mask``, ``n_no_depth_in_mask`` (pixels of
+      the target with no depth after removal: a see-through hole);
     * fidelity against I_ref: ``psnr`` (dB; "inf" when identical), ``ssim``,
       ``lpips`` (empty when not computed), ``mse``.
 
@@ -267,7 +268,7 @@ def results_csv_rows(results: dict) -> tuple[list[str], list[list[str]]]:
     for p in str_probes:
         header += [f"sim_sam:{p}", f"s_str:{p}", f"n_a:{p}", f"n_b:{p}"]
     header += ["acc_depth", "geo_excluded", "threshold", "geo_mode", "n_mask", "n_changed_in_mask",
-               "psnr", "ssim", "lpips", "mse"]
+               "n_no_depth_in_mask", "psnr", "ssim", "lpips", "mse"]
 
     rows = []
     for scene, method, r in recs:
@@ -294,7 +295,8 @@ def results_csv_rows(results: dict) -> tuple[list[str], list[list[str]]]:
             v = st.get(p) or {}
             row += [_cell(v.get("sim_sam")), _cell(v.get("s_str")), _cell(v.get("n_a")), _cell(v.get("n_b"))]
         row += [_cell(geo.get("acc_depth")), _cell(geo.get("excluded")), _cell(geo.get("threshold")),
-                _cell(geo.get("mode")), _cell(geo.get("n_mask")), _cell(geo.get("n_changed_in_mask"))]
+                _cell(geo.get("mode")), _cell(geo.get("n_mask")), _cell(geo.get("n_changed_in_mask")),
+                _cell(geo.get("n_no_depth_in_mask"))]
         row += [_cell(fid.get("psnr")), _cell(fid.get("ssim")), _cell(fid.get("lpips")), _cell(fid.get("mse"))]
         rows.append(row)
     return header, rows
