@@ -13,16 +13,20 @@ from r360gpu.io.camera import Camera
 from r360gpu.io.gaussians import Gaussians, random_gaussians
 from r360gpu.render import NO_COVERAGE_ALPHA, Render, Renderer, render, render_views
 from r360gpu.render.conventions import NEAR_PLANE
+from r360gpu.render.sort import VARIANT_ENV
 
 RGB_TOL = 2e-3
 DEPTH_REL_TOL = 1e-3
 
 
-@pytest.fixture(autouse=True, params=["gpu", "cpu"])
+@pytest.fixture(autouse=True, params=["gpu-serial", "gpu-blocks", "cpu"])
 def sort_backend(request, monkeypatch):
-    """Every test here runs with the depth and tile sorts in WGSL and on the host
-    (the default on CPU adapters; GpuContext.kernel_backend)."""
-    monkeypatch.setenv("R360GPU_SORT", request.param)
+    """Every test here runs with the depth and tile sorts in WGSL, with either radix sort
+    variant (render.sort.VARIANTS: serial for CPU adapters, blocks for GPUs), and on the
+    host (the default on CPU adapters; GpuContext.kernel_backend)."""
+    backend, _, variant = request.param.partition("-")
+    monkeypatch.setenv("R360GPU_SORT", backend)
+    monkeypatch.setenv(VARIANT_ENV, variant or "serial")
     return request.param
 
 
@@ -249,8 +253,8 @@ def test_4096_square(ctx):
 
 
 def test_sort_backends_give_the_same_image(ctx, monkeypatch):
-    """Host and WGSL sorts: bit-equal images, with depth ties (equal z, so order by index
-    decides), culled Gaussians and several key windows."""
+    """Host and WGSL sorts (both radix variants): bit-equal images, with depth ties (equal z,
+    so order by index decides), culled Gaussians and several key windows."""
     rng = np.random.default_rng(21)
     g = random_gaussians(1000, sh_degree=2, seed=21)
     means = g.means.copy()
@@ -260,11 +264,13 @@ def test_sort_backends_give_the_same_image(ctx, monkeypatch):
     cam = camera(67, 45, z=4.0)
     small = GpuContext(ctx.device, limit_binding_bytes=16384)
     got = {}
-    for backend in ("gpu", "cpu"):
-        monkeypatch.setenv("R360GPU_SORT", backend)
+    for backend in ("gpu-serial", "gpu-blocks", "cpu"):
+        monkeypatch.setenv("R360GPU_SORT", backend.split("-")[0])
+        monkeypatch.setenv(VARIANT_ENV, backend.split("-")[-1] if "-" in backend else "serial")
         renderer = Renderer(g, ctx=small)
         got[backend] = renderer.render(cam)
         assert renderer.stats.windows > 1
         renderer.release()
     for key in ("rgb", "alpha", "depth", "median_depth"):
-        np.testing.assert_array_equal(getattr(got["cpu"], key), getattr(got["gpu"], key))
+        np.testing.assert_array_equal(getattr(got["cpu"], key), getattr(got["gpu-serial"], key))
+        np.testing.assert_array_equal(getattr(got["cpu"], key), getattr(got["gpu-blocks"], key))
