@@ -105,3 +105,24 @@ def test_large_reads_use_the_staging_buffer(ctx):
     np.testing.assert_array_equal(ctx.read(buf, np.float32, x.size - 10, offset=40), x[10:])  # large, offset
     small_then_large = ctx.buffer(np.arange(10, dtype=np.uint8))
     np.testing.assert_array_equal(ctx.read(small_then_large, np.uint8, 10), np.arange(10))
+
+
+def test_equal_uniforms_share_one_buffer(ctx, monkeypatch):
+    """Uniform buffers are never written after creation, so equal contents are one buffer;
+    the kept set is bounded, and a shared buffer still feeds its kernel the right values."""
+    from r360gpu.gpu import context as C
+    from r360gpu.render.sort import sort_pairs
+
+    fresh = GpuContext(ctx.device)
+    a = fresh.uniform(3, 1.5, -2)
+    assert fresh.uniform(3, 1.5, -2) is a
+    assert fresh.uniform(3, 1.5, -1) is not a and fresh.uniform(3, 2.5, -2) is not a
+    monkeypatch.setattr(C, "_UNIFORMS_KEPT", 4)
+    for i in range(6):
+        fresh.uniform(100 + i)
+    assert len(fresh._uniforms) == 4 and fresh.uniform(3, 1.5, -2) is not a
+    # two sorts recording the same uniforms give the same (right) result
+    keys = np.random.default_rng(4).integers(0, 2**32, 3000, dtype=np.uint64).astype(np.uint32)
+    for _ in range(2):
+        _, order = sort_pairs(fresh, keys)
+        np.testing.assert_array_equal(order, np.argsort(keys, kind="stable"))

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -46,6 +47,7 @@ _WANTED_LIMITS = (
 )
 _OPTIONAL_FEATURES = ("subgroup", "timestamp-query", "shader-f16")
 _STAGED_READ_BYTES = 256 * 1024  # reads this large use the reusable staging buffer
+_UNIFORMS_KEPT = 512  # distinct uniform buffers a context keeps for reuse
 
 
 @dataclass(frozen=True)
@@ -99,6 +101,7 @@ class GpuContext:
         self._pipelines: dict[tuple, Any] = {}
         self._scratch: dict = {}
         self._staging = None
+        self._uniforms: OrderedDict[bytes, Any] = OrderedDict()
         self._lock = threading.Lock()
 
     # -- construction -----------------------------------------------------
@@ -216,6 +219,10 @@ class GpuContext:
         """A uniform buffer from 32-bit scalars: ints become u32/i32, floats f32.
 
         The WGSL struct must list the fields in the same order, all 32-bit.
+        Nothing writes a uniform buffer after this, so equal contents share
+        one buffer (the last ``_UNIFORMS_KEPT`` distinct ones are kept): the
+        renderer's dispatches of one view repeat in the next, and creating a
+        buffer was most of the host's cost of recording a dispatch.
         """
         words = np.zeros(max(4, int(math.ceil(len(values) / 4) * 4)), dtype=np.uint32)
         for i, v in enumerate(values):
@@ -223,7 +230,18 @@ class GpuContext:
                 words[i] = np.float32(v).view(np.uint32)
             else:
                 words[i] = np.int64(v).astype(np.uint32) if int(v) < 0 else np.uint32(int(v))
-        return self.buffer(words, usage=UNIFORM | COPY_DST, label=label)
+        key = words.tobytes()
+        with self._lock:
+            buf = self._uniforms.get(key)
+            if buf is not None:
+                self._uniforms.move_to_end(key)
+                return buf
+        buf = self.buffer(words, usage=UNIFORM | COPY_DST, label=label)
+        with self._lock:
+            self._uniforms[key] = buf
+            while len(self._uniforms) > _UNIFORMS_KEPT:
+                self._uniforms.popitem(last=False)
+        return buf
 
     def write(self, buffer, data: np.ndarray, offset: int = 0) -> None:
         self.queue.write_buffer(buffer, offset, np.ascontiguousarray(data))

@@ -61,8 +61,12 @@ def sorted_bits(bits: int) -> int:
     return min(32, 4 * math.ceil(max(0, bits) / 4))
 
 
+# The sizes each variant's shader states (read once: recording a pass must not re-read the files).
+_VARIANT_SIZES = {v: shader_constants(name) for v, name in VARIANTS.items()}
+
+
 def _block(variant: str) -> int:
-    return shader_constants(VARIANTS[variant])["BLOCK"]
+    return _VARIANT_SIZES[variant]["BLOCK"]
 
 
 def window_elements(ctx: GpuContext, variant: str = "serial") -> int:
@@ -86,7 +90,7 @@ def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scr
     """
     variant = variant or sort_variant(ctx)
     shader = VARIANTS[variant]
-    sizes = shader_constants(shader)
+    sizes = _VARIANT_SIZES[variant]
     block, width, radix = sizes["BLOCK"], sizes["DIGIT_BITS"], sizes["RADIX"]
     kept = sorted_bits(bits)
     if n <= 1 or kept == 0:
