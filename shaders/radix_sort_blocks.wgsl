@@ -31,17 +31,6 @@
 // window ([out_base, out_base + out_count) in global positions) per dispatch;
 // the scatter writes only what lands inside the bound output window.
 
-struct Params {
-    n: u32,             // elements in the bound input window
-    shift: u32,         // bit position of the digit
-    digit_bits: u32,    // bits in this pass's digit, 1..DIGIT_BITS
-    block_base: u32,    // global index of the window's first block
-    total_blocks: u32,  // blocks over the whole input
-    out_base: u32,      // global position of the bound output window's first element
-    out_count: u32,     // elements in the bound output window
-    num_blocks: u32,    // blocks in the bound input window
-}
-
 // 256 threads x 4 items: 1,024 elements per block (indices fit 16 bits).
 const WG: u32 = 256u;
 const ITEMS: u32 = 4u;
@@ -49,14 +38,8 @@ const BLOCK: u32 = WG * ITEMS;
 const DIGIT_BITS: u32 = 8u;
 const RADIX: u32 = 1u << DIGIT_BITS;
 
-@group(0) @binding(0) var<uniform> p: Params;
-@group(0) @binding(1) var<storage, read> keys_in: array<u32>;
-@group(0) @binding(2) var<storage, read> vals_in: array<u32>;
-@group(0) @binding(3) var<storage, read_write> keys_out: array<u32>;
-@group(0) @binding(4) var<storage, read_write> vals_out: array<u32>;
-@group(0) @binding(5) var<storage, read_write> hist: array<u32>;
-
 //!include common.wgsl
+//!include radix_pass.wgsl
 //!include workgroup_scan.wgsl
 //!include radix_digits.wgsl
 
@@ -64,18 +47,15 @@ const RADIX: u32 = 1u << DIGIT_BITS;
 // so a thread's ITEMS consecutive entries (stride ITEMS + 1 across threads)
 // fall in different banks.
 var<workgroup> entries: array<u32, BLOCK + BLOCK / ITEMS>;
-// Per-block digit counts (histogram) / global destination minus sorted position (scatter).
+// histogram: the block's digit counts.
 var<workgroup> digit_count: array<atomic<u32>, RADIX>;
+// scatter: per digit, its global destination minus its first position in the sorted block.
 var<workgroup> digit_offset: array<u32, RADIX>;
 // Start of each 4-bit half-digit in the block during one sorting round.
 var<workgroup> half_start: array<u32, 16>;
 
 fn slot(i: u32) -> u32 {
     return i + i / ITEMS;
-}
-
-fn digit_of(key: u32) -> u32 {
-    return (key >> p.shift) & ((1u << p.digit_bits) - 1u);
 }
 
 @compute @workgroup_size(WG)

@@ -115,7 +115,7 @@ def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scr
     pipe_scatter = pipeline(ctx, shader, "scatter")
     for shift in range(0, kept, width):
         # The blocks variant's last digit may be narrower (e.g. 12 bits = 8 + 4).
-        digit = {"digit_bits": min(width, kept - shift)} if variant == "blocks" else {}
+        digit = {"digit_bits": min(width, kept - shift)}
         for start, count, block_base, nb in windows:
             params = uniform(ctx, shader, n=count, shift=shift, block_base=block_base, total_blocks=total_blocks,
                              out_base=0, out_count=0, num_blocks=nb, **digit)
