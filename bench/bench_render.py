@@ -15,13 +15,18 @@ variant (``r360gpu.render.sort.VARIANTS``; ``serial`` is the CPU-tuned peer,
 ``blocks`` the GPU one), alternating them on one uploaded scene, and prints
 the ratios and whether the images are bit-equal.
 
+``--gpu-times`` renders one more device frame per size and variant with every
+compute pass timed on the device (timestamp queries) and prints the device
+milliseconds per kernel, their sum, and the rest of the frame's wall time
+(host recording, submissions and waits).
+
 Synthetic scene: means uniform inside the camera frustum at depths 2..20,
 per-axis scales log-normal (median 0.02, sigma 0.8 in log space), random
 rotations, opacities sigmoid(N(0, 2)) (bimodal, like trained scenes), SH
 degree 3.
 
 Usage:  python bench/bench_render.py [--sizes 100000 1000000] [--repeat 3] [--no-oracle]
-                                     [--variants serial blocks] [--rounds 2]
+                                     [--variants serial blocks] [--rounds 2] [--gpu-times]
 The 1M case renders 3 x ``--repeat`` frames per variant and round; keep it small on a shared machine.
 """
 from __future__ import annotations
@@ -104,7 +109,7 @@ class CountWaits:
         del self.ctx.read  # back to the class's method
 
 
-def frames(renderer, cam, repeat: int, variant: str | None) -> dict:
+def frames(renderer, cam, repeat: int, variant: str | None, gpu_times: bool = False) -> dict:
     """Stage times (timed frames), device-resident and read-back frame times, waits per frame."""
     if variant:
         os.environ[VARIANT_ENV] = variant
@@ -127,6 +132,13 @@ def frames(renderer, cam, repeat: int, variant: str | None) -> dict:
             ctx.read(image, np.uint32, 1)  # wait for the frame (4 bytes: no readback cost)
             device.append(time.perf_counter() - t)
     device_waits = waits.count / repeat - 1  # less the read that waits for the frame
+    kernels, profiled_s = {}, 0.0
+    if gpu_times and ctx.profile_begin():
+        t = time.perf_counter()
+        renderer.render_device(cam, image=image)
+        ctx.read(image, np.uint32, 1)
+        profiled_s = time.perf_counter() - t
+        kernels = ctx.profile_end()
     with CountWaits(ctx) as waits:
         for _ in range(repeat):
             t = time.perf_counter()
@@ -135,12 +147,13 @@ def frames(renderer, cam, repeat: int, variant: str | None) -> dict:
     med = {k: float(np.median([s[k] for s in stages])) for k in stages[0]}
     return dict(stages=med, device_s=float(np.median(device)), frame_s=float(np.median(readback)),
                 device_waits=device_waits, frame_waits=waits.count / repeat, keys=stats.keys,
+                kernels=kernels, profiled_s=profiled_s,
                 windows=stats.windows, evaluated=stats.evaluated, blended=stats.blended, out=out,
                 coverage=float((out.alpha >= 0.5).mean()))
 
 
 def bench_size(ctx, n: int, repeat: int, width: int = WIDTH, height: int = HEIGHT,
-               variants: tuple = (None,), rounds: int = 1) -> dict:
+               variants: tuple = (None,), rounds: int = 1, gpu_times: bool = False) -> dict:
     """Per variant (None: the adapter's default sort path) the medians of ``rounds`` alternating rounds."""
     scene = synthetic_scene(n)
     cam = camera(width, height, FOCAL * width / WIDTH)
@@ -150,7 +163,7 @@ def bench_size(ctx, n: int, repeat: int, width: int = WIDTH, height: int = HEIGH
     runs = {v: [] for v in variants}
     for _ in range(rounds):
         for v in variants:
-            runs[v].append(frames(renderer, cam, repeat, v))
+            runs[v].append(frames(renderer, cam, repeat, v, gpu_times))
     renderer.release()
     out = {}
     for v, rs in runs.items():
@@ -181,6 +194,23 @@ def bench_oracle(ctx) -> dict:
                 max_rgb_err=float(np.abs(gpu.rgb - ref["rgb"]).max()))
 
 
+def print_kernel_times(results: list, supported: bool) -> None:
+    """Device ms per kernel of each result's profiled frame, their sum and the frame's other time."""
+    print()
+    if not supported:
+        print("device time per kernel: this adapter has no timestamp-query feature")
+        return
+    for r in results:
+        k = r["kernels"]
+        busy = sum(secs for _, secs in k.values())
+        tag = f", {r['variant']} sort" if r["variant"] else ""
+        print(f"device time per kernel, one frame (image on the device), N={r['n']}{tag}: "
+              f"{1e3 * busy:.2f} ms on the device of {1e3 * r['profiled_s']:.2f} ms wall; "
+              f"the other {1e3 * (r['profiled_s'] - busy):.2f} ms: host recording, submissions, waits")
+        for label, (count, secs) in sorted(k.items(), key=lambda kv: -kv[1][1]):
+            print(f"    {label:<32} {count:>4} passes {1e3 * secs:>9.3f} ms")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[100_000, 1_000_000])
@@ -191,6 +221,7 @@ def main(argv=None) -> int:
     ap.add_argument("--variants", nargs="+", choices=sorted(VARIANTS),
                     help="time these radix sort variants with the sorts in WGSL (first = the peer)")
     ap.add_argument("--rounds", type=int, default=1, help="alternating rounds of the variants (medians reported)")
+    ap.add_argument("--gpu-times", action="store_true", help="device time per kernel of one frame (timestamp queries)")
     args = ap.parse_args(argv)
     width, height = (int(v) for v in args.size.lower().split("x"))
     variants = tuple(args.variants) if args.variants else (None,)
@@ -211,7 +242,7 @@ def main(argv=None) -> int:
     print("-" * len(header))
     results = []
     for n in args.sizes:
-        per = bench_size(ctx, n, args.repeat, width, height, variants, args.rounds)
+        per = bench_size(ctx, n, args.repeat, width, height, variants, args.rounds, args.gpu_times)
         for v, r in per.items():
             results.append(r)
             s = r["stages"]
@@ -231,6 +262,8 @@ def main(argv=None) -> int:
                   f"({peer['device_s'] / ours['device_s']:.2f}x), frame with readback "
                   f"{1e3 * peer['frame_s']:.1f} -> {1e3 * ours['frame_s']:.1f} ms "
                   f"({peer['frame_s'] / ours['frame_s']:.2f}x); images bit-equal: {same}")
+    if args.gpu_times:
+        print_kernel_times(results, "timestamp-query" in ctx.features)
     print()
     print(f"frame {width}x{height}; waits = host reads from the device per read-back frame "
           f"(device frames: {results[0]['device_waits']:.0f} before the image is complete)")

@@ -126,3 +126,23 @@ def test_equal_uniforms_share_one_buffer(ctx, monkeypatch):
     for _ in range(2):
         _, order = sort_pairs(fresh, keys)
         np.testing.assert_array_equal(order, np.argsort(keys, kind="stable"))
+
+
+def test_device_time_per_kernel(ctx):
+    """profile_begin/end: one entry per pipeline label with its pass count (what bench_render.py
+    --gpu-times prints); nothing without the timestamp-query feature or after the end."""
+    from r360gpu.render.sort import sort_pairs
+
+    fresh = GpuContext(ctx.device)
+    assert fresh.profile_end() == {}
+    keys = np.random.default_rng(6).integers(0, 2**32, 5000, dtype=np.uint64).astype(np.uint32)
+    if "timestamp-query" in fresh.features:
+        assert fresh.profile_begin()
+        sort_pairs(fresh, keys, bits=16, variant="blocks")
+        times = fresh.profile_end()
+        assert times["radix_sort_blocks:histogram"][0] == 2 and times["radix_sort_blocks:scatter"][0] == 2
+        assert all(secs >= 0 for _, secs in times.values())
+        sort_pairs(fresh, keys, bits=16, variant="blocks")  # after the end: untimed
+        assert fresh.profile_end() == {}
+    fresh.features = fresh.features - {"timestamp-query"}
+    assert not fresh.profile_begin() and fresh.profile_end() == {}

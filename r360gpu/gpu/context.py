@@ -35,6 +35,7 @@ UNIFORM = 0x40
 COPY_SRC = 0x04
 COPY_DST = 0x08
 MAP_READ = 0x01
+QUERY_RESOLVE = 0x200
 
 _WANTED_LIMITS = (
     "max-storage-buffer-binding-size",
@@ -102,6 +103,7 @@ class GpuContext:
         self._scratch: dict = {}
         self._staging = None
         self._uniforms: OrderedDict[bytes, Any] = OrderedDict()
+        self._profile: dict | None = None
         self._lock = threading.Lock()
 
     # -- construction -----------------------------------------------------
@@ -318,11 +320,54 @@ class GpuContext:
         if max(groups) > self.max_workgroups:
             raise ValueError(f"dispatch {groups} exceeds {self.max_workgroups} workgroups per dimension")
         bg = self.bind_group(pipeline, resources)
-        cp = encoder.begin_compute_pass()
+        prof = self._profile
+        if prof is not None and len(prof["labels"]) < prof["capacity"]:
+            i = len(prof["labels"])
+            prof["labels"].append(getattr(pipeline, "label", "") or "unlabelled")
+            cp = encoder.begin_compute_pass(timestamp_writes={
+                "query_set": prof["set"], "beginning_of_pass_write_index": 2 * i, "end_of_pass_write_index": 2 * i + 1})
+        else:
+            cp = encoder.begin_compute_pass()
         cp.set_pipeline(pipeline)
         cp.set_bind_group(0, bg)
         cp.dispatch_workgroups(*groups)
         cp.end()
+
+    # -- device time per kernel (benchmarks) ---------------------------
+    def profile_begin(self, capacity: int = 2048) -> bool:
+        """Time every compute pass :meth:`dispatch` records from now on the device (timestamp
+        queries; the first ``capacity`` passes: wgpu allows 4096 queries, two per pass, per set).
+        False (and nothing timed) when the device lacks the ``timestamp-query`` feature."""
+        if "timestamp-query" not in self.features:
+            return False
+        qs = self.device.create_query_set(type="timestamp", count=2 * capacity)
+        self._profile = {"set": qs, "labels": [], "capacity": capacity}
+        return True
+
+    def profile_end(self) -> dict[str, tuple[int, float]]:
+        """Stop timing; {pipeline label: (passes, device seconds)} since :meth:`profile_begin`.
+
+        Waits for the device.  Seconds are the timestamps' difference read as nanoseconds
+        (WebGPU's unit; wgpu passes the Vulkan ticks on, which are nanoseconds where the
+        driver's timestamp period is 1, as on NVIDIA and lavapipe).
+        """
+        prof, self._profile = self._profile, None
+        if not prof:
+            return {}
+        out: dict[str, tuple[int, float]] = {}
+        n = 2 * len(prof["labels"])
+        if n:
+            buf = self.device.create_buffer(label="r360gpu-timestamps", size=n * 8, usage=QUERY_RESOLVE | COPY_SRC)
+            enc = self.encoder()
+            enc.resolve_query_set(prof["set"], 0, n, buf, 0)
+            self.submit(enc)
+            ticks = self.read(buf, np.uint64, n).reshape(-1, 2).astype(np.int64)
+            buf.destroy()
+            for label, (a, b) in zip(prof["labels"], ticks):
+                count, secs = out.get(label, (0, 0.0))
+                out[label] = (count + 1, secs + max(0, int(b - a)) * 1e-9)
+        prof["set"].destroy()
+        return out
 
     def submit(self, encoder) -> None:
         self.queue.submit([encoder.finish()])
