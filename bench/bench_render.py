@@ -44,6 +44,7 @@ from r360gpu.gpu import get_context  # noqa: E402
 from r360gpu.io.camera import Camera  # noqa: E402
 from r360gpu.io.gaussians import Gaussians  # noqa: E402
 from r360gpu.render import Renderer  # noqa: E402
+from r360gpu.render.rasterize import image_to_numpy  # noqa: E402
 from r360gpu.render.sort import VARIANT_ENV, VARIANTS  # noqa: E402
 
 WIDTH, HEIGHT, FOCAL = 1920, 1080, 1000.0
@@ -109,6 +110,23 @@ class CountWaits:
         del self.ctx.read  # back to the class's method
 
 
+def time_readbacks(ctx, image, width: int, height: int, stride: int, repeat: int) -> dict:
+    """Median seconds of the image's numpy read-back with the colour interleaved on the device
+    and on the host (the peer: the previous way, and CPU adapters' default), alternated; bit-equality."""
+    times = {"gpu": [], "cpu": []}
+    got = {}
+    for _ in range(repeat):
+        for where, acc in times.items():
+            os.environ["R360GPU_RENDER_INTERLEAVE"] = where
+            t = time.perf_counter()
+            got[where] = image_to_numpy(ctx, image, width, height, stride)
+            acc.append(time.perf_counter() - t)
+    os.environ.pop("R360GPU_RENDER_INTERLEAVE")
+    same = all(np.array_equal(got["gpu"][k].view(np.uint32), got["cpu"][k].view(np.uint32)) for k in got["gpu"])
+    return dict(readback_s=float(np.median(times["gpu"])), readback_peer_s=float(np.median(times["cpu"])),
+                readback_same=same)
+
+
 def frames(renderer, cam, repeat: int, variant: str | None, gpu_times: bool = False) -> dict:
     """Stage times (timed frames), device-resident and read-back frame times, waits per frame."""
     if variant:
@@ -122,8 +140,10 @@ def frames(renderer, cam, repeat: int, variant: str | None, gpu_times: bool = Fa
         stages.append(dict(renderer.stats.times))
     stats = renderer.stats
     renderer.timed = renderer.count_work = False
-    image = renderer.render_device(cam).buffer  # the image buffer every device frame reuses
+    dev = renderer.render_device(cam)
+    image = dev.buffer  # the image buffer every device frame reuses
     ctx.read(image, np.uint32, 1)
+    readbacks = time_readbacks(ctx, image, dev.width, dev.height, dev.plane_stride, repeat)
     device, readback = [], []
     with CountWaits(ctx) as waits:
         for _ in range(repeat):
@@ -147,7 +167,7 @@ def frames(renderer, cam, repeat: int, variant: str | None, gpu_times: bool = Fa
     med = {k: float(np.median([s[k] for s in stages])) for k in stages[0]}
     return dict(stages=med, device_s=float(np.median(device)), frame_s=float(np.median(readback)),
                 device_waits=device_waits, frame_waits=waits.count / repeat, keys=stats.keys,
-                kernels=kernels, profiled_s=profiled_s,
+                kernels=kernels, profiled_s=profiled_s, **readbacks,
                 windows=stats.windows, evaluated=stats.evaluated, blended=stats.blended, out=out,
                 coverage=float((out.alpha >= 0.5).mean()))
 
@@ -168,7 +188,7 @@ def bench_size(ctx, n: int, repeat: int, width: int = WIDTH, height: int = HEIGH
     out = {}
     for v, rs in runs.items():
         r = dict(rs[-1])
-        for k in ("device_s", "frame_s"):
+        for k in ("device_s", "frame_s", "readback_s", "readback_peer_s"):
             r[k] = float(np.median([x[k] for x in rs]))
         r["stages"] = {k: float(np.median([x["stages"][k] for x in rs])) for k in rs[0]["stages"]}
         out[v] = dict(r, n=n, upload_s=upload, variant=v)
@@ -262,6 +282,11 @@ def main(argv=None) -> int:
                   f"({peer['device_s'] / ours['device_s']:.2f}x), frame with readback "
                   f"{1e3 * peer['frame_s']:.1f} -> {1e3 * ours['frame_s']:.1f} ms "
                   f"({peer['frame_s'] / ours['frame_s']:.2f}x); images bit-equal: {same}")
+    for r in results:
+        tag = f" ({r['variant']} sort)" if r["variant"] else ""
+        print(f"  numpy read-back of the image, N={r['n']}{tag}: colour interleaved on the device "
+              f"{1e3 * r['readback_s']:.1f} ms; on the host (peer: the previous way) {1e3 * r['readback_peer_s']:.1f} ms "
+              f"({r['readback_peer_s'] / r['readback_s']:.2f}x); bit-equal: {r['readback_same']}")
     if args.gpu_times:
         print_kernel_times(results, "timestamp-query" in ctx.features)
     print()

@@ -171,6 +171,33 @@ def test_small_limits_everywhere(small_ctx):
     compare(render(g, cam, ctx=small_ctx), render_oracle.render(g, cam))
 
 
+@pytest.mark.parametrize("where", ["gpu", "cpu"])
+@pytest.mark.parametrize("size", [(67, 45), (64, 48), (1, 1)])
+def test_numpy_readback_is_bit_exact(ctx, small_ctx, size, where, monkeypatch):
+    """DeviceRender.to_numpy: colour interleaved on the device or on the host (the default on
+    CPU adapters, and wherever the interleaved image exceeds a binding: small_ctx) gives every
+    plane's bits, NaN payloads, infinities, -0 and subnormals included; the planes' padding is
+    not read."""
+    monkeypatch.setenv("R360GPU_RENDER_INTERLEAVE", where)
+    from r360gpu.render import DeviceRender
+    from r360gpu.render.rasterize import PLANES, plane_stride
+
+    w, h = size
+    stride = plane_stride(w, h)
+    rng = np.random.default_rng(w * h)
+    words = rng.integers(0, 2**32, (len(PLANES), stride), dtype=np.uint64).astype(np.uint32)
+    special = np.array([0x7FC00001, 0xFFF00000, 0x7F800000, 0x80000000, 0x00000001, 0x7FBFFFFF], np.uint32)
+    words[:, : min(special.size, w * h)] = special[: w * h]
+    for c in (ctx, small_ctx):
+        dev = DeviceRender(buffer=c.buffer(words.reshape(-1)), width=w, height=h, plane_stride=stride)
+        got = dev.to_numpy(c)
+        planes = {name: words[i, : w * h].reshape(h, w) for i, name in enumerate(PLANES)}
+        np.testing.assert_array_equal(got.rgb.view(np.uint32), np.stack([planes[k] for k in "rgb"], axis=-1))
+        for name in ("alpha", "depth", "median_depth"):
+            np.testing.assert_array_equal(getattr(got, name).view(np.uint32), planes[name])
+            assert getattr(got, name).shape == (h, w) and getattr(got, name).dtype == np.float32
+
+
 def test_render_views_and_device_output(ctx):
     g = random_gaussians(500, sh_degree=2, seed=11)
     cams = [camera(64, 48, z=3.0), look_at([2.0, 0.5, -2.0], [0, 0, 0], 67, 45, 50.0), camera(64, 48, z=2.0)]

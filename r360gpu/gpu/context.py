@@ -207,14 +207,21 @@ class GpuContext:
         """
         data = np.ascontiguousarray(data)
         nbytes = max(4, int(math.ceil(data.nbytes / 4) * 4))
-        with self._lock:
-            buf = self._scratch.get(key)
-            if buf is None or buf.size != nbytes:
-                buf = self.device.create_buffer(label=str(key), size=nbytes, usage=STORAGE | COPY_SRC | COPY_DST)
-                self._scratch[key] = buf
+        buf = self.reusable(key, nbytes, exact=True)
         if data.nbytes % 4:
             data = np.concatenate([data.view(np.uint8).reshape(-1), np.zeros(-data.nbytes % 4, np.uint8)])
         self.queue.write_buffer(buf, 0, data)
+        return buf
+
+    def reusable(self, key, nbytes: int, exact: bool = False):
+        """A storage buffer kept for ``key`` across calls: at least ``nbytes`` bytes (``exact``:
+        exactly), reallocated only when that does not hold; contents undefined."""
+        nbytes = max(4, int(math.ceil(int(nbytes) / 4) * 4))
+        with self._lock:
+            buf = self._scratch.get(key)
+            if buf is None or (buf.size != nbytes if exact else buf.size < nbytes):
+                buf = self.device.create_buffer(label=str(key), size=nbytes, usage=STORAGE | COPY_SRC | COPY_DST)
+                self._scratch[key] = buf
         return buf
 
     def uniform(self, *values, label: str = "params"):

@@ -24,7 +24,7 @@ from ..gpu.shaders import workgroup_threads
 from .binning import TileWindow, plan_windows, record_counts, record_emit, record_ranges
 from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA, TILE, RenderOptions
 from .project import WG as PROJECT_WG, Projected, camera_arrays, project, tile_grid
-from .rasterize import PLANES, plane_stride, planes_to_numpy, record_rasterize
+from .rasterize import PLANES, image_to_numpy, plane_stride, planes_to_numpy, record_rasterize
 from .scene import DeviceScene
 from .scratch import Scratch
 from .sort import host_sort, radix_sort
@@ -65,9 +65,7 @@ class DeviceRender:
     planes: tuple = PLANES
 
     def to_numpy(self, ctx: GpuContext) -> Render:
-        p = planes_to_numpy(ctx, self.buffer, self.width, self.height)
-        rgb = np.stack([p["r"], p["g"], p["b"]], axis=-1)
-        return Render(rgb=rgb, depth=p["depth"].copy(), median_depth=p["median_depth"].copy(), alpha=p["alpha"].copy())
+        return Render(**image_to_numpy(ctx, self.buffer, self.width, self.height, self.plane_stride))
 
 
 @dataclass
