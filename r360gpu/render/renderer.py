@@ -6,8 +6,9 @@ the per-Gaussian key counts of the whole image go out in one submission, and
 one read returns the per-row key bounds (which plan the key windows) together
 with the image's exact key count (which sizes the tile sort).  Only when the
 keys need several windows (more than one storage binding of them) does each
-further window wait for its own count.  Reading the image back is the only
-other wait (none for :meth:`Renderer.render_device`).
+further window wait for its own count.  Reading the image back to numpy
+(rasterize.image_to_numpy: one read, or two on GPU adapters) is the only other
+wait (none for :meth:`Renderer.render_device`).
 """
 from __future__ import annotations
 
