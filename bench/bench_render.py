@@ -3,9 +3,22 @@
 Renders a synthetic scene at 1920x1080 with 100k and 1M Gaussians and prints
 milliseconds per frame and per stage (project, sort = depth sort + binning +
 tile sort + ranges, rasterise; timed by waiting for the device after each
-stage), the same frame without the per-stage waits, the numpy oracle on a
-small case for a speed ratio, and the rasteriser's throughput against a
-physical-limit estimate for this CPU.
+stage), the same frame without the per-stage waits (``device``: the image left
+on the device, as a viewer or a GPU probe uses it; ``+readback``: read back as
+numpy arrays, ``Renderer.render``), the host's waits for the device per frame,
+the numpy oracle on a small case for a speed ratio, and the rasteriser's
+throughput against a physical-limit estimate for this CPU.
+
+``--variants serial blocks`` renders every size with the depth and tile sorts
+in WGSL (``R360GPU_SORT=gpu``, what a GPU adapter runs) once per radix sort
+variant (``r360gpu.render.sort.VARIANTS``; ``serial`` is the CPU-tuned peer,
+``blocks`` the GPU one), alternating them on one uploaded scene, and prints
+the ratios and whether the images are bit-equal.
+
+``--gpu-times`` renders one more device frame per size and variant with every
+compute pass timed on the device (timestamp queries) and prints the device
+milliseconds per kernel, their sum, and the rest of the frame's wall time
+(host recording, submissions and waits).
 
 Synthetic scene: means uniform inside the camera frustum at depths 2..20,
 per-axis scales log-normal (median 0.02, sigma 0.8 in log space), random
@@ -13,7 +26,8 @@ rotations, opacities sigmoid(N(0, 2)) (bimodal, like trained scenes), SH
 degree 3.
 
 Usage:  python bench/bench_render.py [--sizes 100000 1000000] [--repeat 3] [--no-oracle]
-The 1M case renders ``--repeat`` frames; keep it small on a shared machine.
+                                     [--variants serial blocks] [--rounds 2] [--gpu-times]
+The 1M case renders 3 x ``--repeat`` frames per variant and round; keep it small on a shared machine.
 """
 from __future__ import annotations
 
@@ -30,6 +44,8 @@ from r360gpu.gpu import get_context  # noqa: E402
 from r360gpu.io.camera import Camera  # noqa: E402
 from r360gpu.io.gaussians import Gaussians  # noqa: E402
 from r360gpu.render import Renderer  # noqa: E402
+from r360gpu.render.rasterize import image_to_numpy  # noqa: E402
+from r360gpu.render.sort import VARIANT_ENV, VARIANTS  # noqa: E402
 
 WIDTH, HEIGHT, FOCAL = 1920, 1080, 1000.0
 #: Goal of issue 3: 1M Gaussians at 1080p in at most this many seconds on lavapipe.
@@ -74,12 +90,49 @@ def peak_flops(seconds: float = 1.0) -> float:
     return best
 
 
-def bench_size(ctx, n: int, repeat: int, width: int = WIDTH, height: int = HEIGHT) -> dict:
-    scene = synthetic_scene(n)
-    cam = camera(width, height, FOCAL * width / WIDTH)
-    t = time.perf_counter()
-    renderer = Renderer(scene, ctx=ctx, timed=True, count_work=True)
-    upload = time.perf_counter() - t
+class CountWaits:
+    """Counts the host's reads from the device (each one waits for the queue) while active."""
+
+    def __init__(self, ctx):
+        self.ctx, self.count = ctx, 0
+
+    def __enter__(self):
+        read = self.ctx.read
+
+        def counted(*args, **kwargs):
+            self.count += 1
+            return read(*args, **kwargs)
+
+        self.ctx.read = counted
+        return self
+
+    def __exit__(self, *exc):
+        del self.ctx.read  # back to the class's method
+
+
+def time_readbacks(ctx, image, width: int, height: int, stride: int, repeat: int) -> dict:
+    """Median seconds of the image's numpy read-back with the colour interleaved on the device
+    and on the host (the peer: the previous way, and CPU adapters' default), alternated; bit-equality."""
+    times = {"gpu": [], "cpu": []}
+    got = {}
+    for _ in range(repeat):
+        for where, acc in times.items():
+            os.environ["R360GPU_RENDER_INTERLEAVE"] = where
+            t = time.perf_counter()
+            got[where] = image_to_numpy(ctx, image, width, height, stride)
+            acc.append(time.perf_counter() - t)
+    os.environ.pop("R360GPU_RENDER_INTERLEAVE")
+    same = all(np.array_equal(got["gpu"][k].view(np.uint32), got["cpu"][k].view(np.uint32)) for k in got["gpu"])
+    return dict(readback_s=float(np.median(times["gpu"])), readback_peer_s=float(np.median(times["cpu"])),
+                readback_same=same)
+
+
+def frames(renderer, cam, repeat: int, variant: str | None, gpu_times: bool = False) -> dict:
+    """Stage times (timed frames), device-resident and read-back frame times, waits per frame."""
+    if variant:
+        os.environ[VARIANT_ENV] = variant
+    ctx = renderer.ctx
+    renderer.timed = renderer.count_work = True
     renderer.render(cam)  # warm-up: pipelines, buffers
     stages = []
     for _ in range(repeat):
@@ -87,16 +140,59 @@ def bench_size(ctx, n: int, repeat: int, width: int = WIDTH, height: int = HEIGH
         stages.append(dict(renderer.stats.times))
     stats = renderer.stats
     renderer.timed = renderer.count_work = False
-    frames = []
-    for _ in range(repeat):
+    dev = renderer.render_device(cam)
+    image = dev.buffer  # the image buffer every device frame reuses
+    ctx.read(image, np.uint32, 1)
+    readbacks = time_readbacks(ctx, image, dev.width, dev.height, dev.plane_stride, repeat)
+    device, readback = [], []
+    with CountWaits(ctx) as waits:
+        for _ in range(repeat):
+            t = time.perf_counter()
+            renderer.render_device(cam, image=image)
+            ctx.read(image, np.uint32, 1)  # wait for the frame (4 bytes: no readback cost)
+            device.append(time.perf_counter() - t)
+    device_waits = waits.count / repeat - 1  # less the read that waits for the frame
+    kernels, profiled_s = {}, 0.0
+    if gpu_times and ctx.profile_begin():
         t = time.perf_counter()
-        out = renderer.render(cam)
-        frames.append(time.perf_counter() - t)
-    renderer.release()
+        renderer.render_device(cam, image=image)
+        ctx.read(image, np.uint32, 1)
+        profiled_s = time.perf_counter() - t
+        kernels = ctx.profile_end()
+    with CountWaits(ctx) as waits:
+        for _ in range(repeat):
+            t = time.perf_counter()
+            out = renderer.render(cam)
+            readback.append(time.perf_counter() - t)
     med = {k: float(np.median([s[k] for s in stages])) for k in stages[0]}
-    return dict(n=n, upload_s=upload, stages=med, frame_s=float(np.median(frames)), keys=stats.keys,
-                windows=stats.windows, evaluated=stats.evaluated, blended=stats.blended,
+    return dict(stages=med, device_s=float(np.median(device)), frame_s=float(np.median(readback)),
+                device_waits=device_waits, frame_waits=waits.count / repeat, keys=stats.keys,
+                kernels=kernels, profiled_s=profiled_s, **readbacks,
+                windows=stats.windows, evaluated=stats.evaluated, blended=stats.blended, out=out,
                 coverage=float((out.alpha >= 0.5).mean()))
+
+
+def bench_size(ctx, n: int, repeat: int, width: int = WIDTH, height: int = HEIGHT,
+               variants: tuple = (None,), rounds: int = 1, gpu_times: bool = False) -> dict:
+    """Per variant (None: the adapter's default sort path) the medians of ``rounds`` alternating rounds."""
+    scene = synthetic_scene(n)
+    cam = camera(width, height, FOCAL * width / WIDTH)
+    t = time.perf_counter()
+    renderer = Renderer(scene, ctx=ctx)
+    upload = time.perf_counter() - t
+    runs = {v: [] for v in variants}
+    for _ in range(rounds):
+        for v in variants:
+            runs[v].append(frames(renderer, cam, repeat, v, gpu_times))
+    renderer.release()
+    out = {}
+    for v, rs in runs.items():
+        r = dict(rs[-1])
+        for k in ("device_s", "frame_s", "readback_s", "readback_peer_s"):
+            r[k] = float(np.median([x[k] for x in rs]))
+        r["stages"] = {k: float(np.median([x["stages"][k] for x in rs])) for k in rs[0]["stages"]}
+        out[v] = dict(r, n=n, upload_s=upload, variant=v)
+    return out
 
 
 def bench_oracle(ctx) -> dict:
@@ -118,6 +214,23 @@ def bench_oracle(ctx) -> dict:
                 max_rgb_err=float(np.abs(gpu.rgb - ref["rgb"]).max()))
 
 
+def print_kernel_times(results: list, supported: bool) -> None:
+    """Device ms per kernel of each result's profiled frame, their sum and the frame's other time."""
+    print()
+    if not supported:
+        print("device time per kernel: this adapter has no timestamp-query feature")
+        return
+    for r in results:
+        k = r["kernels"]
+        busy = sum(secs for _, secs in k.values())
+        tag = f", {r['variant']} sort" if r["variant"] else ""
+        print(f"device time per kernel, one frame (image on the device), N={r['n']}{tag}: "
+              f"{1e3 * busy:.2f} ms on the device of {1e3 * r['profiled_s']:.2f} ms wall; "
+              f"the other {1e3 * (r['profiled_s'] - busy):.2f} ms: host recording, submissions, waits")
+        for label, (count, secs) in sorted(k.items(), key=lambda kv: -kv[1][1]):
+            print(f"    {label:<32} {count:>4} passes {1e3 * secs:>9.3f} ms")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[100_000, 1_000_000])
@@ -125,8 +238,15 @@ def main(argv=None) -> int:
     ap.add_argument("--no-oracle", action="store_true")
     ap.add_argument("--size", default=f"{WIDTH}x{HEIGHT}",
                     help="frame WIDTHxHEIGHT (default 1920x1080; the scene fills the same field of view)")
+    ap.add_argument("--variants", nargs="+", choices=sorted(VARIANTS),
+                    help="time these radix sort variants with the sorts in WGSL (first = the peer)")
+    ap.add_argument("--rounds", type=int, default=1, help="alternating rounds of the variants (medians reported)")
+    ap.add_argument("--gpu-times", action="store_true", help="device time per kernel of one frame (timestamp queries)")
     args = ap.parse_args(argv)
     width, height = (int(v) for v in args.size.lower().split("x"))
+    variants = tuple(args.variants) if args.variants else (None,)
+    if args.variants:
+        os.environ["R360GPU_SORT"] = "gpu"
     ctx = get_context()
     d = ctx.describe()
     print(f"adapter: {d['name']} ({d['backend']}, {d['adapter_type']}); CPU cores: {os.cpu_count()}")
@@ -135,24 +255,47 @@ def main(argv=None) -> int:
     print(f"CPU float32 peak (sgemm): {flops / 1e9:.1f} GFLOP/s -> physical limit ~{pair_limit / 1e9:.2f} G pairs/s "
           f"at {FLOPS_PER_PAIR} flop/pair")
     print()
-    header = (f"{'N':>9} {'upload ms':>9} {'project':>8} {'sort':>8} {'raster':>8} {'sum':>8} {'frame ms':>9} "
-              f"{'keys':>10} {'evaluated':>12} {'blended':>11} {'Gpairs/s':>9} {'of limit':>8}")
+    header = (f"{'N':>9} {'sort':>7} {'upload ms':>9} {'project':>8} {'sort':>8} {'raster':>8} {'sum':>8} "
+              f"{'device ms':>9} {'+readback':>9} {'waits':>5} {'keys':>10} {'evaluated':>12} {'blended':>11} "
+              f"{'Gpairs/s':>9} {'of limit':>8}")
     print(header)
     print("-" * len(header))
     results = []
     for n in args.sizes:
-        r = bench_size(ctx, n, args.repeat, width, height)
-        results.append(r)
-        s = r["stages"]
-        rate = r["evaluated"] / s["rasterize"]
-        print(f"{n:>9} {1e3 * r['upload_s']:>9.0f} {1e3 * s['project']:>8.0f} {1e3 * s['sort']:>8.0f} "
-              f"{1e3 * s['rasterize']:>8.0f} {1e3 * sum(s.values()):>8.0f} {1e3 * r['frame_s']:>9.0f} "
-              f"{r['keys']:>10} {r['evaluated']:>12} {r['blended']:>11} {rate / 1e9:>9.3f} "
-              f"{rate / pair_limit:>8.1%}")
-    print()
-    print(f"frame {width}x{height}")
+        per = bench_size(ctx, n, args.repeat, width, height, variants, args.rounds, args.gpu_times)
+        for v, r in per.items():
+            results.append(r)
+            s = r["stages"]
+            rate = r["evaluated"] / s["rasterize"]
+            label = v or ("host" if ctx.kernel_backend("sort") == "cpu" else "wgsl")
+            print(f"{n:>9} {label:>7} {1e3 * r['upload_s']:>9.0f} {1e3 * s['project']:>8.1f} {1e3 * s['sort']:>8.1f} "
+                  f"{1e3 * s['rasterize']:>8.1f} {1e3 * sum(s.values()):>8.1f} {1e3 * r['device_s']:>9.1f} "
+                  f"{1e3 * r['frame_s']:>9.1f} {r['frame_waits']:>5.0f} {r['keys']:>10} {r['evaluated']:>12} "
+                  f"{r['blended']:>11} {rate / 1e9:>9.3f} {rate / pair_limit:>8.1%}")
+        if len(per) == 2:
+            (pv, peer), (ov, ours) = per.items()
+            same = all(np.array_equal(getattr(peer["out"], k), getattr(ours["out"], k))
+                       for k in ("rgb", "alpha", "depth", "median_depth"))
+            print(f"  {ov} vs {pv} (peer), N={n}: sort stage {1e3 * peer['stages']['sort']:.1f} -> "
+                  f"{1e3 * ours['stages']['sort']:.1f} ms ({peer['stages']['sort'] / ours['stages']['sort']:.2f}x), "
+                  f"device frame {1e3 * peer['device_s']:.1f} -> {1e3 * ours['device_s']:.1f} ms "
+                  f"({peer['device_s'] / ours['device_s']:.2f}x), frame with readback "
+                  f"{1e3 * peer['frame_s']:.1f} -> {1e3 * ours['frame_s']:.1f} ms "
+                  f"({peer['frame_s'] / ours['frame_s']:.2f}x); images bit-equal: {same}")
     for r in results:
-        print(f"frames/s at {r['n']} Gaussians {width}x{height}: {1 / r['frame_s']:.2f}")
+        tag = f" ({r['variant']} sort)" if r["variant"] else ""
+        print(f"  numpy read-back of the image, N={r['n']}{tag}: colour interleaved on the device "
+              f"{1e3 * r['readback_s']:.1f} ms; on the host (peer: the previous way) {1e3 * r['readback_peer_s']:.1f} ms "
+              f"({r['readback_peer_s'] / r['readback_s']:.2f}x); bit-equal: {r['readback_same']}")
+    if args.gpu_times:
+        print_kernel_times(results, "timestamp-query" in ctx.features)
+    print()
+    print(f"frame {width}x{height}; waits = host reads from the device per read-back frame "
+          f"(device frames: {results[0]['device_waits']:.0f} before the image is complete)")
+    for r in results:
+        tag = f" ({r['variant']} sort)" if r["variant"] else ""
+        print(f"frames/s at {r['n']} Gaussians {width}x{height}{tag}: {1 / r['device_s']:.2f} "
+              f"(image on the device), {1 / r['frame_s']:.2f} (read back to numpy)")
         if r["n"] == 1_000_000 and (width, height) == (WIDTH, HEIGHT):
             ok = r["frame_s"] <= GOAL_1M_S
             print(f"goal: 1M Gaussians at 1080p in <= {GOAL_1M_S:.0f} s: {'MET' if ok else 'NOT MET'} "

@@ -22,16 +22,6 @@
 // element positions); the scatter writes only the elements that land inside
 // the bound output window, so the host repeats it for every output window.
 
-struct Params {
-    n: u32,             // elements in the bound input window
-    shift: u32,         // bit position of the digit
-    block_base: u32,    // global index of the window's first block
-    total_blocks: u32,  // blocks over the whole input
-    out_base: u32,      // global position of the bound output window's first element
-    out_count: u32,     // elements in the bound output window
-    num_blocks: u32,    // blocks in the bound input window
-}
-
 // 64 threads x 32 items: few SIMD slices per workgroup keeps barriers cheap on
 // CPU implementations (which run the slices as coroutines); 2048 per block.
 const WG: u32 = 64u;
@@ -40,13 +30,6 @@ const BLOCK: u32 = WG * ITEMS;
 const DIGIT_BITS: u32 = 4u;
 const RADIX: u32 = 1u << DIGIT_BITS;
 
-@group(0) @binding(0) var<uniform> p: Params;
-@group(0) @binding(1) var<storage, read> keys_in: array<u32>;
-@group(0) @binding(2) var<storage, read> vals_in: array<u32>;
-@group(0) @binding(3) var<storage, read_write> keys_out: array<u32>;
-@group(0) @binding(4) var<storage, read_write> vals_out: array<u32>;
-@group(0) @binding(5) var<storage, read_write> hist: array<u32>;
-
 // Digit counts are packed so they stay in registers (dynamically indexed
 // arrays are slow on CPU implementations): while a thread counts its 32 items,
 // 8-bit fields in a vec4 (digit d in component d / 4, bits 8 * (d % 4));
@@ -54,39 +37,9 @@ const RADIX: u32 = 1u << DIGIT_BITS;
 // or hi, bits 16 * (d % 2)), which cannot overflow with 2048 per block.
 // (lo: digits 0-7, hi: digits 8-15; scanned by workgroup_scan with SCAN_SEG = 8.)
 //!include common.wgsl
+//!include radix_pass.wgsl
 //!include workgroup_scan.wgsl
-alias Packed = ScanValue;
-
-fn digit_of(key: u32) -> u32 {
-    return (key >> p.shift) & 15u;
-}
-
-// 8-bit fields -> 16-bit fields.
-fn widen(c: vec4<u32>) -> Packed {
-    var out: Packed;
-    for (var w = 0u; w < 4u; w++) {
-        // Word w of lo holds digits 2w, 2w + 1; digit d sits in c[d / 4] at 8 * (d % 4).
-        let d = 2u * w;
-        out.lo[w] = ((c[d >> 2u] >> (8u * (d & 3u))) & 255u) | (((c[(d + 1u) >> 2u] >> (8u * ((d + 1u) & 3u))) & 255u) << 16u);
-        let e = d + 8u;
-        out.hi[w] = ((c[e >> 2u] >> (8u * (e & 3u))) & 255u) | (((c[(e + 1u) >> 2u] >> (8u * ((e + 1u) & 3u))) & 255u) << 16u);
-    }
-    return out;
-}
-
-fn field16(v: Packed, d: u32) -> u32 {
-    let word = select(v.lo, v.hi, d >= 8u)[(d >> 1u) & 3u];
-    return (word >> (16u * (d & 1u))) & 0xffffu;
-}
-
-// Adds one to digit d's 8-bit field; returns the field's old value.
-fn bump(c: ptr<function, vec4<u32>>, d: u32) -> u32 {
-    let sh = 8u * (d & 3u);
-    let w = d >> 2u;
-    let old = ((*c)[w] >> sh) & 255u;
-    (*c)[w] += 1u << sh;
-    return old;
-}
+//!include radix_digits.wgsl
 
 // Packed digit counts (8-bit fields) of the ITEMS elements from `base` (within the window).
 fn count_items(base: u32) -> vec4<u32> {

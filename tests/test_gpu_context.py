@@ -105,3 +105,44 @@ def test_large_reads_use_the_staging_buffer(ctx):
     np.testing.assert_array_equal(ctx.read(buf, np.float32, x.size - 10, offset=40), x[10:])  # large, offset
     small_then_large = ctx.buffer(np.arange(10, dtype=np.uint8))
     np.testing.assert_array_equal(ctx.read(small_then_large, np.uint8, 10), np.arange(10))
+
+
+def test_equal_uniforms_share_one_buffer(ctx, monkeypatch):
+    """Uniform buffers are never written after creation, so equal contents are one buffer;
+    the kept set is bounded, and a shared buffer still feeds its kernel the right values."""
+    from r360gpu.gpu import context as C
+    from r360gpu.render.sort import sort_pairs
+
+    fresh = GpuContext(ctx.device)
+    a = fresh.uniform(3, 1.5, -2)
+    assert fresh.uniform(3, 1.5, -2) is a
+    assert fresh.uniform(3, 1.5, -1) is not a and fresh.uniform(3, 2.5, -2) is not a
+    monkeypatch.setattr(C, "_UNIFORMS_KEPT", 4)
+    for i in range(6):
+        fresh.uniform(100 + i)
+    assert len(fresh._uniforms) == 4 and fresh.uniform(3, 1.5, -2) is not a
+    # two sorts recording the same uniforms give the same (right) result
+    keys = np.random.default_rng(4).integers(0, 2**32, 3000, dtype=np.uint64).astype(np.uint32)
+    for _ in range(2):
+        _, order = sort_pairs(fresh, keys)
+        np.testing.assert_array_equal(order, np.argsort(keys, kind="stable"))
+
+
+def test_device_time_per_kernel(ctx):
+    """profile_begin/end: one entry per pipeline label with its pass count (what bench_render.py
+    --gpu-times prints); nothing without the timestamp-query feature or after the end."""
+    from r360gpu.render.sort import sort_pairs
+
+    fresh = GpuContext(ctx.device)
+    assert fresh.profile_end() == {}
+    keys = np.random.default_rng(6).integers(0, 2**32, 5000, dtype=np.uint64).astype(np.uint32)
+    if "timestamp-query" in fresh.features:
+        assert fresh.profile_begin()
+        sort_pairs(fresh, keys, bits=16, variant="blocks")
+        times = fresh.profile_end()
+        assert times["radix_sort_blocks:histogram"][0] == 2 and times["radix_sort_blocks:scatter"][0] == 2
+        assert all(secs >= 0 for _, secs in times.values())
+        sort_pairs(fresh, keys, bits=16, variant="blocks")  # after the end: untimed
+        assert fresh.profile_end() == {}
+    fresh.features = fresh.features - {"timestamp-query"}
+    assert not fresh.profile_begin() and fresh.profile_end() == {}

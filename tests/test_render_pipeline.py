@@ -13,16 +13,20 @@ from r360gpu.io.camera import Camera
 from r360gpu.io.gaussians import Gaussians, random_gaussians
 from r360gpu.render import NO_COVERAGE_ALPHA, Render, Renderer, render, render_views
 from r360gpu.render.conventions import NEAR_PLANE
+from r360gpu.render.sort import VARIANT_ENV
 
 RGB_TOL = 2e-3
 DEPTH_REL_TOL = 1e-3
 
 
-@pytest.fixture(autouse=True, params=["gpu", "cpu"])
+@pytest.fixture(autouse=True, params=["gpu-serial", "gpu-blocks", "cpu"])
 def sort_backend(request, monkeypatch):
-    """Every test here runs with the depth and tile sorts in WGSL and on the host
-    (the default on CPU adapters; GpuContext.kernel_backend)."""
-    monkeypatch.setenv("R360GPU_SORT", request.param)
+    """Every test here runs with the depth and tile sorts in WGSL, with either radix sort
+    variant (render.sort.VARIANTS: serial for CPU adapters, blocks for GPUs), and on the
+    host (the default on CPU adapters; GpuContext.kernel_backend)."""
+    backend, _, variant = request.param.partition("-")
+    monkeypatch.setenv("R360GPU_SORT", backend)
+    monkeypatch.setenv(VARIANT_ENV, variant or "serial")
     return request.param
 
 
@@ -167,6 +171,33 @@ def test_small_limits_everywhere(small_ctx):
     compare(render(g, cam, ctx=small_ctx), render_oracle.render(g, cam))
 
 
+@pytest.mark.parametrize("where", ["gpu", "cpu"])
+@pytest.mark.parametrize("size", [(67, 45), (64, 48), (1, 1)])
+def test_numpy_readback_is_bit_exact(ctx, small_ctx, size, where, monkeypatch):
+    """DeviceRender.to_numpy: colour interleaved on the device or on the host (the default on
+    CPU adapters, and wherever the interleaved image exceeds a binding: small_ctx) gives every
+    plane's bits, NaN payloads, infinities, -0 and subnormals included; the planes' padding is
+    not read."""
+    monkeypatch.setenv("R360GPU_RENDER_INTERLEAVE", where)
+    from r360gpu.render import DeviceRender
+    from r360gpu.render.rasterize import PLANES, plane_stride
+
+    w, h = size
+    stride = plane_stride(w, h)
+    rng = np.random.default_rng(w * h)
+    words = rng.integers(0, 2**32, (len(PLANES), stride), dtype=np.uint64).astype(np.uint32)
+    special = np.array([0x7FC00001, 0xFFF00000, 0x7F800000, 0x80000000, 0x00000001, 0x7FBFFFFF], np.uint32)
+    words[:, : min(special.size, w * h)] = special[: w * h]
+    for c in (ctx, small_ctx):
+        dev = DeviceRender(buffer=c.buffer(words.reshape(-1)), width=w, height=h, plane_stride=stride)
+        got = dev.to_numpy(c)
+        planes = {name: words[i, : w * h].reshape(h, w) for i, name in enumerate(PLANES)}
+        np.testing.assert_array_equal(got.rgb.view(np.uint32), np.stack([planes[k] for k in "rgb"], axis=-1))
+        for name in ("alpha", "depth", "median_depth"):
+            np.testing.assert_array_equal(getattr(got, name).view(np.uint32), planes[name])
+            assert getattr(got, name).shape == (h, w) and getattr(got, name).dtype == np.float32
+
+
 def test_render_views_and_device_output(ctx):
     g = random_gaussians(500, sh_degree=2, seed=11)
     cams = [camera(64, 48, z=3.0), look_at([2.0, 0.5, -2.0], [0, 0, 0], 67, 45, 50.0), camera(64, 48, z=2.0)]
@@ -249,8 +280,8 @@ def test_4096_square(ctx):
 
 
 def test_sort_backends_give_the_same_image(ctx, monkeypatch):
-    """Host and WGSL sorts: bit-equal images, with depth ties (equal z, so order by index
-    decides), culled Gaussians and several key windows."""
+    """Host and WGSL sorts (both radix variants): bit-equal images, with depth ties (equal z,
+    so order by index decides), culled Gaussians and several key windows."""
     rng = np.random.default_rng(21)
     g = random_gaussians(1000, sh_degree=2, seed=21)
     means = g.means.copy()
@@ -260,11 +291,13 @@ def test_sort_backends_give_the_same_image(ctx, monkeypatch):
     cam = camera(67, 45, z=4.0)
     small = GpuContext(ctx.device, limit_binding_bytes=16384)
     got = {}
-    for backend in ("gpu", "cpu"):
-        monkeypatch.setenv("R360GPU_SORT", backend)
+    for backend in ("gpu-serial", "gpu-blocks", "cpu"):
+        monkeypatch.setenv("R360GPU_SORT", backend.split("-")[0])
+        monkeypatch.setenv(VARIANT_ENV, backend.split("-")[-1] if "-" in backend else "serial")
         renderer = Renderer(g, ctx=small)
         got[backend] = renderer.render(cam)
         assert renderer.stats.windows > 1
         renderer.release()
     for key in ("rgb", "alpha", "depth", "median_depth"):
-        np.testing.assert_array_equal(getattr(got["cpu"], key), getattr(got["gpu"], key))
+        np.testing.assert_array_equal(getattr(got["cpu"], key), getattr(got["gpu-serial"], key))
+        np.testing.assert_array_equal(getattr(got["cpu"], key), getattr(got["gpu-blocks"], key))

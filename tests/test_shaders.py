@@ -11,7 +11,8 @@ from r360gpu.gpu.shaders import INCLUDE_ONLY, available_shaders, load_shader_sou
 from r360gpu.gpu.uniforms import SCALARS, pack_words, struct_fields
 from r360gpu.render import conventions, shader_pipelines as kernels
 
-RENDER_SHADERS = ("render_project", "render_bin", "render_ranges", "render_rasterize", "prefix_sum", "radix_sort")
+RENDER_SHADERS = ("render_project", "render_bin", "render_ranges", "render_rasterize", "render_interleave",
+                  "prefix_sum", "radix_sort", "radix_sort_blocks")
 _COMMENT = re.compile(r"//[^\n]*")
 _OVERRIDE = re.compile(r"\boverride\s+(\w+)\s*:\s*\w+\s*(?:=\s*([^;]+))?;")
 _CONST = re.compile(r"\bconst\s+(\w+)\s*:")

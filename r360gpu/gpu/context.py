@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -34,6 +35,7 @@ UNIFORM = 0x40
 COPY_SRC = 0x04
 COPY_DST = 0x08
 MAP_READ = 0x01
+QUERY_RESOLVE = 0x200
 
 _WANTED_LIMITS = (
     "max-storage-buffer-binding-size",
@@ -46,6 +48,7 @@ _WANTED_LIMITS = (
 )
 _OPTIONAL_FEATURES = ("subgroup", "timestamp-query", "shader-f16")
 _STAGED_READ_BYTES = 256 * 1024  # reads this large use the reusable staging buffer
+_UNIFORMS_KEPT = 512  # distinct uniform buffers a context keeps for reuse
 
 
 @dataclass(frozen=True)
@@ -99,6 +102,8 @@ class GpuContext:
         self._pipelines: dict[tuple, Any] = {}
         self._scratch: dict = {}
         self._staging = None
+        self._uniforms: OrderedDict[bytes, Any] = OrderedDict()
+        self._profile: dict | None = None
         self._lock = threading.Lock()
 
     # -- construction -----------------------------------------------------
@@ -202,20 +207,31 @@ class GpuContext:
         """
         data = np.ascontiguousarray(data)
         nbytes = max(4, int(math.ceil(data.nbytes / 4) * 4))
-        with self._lock:
-            buf = self._scratch.get(key)
-            if buf is None or buf.size != nbytes:
-                buf = self.device.create_buffer(label=str(key), size=nbytes, usage=STORAGE | COPY_SRC | COPY_DST)
-                self._scratch[key] = buf
+        buf = self.reusable(key, nbytes, exact=True)
         if data.nbytes % 4:
             data = np.concatenate([data.view(np.uint8).reshape(-1), np.zeros(-data.nbytes % 4, np.uint8)])
         self.queue.write_buffer(buf, 0, data)
+        return buf
+
+    def reusable(self, key, nbytes: int, exact: bool = False):
+        """A storage buffer kept for ``key`` across calls: at least ``nbytes`` bytes (``exact``:
+        exactly), reallocated only when that does not hold; contents undefined."""
+        nbytes = max(4, int(math.ceil(int(nbytes) / 4) * 4))
+        with self._lock:
+            buf = self._scratch.get(key)
+            if buf is None or (buf.size != nbytes if exact else buf.size < nbytes):
+                buf = self.device.create_buffer(label=str(key), size=nbytes, usage=STORAGE | COPY_SRC | COPY_DST)
+                self._scratch[key] = buf
         return buf
 
     def uniform(self, *values, label: str = "params"):
         """A uniform buffer from 32-bit scalars: ints become u32/i32, floats f32.
 
         The WGSL struct must list the fields in the same order, all 32-bit.
+        Nothing writes a uniform buffer after this, so equal contents share
+        one buffer (the last ``_UNIFORMS_KEPT`` distinct ones are kept): the
+        renderer's dispatches of one view repeat in the next, and creating a
+        buffer was most of the host's cost of recording a dispatch.
         """
         words = np.zeros(max(4, int(math.ceil(len(values) / 4) * 4)), dtype=np.uint32)
         for i, v in enumerate(values):
@@ -223,7 +239,18 @@ class GpuContext:
                 words[i] = np.float32(v).view(np.uint32)
             else:
                 words[i] = np.int64(v).astype(np.uint32) if int(v) < 0 else np.uint32(int(v))
-        return self.buffer(words, usage=UNIFORM | COPY_DST, label=label)
+        key = words.tobytes()
+        with self._lock:
+            buf = self._uniforms.get(key)
+            if buf is not None:
+                self._uniforms.move_to_end(key)
+                return buf
+        buf = self.buffer(words, usage=UNIFORM | COPY_DST, label=label)
+        with self._lock:
+            self._uniforms[key] = buf
+            while len(self._uniforms) > _UNIFORMS_KEPT:
+                self._uniforms.popitem(last=False)
+        return buf
 
     def write(self, buffer, data: np.ndarray, offset: int = 0) -> None:
         self.queue.write_buffer(buffer, offset, np.ascontiguousarray(data))
@@ -300,11 +327,54 @@ class GpuContext:
         if max(groups) > self.max_workgroups:
             raise ValueError(f"dispatch {groups} exceeds {self.max_workgroups} workgroups per dimension")
         bg = self.bind_group(pipeline, resources)
-        cp = encoder.begin_compute_pass()
+        prof = self._profile
+        if prof is not None and len(prof["labels"]) < prof["capacity"]:
+            i = len(prof["labels"])
+            prof["labels"].append(getattr(pipeline, "label", "") or "unlabelled")
+            cp = encoder.begin_compute_pass(timestamp_writes={
+                "query_set": prof["set"], "beginning_of_pass_write_index": 2 * i, "end_of_pass_write_index": 2 * i + 1})
+        else:
+            cp = encoder.begin_compute_pass()
         cp.set_pipeline(pipeline)
         cp.set_bind_group(0, bg)
         cp.dispatch_workgroups(*groups)
         cp.end()
+
+    # -- device time per kernel (benchmarks) ---------------------------
+    def profile_begin(self, capacity: int = 2048) -> bool:
+        """Time every compute pass :meth:`dispatch` records from now on the device (timestamp
+        queries; the first ``capacity`` passes: wgpu allows 4096 queries, two per pass, per set).
+        False (and nothing timed) when the device lacks the ``timestamp-query`` feature."""
+        if "timestamp-query" not in self.features:
+            return False
+        qs = self.device.create_query_set(type="timestamp", count=2 * capacity)
+        self._profile = {"set": qs, "labels": [], "capacity": capacity}
+        return True
+
+    def profile_end(self) -> dict[str, tuple[int, float]]:
+        """Stop timing; {pipeline label: (passes, device seconds)} since :meth:`profile_begin`.
+
+        Waits for the device.  Seconds are the timestamps' difference read as nanoseconds
+        (WebGPU's unit; wgpu passes the Vulkan ticks on, which are nanoseconds where the
+        driver's timestamp period is 1, as on NVIDIA and lavapipe).
+        """
+        prof, self._profile = self._profile, None
+        if not prof:
+            return {}
+        out: dict[str, tuple[int, float]] = {}
+        n = 2 * len(prof["labels"])
+        if n:
+            buf = self.device.create_buffer(label="r360gpu-timestamps", size=n * 8, usage=QUERY_RESOLVE | COPY_SRC)
+            enc = self.encoder()
+            enc.resolve_query_set(prof["set"], 0, n, buf, 0)
+            self.submit(enc)
+            ticks = self.read(buf, np.uint64, n).reshape(-1, 2).astype(np.int64)
+            buf.destroy()
+            for label, (a, b) in zip(prof["labels"], ticks):
+                count, secs = out.get(label, (0, 0.0))
+                out[label] = (count + 1, secs + max(0, int(b - a)) * 1e-9)
+        prof["set"].destroy()
+        return out
 
     def submit(self, encoder) -> None:
         self.queue.submit([encoder.finish()])

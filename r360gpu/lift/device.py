@@ -77,8 +77,9 @@ class MaskLifter(Renderer):
                                  f"a {width}x{height} float32 mask needs {width * height * 4}")
             buf = mask
         self._mask = BufferRange(buf, 0, max(4, width * height * 4))
-        proj, order, row_counts, gx, t0 = self._prepare(cam)
-        self._render_rows(proj, order, row_counts, cam, gx, 0, tile_grid(width, height)[1], buf, width * height, t0)
+        proj, order, row_counts, gx, t0, counted = self._prepare(cam, whole=True)
+        self._render_rows(proj, order, row_counts, cam, gx, 0, tile_grid(width, height)[1], buf, width * height, t0,
+                          counted)
         self.views += 1
 
     def _record_tiles(self, enc, *, proj, ranges, vals, num_keys: int, image, stride: int, row_base: int,

@@ -33,7 +33,8 @@ class Projected:
 
     pos_op (u, v, z, opacity) f32x4; conic (a, b, c, 0) f32x4; rgb (r, g, b, 0)
     f32x4; rect (x0, y0, x1, y1) u32x4 tile rectangle; depth_key u32 (float bits
-    of z, 0xffffffff if culled); idx u32 (0..N-1); row_counts u32 per tile row.
+    of z, 0xffffffff if culled); idx u32 (0..N-1); row_counts u32 per tile row
+    (the buffer holds one more u32, free for the caller).
     """
 
     pos_op: object
@@ -89,7 +90,7 @@ def project(ctx: GpuContext, enc, scene: DeviceScene, cam: dict, tiles: tuple[in
         rect=scratch.get("proj.rect", n * 16),
         depth_key=scratch.get("proj.depth_key", n * 4),
         idx=scratch.get("proj.idx", n * 4),
-        row_counts=scratch.get("proj.row_counts", gy * 4),
+        row_counts=scratch.get("proj.row_counts", (gy + 1) * 4),
     )
     enc.clear_buffer(out.row_counts, 0, out.row_counts.size)
     R, t = cam["R"], cam["t"]

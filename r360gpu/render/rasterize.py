@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..gpu.context import BufferRange, GpuContext
+from ..gpu.shaders import workgroup_threads
 from ..gpu.uniforms import uniform
 from .shader_pipelines import pipeline
 
@@ -55,3 +56,37 @@ def planes_to_numpy(ctx: GpuContext, image, width: int, height: int, stride: int
     stride = plane_stride(width, height) if stride is None else stride
     flat = ctx.read(image, np.float32, stride * len(PLANES)).reshape(len(PLANES), stride)[:, : width * height]
     return {name: flat[i].reshape(height, width) for i, name in enumerate(PLANES)}
+
+
+def image_to_numpy(ctx: GpuContext, image, width: int, height: int, stride: int) -> dict[str, np.ndarray]:
+    """The planes of a whole rendered image as numpy: "rgb" (height, width, 3) and
+    "alpha", "depth", "median_depth" (height, width), all float32, bit for bit.
+
+    On GPU adapters, when the interleaved colour fits one storage binding and one
+    dispatch, the colour planes are interleaved on the device
+    (``shaders/render_interleave.wgsl``) and read as they are, and the alpha, depth
+    and median planes come back in a second read whose array they are: every value
+    is copied once on the host.  Otherwise (and on CPU adapters, where the device is
+    the same CPU: ``GpuContext.kernel_backend("render_interleave")``) one read of all
+    six planes, the colour interleaved and the other planes copied out on the host.
+    """
+    pixels = width * height
+    wg = workgroup_threads("render_interleave")
+    if (ctx.kernel_backend("render_interleave") == "cpu" or 3 * pixels * 4 > ctx.max_binding_bytes
+            or pixels > wg * ctx.max_workgroups**2):
+        p = planes_to_numpy(ctx, image, width, height, stride)
+        return {"rgb": np.stack([p["r"], p["g"], p["b"]], axis=-1),
+                **{k: p[k].copy() for k in ("alpha", "depth", "median_depth")}}
+    first = PLANES.index("alpha")
+    out = ctx.reusable("render.interleaved", 3 * pixels * 4)
+    enc = ctx.encoder()
+    ctx.dispatch(enc, pipeline(ctx, "render_interleave"),
+                 [uniform(ctx, "render_interleave", n=pixels), *plane_windows(image, stride)[:first],
+                  BufferRange(out, 0, 3 * pixels * 4)],
+                 ctx.grid(-(-pixels // wg)))
+    ctx.submit(enc)
+    rgb = ctx.read(out, np.float32, 3 * pixels).reshape(height, width, 3)
+    rest = ctx.read(image, np.float32, (len(PLANES) - first) * stride, offset=first * stride * 4)
+    rest = rest.reshape(-1, stride)[:, :pixels]
+    return {"rgb": rgb, **{name: rest[i - first].reshape(height, width)
+                           for i, name in enumerate(PLANES) if i >= first}}

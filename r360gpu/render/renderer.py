@@ -1,8 +1,14 @@
 """The render pipeline: project -> depth sort -> bin -> tile sort -> ranges -> rasterise.
 
-Per view the host waits for the device after the projection and depth sort
-(to read the per-row key bounds that plan the key windows), after counting
-each window's keys (to size its sort), and when the image is read back.
+Per view the host waits for the device once before the tile sort: the
+projection, the depth sort and (when the whole image is rendered in one pass)
+the per-Gaussian key counts of the whole image go out in one submission, and
+one read returns the per-row key bounds (which plan the key windows) together
+with the image's exact key count (which sizes the tile sort).  Only when the
+keys need several windows (more than one storage binding of them) does each
+further window wait for its own count.  Reading the image back to numpy
+(rasterize.image_to_numpy: one read, or two on GPU adapters) is the only other
+wait (none for :meth:`Renderer.render_device`).
 """
 from __future__ import annotations
 
@@ -19,7 +25,7 @@ from ..gpu.shaders import workgroup_threads
 from .binning import TileWindow, plan_windows, record_counts, record_emit, record_ranges
 from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA, TILE, RenderOptions
 from .project import WG as PROJECT_WG, Projected, camera_arrays, project, tile_grid
-from .rasterize import PLANES, plane_stride, planes_to_numpy, record_rasterize
+from .rasterize import PLANES, image_to_numpy, plane_stride, planes_to_numpy, record_rasterize
 from .scene import DeviceScene
 from .scratch import Scratch
 from .sort import host_sort, radix_sort
@@ -60,9 +66,7 @@ class DeviceRender:
     planes: tuple = PLANES
 
     def to_numpy(self, ctx: GpuContext) -> Render:
-        p = planes_to_numpy(ctx, self.buffer, self.width, self.height)
-        rgb = np.stack([p["r"], p["g"], p["b"]], axis=-1)
-        return Render(rgb=rgb, depth=p["depth"].copy(), median_depth=p["median_depth"].copy(), alpha=p["alpha"].copy())
+        return Render(**image_to_numpy(ctx, self.buffer, self.width, self.height, self.plane_stride))
 
 
 @dataclass
@@ -152,8 +156,8 @@ class Renderer:
         stride = plane_stride(width, height)
         if image is None:
             image = self.ctx.buffer(stride * len(PLANES) * 4, label="render.image")
-        proj, order, row_counts, gx, t0 = self._prepare(cam)
-        self._render_rows(proj, order, row_counts, cam, gx, 0, len(row_counts), image, stride, t0)
+        proj, order, row_counts, gx, t0, counted = self._prepare(cam, whole=True)
+        self._render_rows(proj, order, row_counts, cam, gx, 0, len(row_counts), image, stride, t0, counted)
         return DeviceRender(buffer=image, width=width, height=height, plane_stride=stride)
 
     def band_rows(self, camera) -> int:
@@ -177,8 +181,15 @@ class Renderer:
                              f"{TILE}-pixel tiles ({width}x{TILE} pixels) exceeds a {per_plane}-byte storage binding")
         return rows
 
-    def _prepare(self, cam: dict):
-        """Project and depth-sort every Gaussian for ``cam``; returns (proj, order, row_counts, tiles_x, t0)."""
+    def _prepare(self, cam: dict, whole: bool):
+        """Project and depth-sort every Gaussian for ``cam``.
+
+        ``whole``: the image is rendered in one pass, so the key counts of
+        the window of all its tiles are recorded in the same submission and
+        read with the row bounds.  Returns (proj, order, row_counts, tiles_x,
+        t0, counted), ``counted`` being that window with its counts
+        (:meth:`_render_window`'s ``counted``) or None.
+        """
         ctx, scratch, n = self.ctx, self.scratch, self.scene.n
         gx, gy = tile_grid(cam["width"], cam["height"])
         self.stats = RenderStats()
@@ -186,22 +197,35 @@ class Renderer:
 
         enc = ctx.encoder()
         proj = project(ctx, enc, self.scene, cam, (gx, gy), self.near, scratch, self.options.antialiased)
-        ctx.submit(enc)
-        t0 = self._mark("project", t0, proj.row_counts)
-
+        if self.timed or self._host_sort:
+            ctx.submit(enc)
+            t0 = self._mark("project", t0, proj.row_counts)
+            enc = ctx.encoder()
         if self._host_sort:
             _, order = host_sort(ctx, proj.depth_key, proj.idx, n, DEPTH_BITS)
         else:
-            enc = ctx.encoder()
             _, order = radix_sort(ctx, enc, proj.depth_key, proj.idx, n, DEPTH_BITS, scratch, "depth")
-            ctx.submit(enc)
-        row_counts = ctx.read(proj.row_counts, np.uint32, gy).astype(np.int64)
+        counted = None
+        if whole and self._one_dispatch(gx * gy):
+            window = TileWindow(0, gx * gy, None)
+            offsets, total = record_counts(ctx, enc, proj, order, n, gx, window, scratch)
+            # the total rides behind the row bounds, so one read returns both
+            enc.copy_buffer_to_buffer(total.buffer, total.offset, proj.row_counts, gy * 4, 4)
+            counted = (window, offsets)
+        ctx.submit(enc)
+        got = ctx.read(proj.row_counts, np.uint32, gy + 1).astype(np.int64)
+        row_counts = got[:gy]
+        if counted is not None:
+            counted = (TileWindow(0, gx * gy, int(got[gy])), counted[1])
         t0 = self._mark("sort", t0, proj.row_counts)
-        return proj, order, row_counts, gx, t0
+        return proj, order, row_counts, gx, t0, counted
 
     def _render_rows(self, proj, order, row_counts, cam, gx: int, row0: int, row1: int, image, stride: int,
-                     t0: float) -> None:
-        """Rasterise tile rows [row0, row1) into ``image`` (planes of ``stride`` floats from pixel row 16 row0)."""
+                     t0: float, counted=None) -> None:
+        """Rasterise tile rows [row0, row1) into ``image`` (planes of ``stride`` floats from pixel row 16 row0).
+
+        ``counted``: (window with its exact key count, offsets) from :meth:`_prepare`, used when the
+        plan is that one window."""
         pending = [TileWindow(w.begin + row0 * gx, w.end + row0 * gx, w.keys)
                    for w in plan_windows(row_counts[row0:row1], gx, self._key_capacity())]
         pending.reverse()
@@ -209,7 +233,9 @@ class Renderer:
             window = pending.pop()
             if window.end <= window.begin:
                 continue
-            window = self._render_window(proj, order, window, image, cam, gx, t0, stride, row0 * TILE)
+            use = counted if counted is not None and (window.begin, window.end) == (
+                counted[0].begin, counted[0].end) else None
+            window = self._render_window(proj, order, window, image, cam, gx, t0, stride, row0 * TILE, use)
             if isinstance(window, list):
                 pending.extend(reversed(window))
             t0 = time.perf_counter()
@@ -224,19 +250,28 @@ class Renderer:
         """Most keys one window may hold: one binding, and one dispatch of one thread per key."""
         return min(self.ctx.max_binding_bytes // 4, workgroup_threads("render_ranges") * self.ctx.max_workgroups**2)
 
+    def _one_dispatch(self, num_tiles: int) -> bool:
+        """Whether a window of ``num_tiles`` tiles fits one rasteriser dispatch (one workgroup per
+        tile) and its ranges (8 bytes per tile) one binding."""
+        return num_tiles <= self.ctx.max_workgroups**2 and num_tiles * 8 <= self.ctx.max_binding_bytes
+
     def _render_window(self, proj: Projected, order, window: TileWindow, image, cam: dict, gx: int, t0: float,
-                       stride: int, row_base: int):
-        """Bin, sort and rasterise one key window; returns halves if it had to be split."""
+                       stride: int, row_base: int, counted=None):
+        """Bin, sort and rasterise one key window; returns halves if it had to be split.
+
+        ``counted``: (this window with its exact key count, its offsets) when already counted."""
         ctx, scratch, n = self.ctx, self.scratch, self.scene.n
         num_tiles = window.end - window.begin
-        # One workgroup per tile in one dispatch; 8 bytes of ranges per tile in one binding.
-        if num_tiles > ctx.max_workgroups**2 or num_tiles * 8 > ctx.max_binding_bytes:
+        if not self._one_dispatch(num_tiles):
             mid = (window.begin + window.end) // 2
             return [TileWindow(window.begin, mid, None), TileWindow(mid, window.end, None)]
-        enc = ctx.encoder()
-        offsets, total = record_counts(ctx, enc, proj, order, n, gx, window, scratch)
-        ctx.submit(enc)
-        keys = int(ctx.read(total.buffer, np.uint32, 1, total.offset)[0])
+        if counted is not None:
+            offsets, keys = counted[1], counted[0].keys
+        else:
+            enc = ctx.encoder()
+            offsets, total = record_counts(ctx, enc, proj, order, n, gx, window, scratch)
+            ctx.submit(enc)
+            keys = int(ctx.read(total.buffer, np.uint32, 1, total.offset)[0])
         if keys > self._key_capacity():
             mid = (window.begin + window.end) // 2
             return [TileWindow(window.begin, mid, None), TileWindow(mid, window.end, None)]
@@ -299,7 +334,7 @@ class Renderer:
         out = _host_image(cam)
         stride = plane_stride(width, rows)
         image = self.scratch.get("render.image", stride * len(PLANES) * 4)
-        proj, order, row_counts, gx, t0 = self._prepare(cam)
+        proj, order, row_counts, gx, t0, _ = self._prepare(cam, whole=False)
         for y0 in range(0, height, rows):
             h = min(rows, height - y0)
             self._render_rows(proj, order, row_counts, cam, gx, y0 // TILE, -(-(y0 + h) // TILE), image, stride, t0)

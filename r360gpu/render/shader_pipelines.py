@@ -15,7 +15,7 @@ from .conventions import SHADER_CONSTANTS, TILE
 
 #: Threads per segment of workgroup_scan.wgsl's two-level scan, per shader: the square root of the
 #: workgroup size (WG) each shader states.
-SCAN_SEGMENTS = {name: math.isqrt(shader_constant(name, "WG")) for name in ("prefix_sum", "radix_sort")}
+SCAN_SEGMENTS = {name: math.isqrt(shader_constant(name, "WG")) for name in ("prefix_sum", "radix_sort", "radix_sort_blocks")}
 
 if TILE != 16:  # render_rasterize.wgsl's workgroup shape covers 16 x 16 pixels
     raise ImportError(f"conventions.TILE must be 16 for render_rasterize.wgsl, got {TILE}")

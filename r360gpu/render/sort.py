@@ -1,14 +1,28 @@
-"""Host side of ``shaders/radix_sort.wgsl``: a portable stable LSD radix sort.
+"""Host side of the portable stable LSD radix sort: two shader variants, one permutation.
 
-Sorts u32 keys with u32 values, 4 bits per pass.  Each pass is histogram ->
+Sorts u32 keys with u32 values by their low bits.  Each pass is histogram ->
 exclusive scan of the (digit, block) histogram -> stable scatter, all separate
 dispatches: no subgroup operations, no decoupled look-back, nothing that needs
 forward progress between workgroups.  Inputs larger than one storage binding
-are processed in windows of one binding each (see the shader's header).
+are processed in windows of one binding each (see the shaders' headers).
+
+Variants (:data:`VARIANTS`, chosen per adapter by :func:`sort_variant`):
+
+``serial`` (``shaders/radix_sort.wgsl``)
+    4-bit digits; each thread walks 32 consecutive elements with its counters
+    in registers.  Tuned for CPU implementations (lavapipe), where a thread is
+    a SIMD lane and barriers are coroutine switches.
+``blocks`` (``shaders/radix_sort_blocks.wgsl``)
+    8-bit digits (half the passes); coalesced loads, each block sorted in
+    workgroup memory, writes in runs of equal digits.  For GPUs.
+
+Both sort by the same :func:`sorted_bits` low bits, stably, so they apply the
+same permutation as :func:`host_argsort` (tests/test_render_sort.py).
 """
 from __future__ import annotations
 
 import math
+import os
 
 from ..gpu.context import BufferRange, GpuContext
 from ..gpu.shaders import shader_constants
@@ -18,65 +32,104 @@ from .scan import exclusive_scan
 from .scratch import Scratch
 
 _SIZES = shader_constants("radix_sort")  # the sizes radix_sort.wgsl states
-#: Elements per workgroup (WG threads x ITEMS items).
+#: Elements per workgroup of the serial variant (WG threads x ITEMS items).
 BLOCK = _SIZES["BLOCK"]
-#: Bits per pass, and buckets per digit.
+#: Bits per pass, and buckets per digit, of the serial variant.
 DIGIT_BITS = _SIZES["DIGIT_BITS"]
 RADIX = _SIZES["RADIX"]
+#: Shader of each variant.
+VARIANTS = {"serial": "radix_sort", "blocks": "radix_sort_blocks"}
+#: Environment variable that forces a variant (tests run both on lavapipe; benches compare them).
+VARIANT_ENV = "R360GPU_RADIX_VARIANT"
 
 
-def window_elements(ctx: GpuContext) -> int:
+def sort_variant(ctx: GpuContext) -> str:
+    """The radix sort variant for ``ctx``'s adapter: "serial" on CPU adapters, else "blocks".
+
+    ``R360GPU_RADIX_VARIANT`` (one of :data:`VARIANTS`) overrides.
+    """
+    forced = os.environ.get(VARIANT_ENV, "").strip()
+    if forced:
+        if forced not in VARIANTS:
+            raise ValueError(f"{VARIANT_ENV}={forced!r}: expected one of {', '.join(VARIANTS)}")
+        return forced
+    return "serial" if ctx.adapter_info.get("adapter_type") == "CPU" else "blocks"
+
+
+def sorted_bits(bits: int) -> int:
+    """Low key bits that order a sort asked for ``bits`` bits: whole 4-bit digits, at most 32."""
+    return min(32, 4 * math.ceil(max(0, bits) / 4))
+
+
+# The sizes each variant's shader states (read once: recording a pass must not re-read the files).
+_VARIANT_SIZES = {v: shader_constants(name) for v, name in VARIANTS.items()}
+
+
+def _block(variant: str) -> int:
+    return _VARIANT_SIZES[variant]["BLOCK"]
+
+
+def window_elements(ctx: GpuContext, variant: str = "serial") -> int:
     """Elements per input/output window: one storage binding, and few enough
     blocks for one dispatch."""
-    return min(ctx.max_binding_bytes // 4, BLOCK * ctx.max_workgroups**2)
+    return min(ctx.max_binding_bytes // 4, _block(variant) * ctx.max_workgroups**2)
 
 
-def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scratch, tag: str = "sort"):
+def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scratch, tag: str = "sort",
+               variant: str | None = None):
     """Record a stable sort of the first ``n`` (key, value) u32 pairs by the low ``bits`` key bits.
 
-    ``keys``/``vals`` are buffers of at least ``n`` u32 each; only the low
-    ``bits`` bits of the keys take part (higher bits must be zero for a
-    meaningful order, they are carried along).  Equal keys keep their input
-    order.  Returns ``(keys_sorted, vals_sorted)`` buffers: either the inputs
-    (overwritten) or scratch buffers named after ``tag``; the inputs are
-    clobbered in any case.  Valid once ``enc`` has been submitted.
+    ``keys``/``vals`` are buffers of at least ``n`` u32 each; the low
+    :func:`sorted_bits` bits of the keys take part (higher bits must be zero
+    for a meaningful order, they are carried along).  Equal keys keep their
+    input order.  ``variant``: one of :data:`VARIANTS` (default:
+    :func:`sort_variant`); every variant gives the same result.  Returns
+    ``(keys_sorted, vals_sorted)`` buffers: either the inputs (overwritten) or
+    scratch buffers named after ``tag``; the inputs are clobbered in any case.
+    Valid once ``enc`` has been submitted.
     """
-    passes = math.ceil(bits / DIGIT_BITS)
-    if n <= 1 or passes == 0:
+    variant = variant or sort_variant(ctx)
+    shader = VARIANTS[variant]
+    sizes = _VARIANT_SIZES[variant]
+    block, width, radix = sizes["BLOCK"], sizes["DIGIT_BITS"], sizes["RADIX"]
+    kept = sorted_bits(bits)
+    if n <= 1 or kept == 0:
         return keys, vals
-    per = window_elements(ctx)
+    per = window_elements(ctx, variant)
     # Blocks are numbered across windows in input order, so the histogram
     # scan orders them like the input (windows need not hold whole blocks).
     windows = []
     total_blocks = 0
     for start in range(0, n, per):
         count = min(per, n - start)
-        nb = -(-count // BLOCK)
+        nb = -(-count // block)
         windows.append((start, count, total_blocks, nb))
         total_blocks += nb
-    hist_bytes = RADIX * total_blocks * 4
+    hist_bytes = radix * total_blocks * 4
     if hist_bytes > ctx.max_binding_bytes:
         raise ValueError(f"radix sort of {n} elements needs a {hist_bytes}-byte histogram binding")
     hist = scratch.window(f"{tag}.hist", hist_bytes)
     src = (keys, vals)
     dst = (scratch.get(f"{tag}.keys", n * 4), scratch.get(f"{tag}.vals", n * 4))
-    pipe_hist = pipeline(ctx, "radix_sort", "histogram")
-    pipe_scatter = pipeline(ctx, "radix_sort", "scatter")
-    for p in range(passes):
-        shift = p * DIGIT_BITS
+    pipe_hist = pipeline(ctx, shader, "histogram")
+    pipe_scatter = pipeline(ctx, shader, "scatter")
+    for shift in range(0, kept, width):
+        # The blocks variant's last digit may be narrower (e.g. 12 bits = 8 + 4).
+        digit = {"digit_bits": min(width, kept - shift)}
         for start, count, block_base, nb in windows:
-            params = uniform(ctx, "radix_sort", n=count, shift=shift, block_base=block_base, total_blocks=total_blocks,
-                             out_base=0, out_count=0, num_blocks=nb)
+            params = uniform(ctx, shader, n=count, shift=shift, block_base=block_base, total_blocks=total_blocks,
+                             out_base=0, out_count=0, num_blocks=nb, **digit)
             ctx.dispatch(
                 enc, pipe_hist,
                 [params, BufferRange(src[0], start * 4, count * 4), None, None, None, hist],
                 ctx.grid(nb),
             )
-        exclusive_scan(ctx, enc, hist, RADIX * total_blocks, scratch, f"{tag}.hscan")
+        exclusive_scan(ctx, enc, hist, radix * total_blocks, scratch, f"{tag}.hscan")
         for start, count, block_base, nb in windows:
             for out_start, out_count, _, _ in windows:
-                params = uniform(ctx, "radix_sort", n=count, shift=shift, block_base=block_base,
-                                 total_blocks=total_blocks, out_base=out_start, out_count=out_count, num_blocks=nb)
+                params = uniform(ctx, shader, n=count, shift=shift, block_base=block_base,
+                                 total_blocks=total_blocks, out_base=out_start, out_count=out_count, num_blocks=nb,
+                                 **digit)
                 ctx.dispatch(
                     enc, pipe_scatter,
                     [
@@ -96,8 +149,8 @@ def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scr
 def host_argsort(keys, bits: int):
     """The permutation :func:`radix_sort` applies to ``keys`` (host uint32 array), computed in numpy.
 
-    :func:`radix_sort` makes ceil(bits / 4) stable 4-bit passes, i.e. a stable
-    sort by the low ``4 * ceil(bits / 4)`` key bits; so is this (numpy's
+    :func:`radix_sort` (either variant) is a stable sort by the low
+    :func:`sorted_bits` key bits, ``4 * ceil(bits / 4)``; so is this (numpy's
     stable sort, a radix sort for keys of 16 bits or fewer).  The renderer
     takes this path on CPU adapters, where one host sort costs less CPU than
     the shader's passes (:meth:`GpuContext.kernel_backend` "sort"); the
@@ -106,7 +159,7 @@ def host_argsort(keys, bits: int):
     import numpy as np
 
     keys = np.asarray(keys, dtype=np.uint32)
-    kept = min(32, DIGIT_BITS * math.ceil(bits / DIGIT_BITS))
+    kept = sorted_bits(bits)
     if kept <= 0 or keys.size <= 1:
         return np.arange(keys.size, dtype=np.intp)
     if kept < 32:
@@ -133,12 +186,13 @@ def host_sort(ctx: GpuContext, keys, vals, n: int, bits: int):
     return keys, vals
 
 
-def sort_pairs(ctx: GpuContext, keys, vals=None, bits: int = 32, scratch: Scratch | None = None):
+def sort_pairs(ctx: GpuContext, keys, vals=None, bits: int = 32, scratch: Scratch | None = None,
+               variant: str | None = None):
     """Sort host arrays on the device (convenience wrapper for tests and callers).
 
     keys: (n,) uint32; vals: (n,) uint32 or None (then ``arange(n)``).
     Returns ``(sorted_keys, sorted_vals)`` numpy uint32 arrays, stable by the
-    low ``bits`` bits of the keys.
+    low ``bits`` bits of the keys.  ``variant``: as :func:`radix_sort`.
     """
     import numpy as np
 
@@ -152,6 +206,6 @@ def sort_pairs(ctx: GpuContext, keys, vals=None, bits: int = 32, scratch: Scratc
     scratch = scratch or Scratch(ctx)
     kb, vb = ctx.buffer(keys), ctx.buffer(vals)
     enc = ctx.encoder()
-    ks, vs = radix_sort(ctx, enc, kb, vb, n, bits, scratch)
+    ks, vs = radix_sort(ctx, enc, kb, vb, n, bits, scratch, variant=variant)
     ctx.submit(enc)
     return ctx.read(ks, np.uint32, n), ctx.read(vs, np.uint32, n)
