@@ -82,17 +82,22 @@ def test_backside_film_is_ground_from_the_capture_and_target_from_behind():
     assert np.abs(sh_to_color(sh, slanted) - ground).max() < 0.03 * np.abs(own - ground).max()
 
 
-@pytest.fixture(scope="module")
-def scored(tmp_path_factory, ctx):
+def _score_with_orbit(tmp_path_factory, ctx, scene: str) -> dict:
+    """The synthetic ``scene`` (8 views, 240x180, detail 0.25), clean and backside, scored with --orbit 12."""
     from r360gpu.bundle import load_bundle
     from r360gpu.pipeline import EvaluateOptions, evaluate
     from r360gpu.synthetic import generate_benchmark
 
-    root = tmp_path_factory.mktemp("orbit")
-    b = generate_benchmark(root, seed=0, n_views=8, width=240, height=180, scenes=("garden",), detail=0.25,
+    root = tmp_path_factory.mktemp(f"orbit_{scene}")
+    b = generate_benchmark(root, seed=0, n_views=8, width=240, height=180, scenes=(scene,), detail=0.25,
                            methods=("clean", "backside"), ctx=ctx)[0]
     opts = EvaluateOptions(n_boot=200, n_perm=100, orbit=12, pictures=False, boundary=False)
     return evaluate(load_bundle(b), options=opts, ctx=ctx, progress=False)
+
+
+@pytest.fixture(scope="module")
+def scored(tmp_path_factory, ctx):
+    return _score_with_orbit(tmp_path_factory, ctx, "garden")
 
 
 def test_orbit_results_sit_beside_the_capture_axes(scored):
@@ -140,15 +145,7 @@ def test_renderings_only_methods_have_no_orbit(tmp_path, ctx):
 @pytest.fixture(scope="module")
 def open_space(tmp_path_factory, ctx):
     """The bench in open space (garden_open: no wall behind it), clean and backside, with an orbit."""
-    from r360gpu.bundle import load_bundle
-    from r360gpu.pipeline import EvaluateOptions, evaluate
-    from r360gpu.synthetic import generate_benchmark
-
-    root = tmp_path_factory.mktemp("orbit_open")
-    b = generate_benchmark(root, seed=0, n_views=8, width=240, height=180, scenes=("garden_open",), detail=0.25,
-                           methods=("clean", "backside"), ctx=ctx)[0]
-    opts = EvaluateOptions(n_boot=200, n_perm=100, orbit=12, pictures=False, boundary=False)
-    return evaluate(load_bundle(b), options=opts, ctx=ctx, progress=False)
+    return _score_with_orbit(tmp_path_factory, ctx, "garden_open")
 
 
 def _per_view(entry: dict, method: str, xis=(0.3,)) -> dict:

@@ -147,6 +147,11 @@ def test_pruning_the_floaters_raises_their_axes_and_is_never_ranked(floaters_run
     assert "floaters+pruned" not in "".join(ln for ln in lines if ln.startswith("  floaters+pruned"))
     tables = (root / "out0" / "tables.md").read_text(encoding="utf-8")
     assert "what-if" in tables and "+pruned RQS" in tables
+    # only Gaussians with a residual are pruned: clean's what-if removes no more than have one
+    clean_r = read_ply(root / "out0" / scene["residuals"]["clean"]["file"]).arrays["vertex"]["residual"]
+    clean = scene["pruned"]["clean+pruned"]
+    assert clean["removed"] == min(n_floaters, int(np.count_nonzero(clean_r > 0)))
+    assert ("note" in clean) == (clean["removed"] == 0) and ("axes" in clean) == (clean["removed"] > 0)
     # deterministic: a second run (its own output folder, nothing cached) gives the same document parts
     assert again["scenes"]["room"]["pruned"] == scene["pruned"]
     assert again["scenes"]["room"]["residuals"] == scene["residuals"]
@@ -166,3 +171,13 @@ def test_prune_count_of_a_count_and_a_fraction():
 
     assert prune_count(5, 100) == 5 and prune_count(500, 100) == 100
     assert prune_count(0.25, 100) == 25 and prune_count(0.001, 100) == 1
+
+
+def test_a_what_if_with_nothing_to_prune_is_a_note():
+    from r360gpu.pipeline.residuals import NOTHING_TO_PRUNE
+    from r360gpu.report.pruned_table import pruned_lines, pruned_table
+
+    doc = {"scenes": {"s": {"methods": {"m": {"axes": {"rqs": 0.9}}},
+                            "pruned": {"m+pruned": {"method": "m", "removed": 0, "of": 10, "note": NOTHING_TO_PRUNE}}}}}
+    assert pruned_lines(doc) == ["pruned residuals (what-if, never ranked):", f"  s / m+pruned: {NOTHING_TO_PRUNE}"]
+    assert pruned_table(doc) is None and pruned_lines({"scenes": {}}) == []

@@ -29,6 +29,8 @@ from .orbit import _gaussians, _is_scene
 TOP = 100
 #: The what-if entry of method M is named M + PRUNED.
 PRUNED = "+pruned"
+#: The what-if of a method none of whose Gaussians has a residual (no view flags evidence).
+NOTHING_TO_PRUNE = "not scored: no Gaussian has a residual (no view flags evidence)"
 
 
 def check_prune(q) -> None:
@@ -44,7 +46,7 @@ def check_prune(q) -> None:
 
 def prune_count(q, n: int) -> int:
     """Gaussians removed from a method of ``n``: ``q`` itself (a count) or round(q n) (a fraction),
-    at least 1 and at most n."""
+    at least 1 and at most n (and never more than have a residual, :func:`pruned_bundle`)."""
     k = int(q) if isinstance(q, Integral) else int(round(float(q) * n))
     return max(1, min(int(n), k))
 
@@ -117,7 +119,11 @@ def pruned_bundle(bundle, values: dict, q, out):
     for m, r in values.items():
         spec = bundle.methods[m]
         g, _ = _gaussians(spec)
-        k = prune_count(q, g.n)
+        # only Gaussians with some residual are residual Gaussians: none when no view flags evidence
+        k = min(prune_count(q, g.n), int(np.count_nonzero(np.asarray(r) > 0)))
+        if k == 0:
+            info[m + PRUNED] = {"method": m, "removed": 0, "of": int(g.n), "note": NOTHING_TO_PRUNE}
+            continue
         keep = np.ones(g.n, bool)
         keep[top_residuals(r, k)] = False
         pruned = g.subset(keep)
@@ -138,17 +144,21 @@ def pruned_bundle(bundle, values: dict, q, out):
 
 def score_pruned(bundle, values: dict, opts, open_run, evaluate_scene, out) -> dict:
     """The ``scenes.S.pruned`` entry: {METHOD+pruned: {"method", "removed", "of", "q", "axes", "views"}},
-    each method re-scored without its top residuals at the capture views (never ranked).
+    each method re-scored without its top residuals at the capture views (never ranked); a method
+    with no residual Gaussian gets {"method", "removed": 0, "of", "q", "note"} and is not scored.
 
     open_run(bundle, opts) opens a SceneRun; evaluate_scene(run) scores it (the pipeline's own).
     """
     if not values:
         return {}
     b, info = pruned_bundle(bundle, values, opts.prune_residuals, out)
-    run = open_run(b, replace(opts, orbit=0, residuals=False, prune_residuals=None, controls=False))
-    try:
-        res = evaluate_scene(run)
-    finally:
-        run.release()
-    return {name: {**info[name], "q": opts.prune_residuals, "axes": res["methods"][name]["axes"],
-                   "views": res["methods"][name]["views"]} for name in b.methods}
+    out_entry = {name: {**i, "q": opts.prune_residuals} for name, i in info.items()}
+    if b.methods:
+        run = open_run(b, replace(opts, orbit=0, residuals=False, prune_residuals=None, controls=False))
+        try:
+            res = evaluate_scene(run)
+        finally:
+            run.release()
+        for name in b.methods:
+            out_entry[name].update(axes=res["methods"][name]["axes"], views=res["methods"][name]["views"])
+    return out_entry

@@ -26,7 +26,7 @@ def _pairs(results: dict):
     for s, e in results.get("scenes", {}).items():
         for name, p in (e.get("pruned") or {}).items():
             m = p.get("method")
-            if m in e.get("methods", {}):
+            if m in e.get("methods", {}) and "axes" in p:
                 yield s, m, e["methods"][m]["axes"], name, p
 
 
@@ -42,6 +42,8 @@ def pruned_table(results: dict) -> Table | None:
         return None
     notes.append(f"METHOD+pruned: the method scored again at the capture views without its top residual "
                  f"Gaussians (score --prune-residuals); a {WHAT_IF}: it enters no other table, aggregate or rank.")
+    for s, e in results.get("scenes", {}).items():
+        notes += [f"{s} / {name}: {p['note']}." for name, p in (e.get("pruned") or {}).items() if "note" in p]
     return Table(
         key="pruned",
         title="Methods without their top residual Gaussians (what-if).",
@@ -57,8 +59,8 @@ def pruned_lines(results: dict) -> list[str]:
     """Console lines: per scene and method, the axes with and without its top residuals."""
     lines = []
     for s, m, axes, name, p in _pairs(results):
-        if not lines:
-            lines.append(f"pruned residuals ({WHAT_IF}):")
         vals = "  ".join(f"{LABELS[a]} {_fmt(axes.get(a))} -> {_fmt(p['axes'].get(a))}" for a in COLUMNS)
         lines.append(f"  {s} / {name} ({p['removed']} of {p['of']} Gaussians removed): {vals}")
-    return lines
+    for s, e in results.get("scenes", {}).items():
+        lines += [f"  {s} / {name}: {p['note']}" for name, p in (e.get("pruned") or {}).items() if "note" in p]
+    return [f"pruned residuals ({WHAT_IF}):"] + lines if lines else []
