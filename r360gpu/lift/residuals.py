@@ -9,8 +9,9 @@ the space the object occupied, over its total weight in every scored view::
                   / sum over all views, all pixels of alpha T
 
 (0 where the Gaussian is never blended).  ``in_front[g, v]`` says the
-Gaussian lies in front of what pre has behind the object (pre without the
-target, rendered at v: :func:`depth_behind`): its centre's depth plus
+Gaussian lies in front of the surface behind the object (the reference scene
+rendered at v when there is one, the capture after the removal; else pre
+without the target: :func:`surface_depth`, :func:`depth_behind`): its centre's depth plus
 :data:`GATE_SIGMAS` standard deviations along the viewing ray is nearer than
 that surface at its centre's pixel.  Why: every view sees the hole's
 completion (the floor, the wall the object hid) only through M, exactly as it
@@ -64,9 +65,16 @@ BEHIND_ALPHA = 0.5
 
 
 def depth_behind(pre, target, cameras, *, ctx=None, options=None) -> list:
-    """[(H, W) float32] per camera: the median depth of ``pre`` (Gaussians) without ``target`` ((N,) bool).
+    """[(H, W) float32] per camera: :func:`surface_depth` of ``pre`` (Gaussians) without ``target``
+    ((N,) bool), what pre has behind the object."""
+    return surface_depth(pre.subset(~np.asarray(target, bool)), cameras, ctx=ctx, options=options)
 
-    Where that covers less than :data:`BEHIND_ALPHA` (a hole: nothing behind, or background the masks
+
+def surface_depth(gaussians, cameras, *, ctx=None, options=None) -> list:
+    """[(H, W) float32] per camera: the median depth of ``gaussians`` (a scene without the object: pre
+    without the target, or the reference).
+
+    Where that covers less than :data:`BEHIND_ALPHA` (a hole: nothing there, or background the masks
     lifted with the object because every view saw it only through M), the depth of the nearest pixel
     that has a surface, as a completion continues its surroundings; +inf when no pixel has one.
     """
@@ -74,7 +82,7 @@ def depth_behind(pre, target, cameras, *, ctx=None, options=None) -> list:
 
     from ..render import Renderer
 
-    r = Renderer(pre.subset(~np.asarray(target, bool)), ctx=ctx, options=options)
+    r = Renderer(gaussians, ctx=ctx, options=options)
     out = []
     try:
         for cam in cameras:

@@ -62,10 +62,15 @@ def _masks(bundle, cams) -> list:
 
 
 def _behind(bundle, cams, ctx, warn):
-    """(per-view depth of what pre has behind the target, or None, and how the residual was gated)."""
-    from ..lift.residuals import depth_behind
+    """(per-view depth of the surface behind the target, or None, and how the residual was gated):
+    the reference's when it is a splat scene (the capture after the removal shows exactly what the
+    object hid), else pre's without the lifted target."""
+    from ..lift.residuals import depth_behind, surface_depth
     from ..lift.resolve import scene_target
 
+    if bundle.reference is not None and _is_scene(bundle.reference):
+        g, options = _gaussians(bundle.reference)
+        return surface_depth(g, cams, ctx=ctx, options=options), "in front of the reference's surface"
     if not _is_scene(bundle.pre):
         return None, "none: pre is renderings only (M's share alone)"
     g, options = _gaussians(bundle.pre)
@@ -75,7 +80,8 @@ def _behind(bundle, cams, ctx, warn):
         if warn is not None:
             warn(f"residuals: {e.problem}; residuals are M's share alone")
         return None, f"none: {e.problem}"
-    return depth_behind(g, lifted.target, cams, ctx=ctx, options=options), "in front of pre's surface behind the target"
+    return (depth_behind(g, lifted.target, cams, ctx=ctx, options=options),
+            "in front of pre's surface behind the target")
 
 
 def scene_residuals(bundle, scene_res: dict, out, *, ctx=None, xis=(0.3,), warn=None) -> tuple[dict, dict]:
