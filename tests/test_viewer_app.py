@@ -372,3 +372,44 @@ def test_command_line_start(bundle, tmp_path):
     app.close()
     with pytest.raises(InputError, match="not an evaluation view"):
         open_viewer(p.parse_args([str(bundle.root), "--view", "nope"]), OffscreenRenderCanvas(size=(W, H)))
+
+
+def test_residual_highlight_toggles_with_one_key(bundle, ctx, renderers, tmp_path):
+    """Key O: the shown method drawn with its Gaussians coloured by the results file's residuals PLY;
+    again: its own colours.  A scene without residuals stays as it is, with a message."""
+    from r360gpu.io import load_gaussians
+    from r360gpu.lift.residuals import write_residual_ply
+    from r360gpu.viewer.residuals import highlight_colours, highlighted
+
+    g = load_gaussians(bundle.methods["floaters"].path)
+    r = np.zeros(g.n)
+    r[-(g.n // 10):] = np.linspace(0.2, 1.0, g.n // 10)  # the last tenth (the junk) carries the evidence
+    write_residual_ply(tmp_path / "residuals" / "tiny" / "floaters.ply", g, r)
+    doc = {"schema": "r360gpu.results/1", "probes": {"semantic": [], "structural": []},
+           "scenes": {"tiny": {"prompt": "ball", "methods": {},
+                               "residuals": {"floaters": {"file": "residuals/tiny/floaters.ply"}}}}}
+    (tmp_path / "results.json").write_text(json.dumps(doc))
+    res = load_results(tmp_path / "results.json", "tiny")
+    assert res.residuals == {"floaters": tmp_path / "residuals" / "tiny" / "floaters.ply"}
+    app, canvas, clock = make_app(bundle, ctx, tmp_path, results=res)
+    cam0 = bundle.cameras["view_00"]
+    app.key("4")  # floaters
+    plain = draw(canvas, clock)
+    assert np.array_equal(plain[..., :3], to8(renderers["floaters"].render(cam0).rgb))
+    app.key("o")
+    assert app.state.overlays.residuals
+    lit = draw(canvas, clock)
+    want = Renderer(highlighted(g, r.astype(np.float32)), ctx=ctx).render(cam0).rgb
+    assert np.array_equal(lit[..., :3], to8(want)) and not np.array_equal(lit, plain)
+    app.key("o")
+    assert np.array_equal(draw(canvas, clock), plain)
+    # pre has no residuals: toggling says so and draws pre as it is
+    app.key("1")
+    app.key("o")
+    assert any("no residuals for pre" in m for _, m in app.messages)
+    assert np.array_equal(draw(canvas, clock)[..., :3], to8(renderers["pre"].render(cam0).rgb))
+    app.close()
+    # the colours: residual 0 is the Gaussian's grey, 1 the brightest heat; in [0, 1] throughout
+    c = highlight_colours(np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.2, 0.4, 0.6]]), np.array([0.0, 1.0, np.nan]))
+    assert np.allclose(c[0], c[0][0]) and c[1][0] > 0.9 and c[1][2] < c[1][0] and np.allclose(c[2], c[2][0])
+    assert (c >= 0).all() and (c <= 1).all()

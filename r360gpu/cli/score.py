@@ -42,6 +42,10 @@ def add_scoring_options(p) -> None:
     g.add_argument("--residuals", action="store_true",
                    help="write residuals/SCENE/METHOD.ply: each splat method's Gaussians with a 'residual' "
                         "property (their weight in the target region of the views that flag evidence)")
+    g.add_argument("--prune-residuals", type=_prune_amount, default=None, metavar="Q",
+                   help="also score each splat method without its top residual Gaussians, as METHOD+pruned: "
+                        "Q a count (integer >= 1) or a fraction of the method's Gaussians (0 < Q < 1); a "
+                        "what-if shown beside the method, never ranked (implies --residuals)")
     g.add_argument("--no-boundary", action="store_true", help="skip the mask erosion/dilation sweep")
     g.add_argument("--no-pictures", action="store_true", help="skip per-view contact sheets")
     g.add_argument("--no-controls", action="store_true",
@@ -164,8 +168,23 @@ def options_from_args(args):
         seed=args.seed,
         antialiased=getattr(args, "antialiased", False),
         orbit=_orbit_count(getattr(args, "orbit", 0)),
-        residuals=getattr(args, "residuals", False),
+        residuals=getattr(args, "residuals", False) or getattr(args, "prune_residuals", None) is not None,
+        prune_residuals=getattr(args, "prune_residuals", None),
     )
+
+
+def _prune_amount(text: str):
+    """--prune-residuals Q: an integer count, or a fraction written with a point or an exponent."""
+    import argparse
+
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a count (integer >= 1) or a fraction in (0, 1), got {text!r}")
 
 
 def _orbit_count(n: int) -> int:

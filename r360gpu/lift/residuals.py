@@ -2,27 +2,37 @@
 
 For one edited scene (a splat method) and the views where an axis flags
 evidence (:func:`flagged_views`), a Gaussian's residual is its compositing
-weight inside the target region M of the flagged views over its total
-weight in every scored view::
+weight inside the target region M of the flagged views, where it stands in
+the space the object occupied, over its total weight in every scored view::
 
-    residual[g] = sum over flagged views, pixels in M of alpha T
+    residual[g] = sum over flagged views v of  in_front[g, v] * (sum over pixels in M of alpha T)
                   / sum over all views, all pixels of alpha T
 
-(0 where the Gaussian is never blended).  One lifting pass
-(:class:`~r360gpu.lift.device.MaskLifter`) with M in the flagged views and an
-empty mask in the others gives both sums.  A Gaussian that fills the target
-region exactly where the probes see the object has residual near 1; the
-background, seen mostly elsewhere, near 0.
+(0 where the Gaussian is never blended).  ``in_front[g, v]`` says the
+Gaussian lies in front of the surface behind the object (the reference scene
+rendered at v when there is one, the capture after the removal; else pre
+without the target: :func:`surface_depth`, :func:`depth_behind`): its centre's depth plus
+:data:`GATE_SIGMAS` standard deviations along the viewing ray is nearer than
+that surface at its centre's pixel.  Why: every view sees the hole's
+completion (the floor, the wall the object hid) only through M, exactly as it
+sees a remnant, so M alone ranks the completion with the residue; the
+completion lies on the surface behind the object, a remnant in front of it.
+Where pre has nothing behind (alpha < 0.5 there), or no depth behind is given,
+every Gaussian counts (the residual is then M's share alone).
+
+One lifting pass (:class:`~r360gpu.lift.device.MaskLifter`) per flagged view
+gives that view's weights; the others add to the totals only.  A Gaussian
+that fills the target region exactly where the probes see the object has
+residual near 1; the background, seen mostly elsewhere or behind, near 0.
 """
 from __future__ import annotations
-
-from ..protocol import AXES
 
 import os
 from pathlib import Path
 
 import numpy as np
 
+from ..protocol import AXES
 from .device import MaskLifter
 
 #: A view is evidence when its single-view s_sem, acc_depth or s_str falls below this.
@@ -46,26 +56,98 @@ def flagged_views(records, xis=(0.3,)) -> list[str]:
     return out
 
 
-def residuals(gaussians, cameras, masks, flagged, *, ctx=None, options=None) -> np.ndarray:
+#: A Gaussian whose centre lies within this many standard deviations (along the viewing ray) of the
+#: surface behind the object is part of that surface (3 sigma: 99.7% of a Gaussian's mass).
+GATE_SIGMAS = 3.0
+#: Where pre without the target covers a pixel less than this, nothing is behind the object there
+#: (its median depth, where the transmittance crosses one half, is undefined).
+BEHIND_ALPHA = 0.5
+
+
+def depth_behind(pre, target, cameras, *, ctx=None, options=None) -> list:
+    """[(H, W) float32] per camera: :func:`surface_depth` of ``pre`` (Gaussians) without ``target``
+    ((N,) bool), what pre has behind the object."""
+    return surface_depth(pre.subset(~np.asarray(target, bool)), cameras, ctx=ctx, options=options)
+
+
+def surface_depth(gaussians, cameras, *, ctx=None, options=None) -> list:
+    """[(H, W) float32] per camera: the median depth of ``gaussians`` (a scene without the object: pre
+    without the target, or the reference).
+
+    Where that covers less than :data:`BEHIND_ALPHA` (a hole: nothing there, or background the masks
+    lifted with the object because every view saw it only through M), the depth of the nearest pixel
+    that has a surface, as a completion continues its surroundings; +inf when no pixel has one.
+    """
+    from scipy import ndimage
+
+    from ..render import Renderer
+
+    r = Renderer(gaussians, ctx=ctx, options=options)
+    out = []
+    try:
+        for cam in cameras:
+            img = r.render(cam)
+            hole = ~((img.alpha >= BEHIND_ALPHA) & np.isfinite(img.median_depth))
+            depth = np.full(hole.shape, np.inf, np.float32)
+            if not hole.all():
+                near = ndimage.distance_transform_edt(hole, return_distances=False, return_indices=True)
+                depth = img.median_depth[near[0], near[1]].astype(np.float32)
+            out.append(depth)
+    finally:
+        r.release()
+    return out
+
+
+def in_front(gaussians, camera, behind: np.ndarray) -> np.ndarray:
+    """(N,) bool: each Gaussian's centre depth plus :data:`GATE_SIGMAS` standard deviations along the
+    ray from ``camera`` is nearer than ``behind`` (H, W) at its centre's pixel; True where the centre
+    falls outside the image or behind the camera (no surface to compare with)."""
+    from ..io.rotation import quat_to_rotmat
+
+    means = np.asarray(gaussians.means, np.float64)
+    uv, z = camera.project(means)
+    ray = means - camera.center
+    ray /= np.maximum(np.linalg.norm(ray, axis=1, keepdims=True), 1e-12)
+    rot = quat_to_rotmat(gaussians.quats)
+    # sigma along the ray: |S R^T d| (the covariance is R S^2 R^T)
+    sigma = np.linalg.norm(np.einsum("nji,nj->ni", rot, ray) * np.asarray(gaussians.scales, np.float64), axis=1)
+    h, w = behind.shape
+    inside = np.isfinite(uv).all(1)
+    inside[inside] = (uv[inside, 0] >= 0) & (uv[inside, 0] < w) & (uv[inside, 1] >= 0) & (uv[inside, 1] < h)
+    out = np.ones(len(means), bool)
+    px = np.floor(uv[inside]).astype(np.int64)
+    out[inside] = z[inside] + GATE_SIGMAS * sigma[inside] < behind[px[:, 1], px[:, 0]]
+    return out
+
+
+def residuals(gaussians, cameras, masks, flagged, *, behind=None, ctx=None, options=None) -> np.ndarray:
     """(N,) float64 residual of each of ``gaussians`` (N) (see the module docstring).
 
     cameras: the scored views' cameras; masks: their (H, W) bool target masks
     (or float32 wgpu buffers); flagged: the names (``camera.name``) of the
-    views that flag evidence.
+    views that flag evidence; behind: None, or per camera the (H, W) depth of
+    what pre has behind the object (:func:`depth_behind`; +inf where nothing).
     """
     flagged = set(flagged)
+    if behind is not None and len(behind) != len(cameras):
+        raise ValueError(f"behind has {len(behind)} depth maps for {len(cameras)} cameras")
+    gated = {k for k, cam in enumerate(cameras) if behind is not None and cam.name in flagged}
     lifter = MaskLifter(gaussians, ctx=ctx, options=options)
     try:
-        lifter.reset()
-        for cam, m in zip(cameras, masks):
-            if cam.name in flagged:
-                lifter.add_view(cam, m)
-            else:
-                lifter.add_view(cam, np.zeros((cam.height, cam.width), np.float32))
+        lifter.reset()  # the ungated views in one pass: unflagged ones add to the totals only
+        for k, (cam, m) in enumerate(zip(cameras, masks)):
+            if k not in gated:
+                lifter.add_view(cam, m if cam.name in flagged else np.zeros((cam.height, cam.width), np.float32))
         w_in, w_out = lifter.weights()
+        total = w_in + w_out
+        for k in sorted(gated):  # each view's weights alone, gated by the surface behind the object there
+            lifter.reset()
+            lifter.add_view(cameras[k], masks[k])
+            v_in, v_out = lifter.weights()
+            w_in = w_in + v_in * in_front(gaussians, cameras[k], np.asarray(behind[k]))
+            total = total + v_in + v_out
     finally:
         lifter.release()
-    total = w_in + w_out
     return np.divide(w_in, total, out=np.zeros_like(total), where=total > 0)
 
 

@@ -131,6 +131,11 @@ def _evaluate(loaded, opts, ctx, probes, cache, sink, out, progress, log, execut
         run.probe_selection = selection
         return run
 
+    def open_what_if(b, o) -> SceneRun:  # a scene seen elsewhere (orbit) or a method changed (pruned)
+        sem, stru, _ = scene_probes(b, probes[0], probes[1], compat=o.compat, defaults=probes[2])
+        return SceneRun(b, o, ctx, sem, stru, cache=cache, timer=timer)
+
+    quiet = PictureSink(None, False)  # the what-ifs have no contact sheets
     scenes, plots = _ScenesAhead(loaded, open_run), _PlotsAhead(enabled=out is not None)
     try:
         for i, bundle in enumerate(loaded):
@@ -145,18 +150,19 @@ def _evaluate(loaded, opts, ctx, probes, cache, sink, out, progress, log, execut
             if opts.orbit:  # --orbit N: the scene from all around, under scenes.S.orbit (pipeline.orbit)
                 from .orbit import score_orbit
 
-                def open_orbit(b, o):
-                    sem, stru, _ = scene_probes(b, probes[0], probes[1], compat=o.compat, defaults=probes[2])
-                    return SceneRun(b, o, ctx, sem, stru, cache=cache, timer=timer)
-
                 with warning_log.where(scene=bundle.name):
-                    scene_res["orbit"] = score_orbit(run.bundle, opts, open_orbit,
+                    scene_res["orbit"] = score_orbit(run.bundle, opts, open_what_if,
                                                      lambda r: evaluate_scene(r, cache, sink, progress), ctx=ctx,
                                                      warn=warning_log.warn)
-            if opts.residuals and out is not None:  # --residuals: the Gaussians behind the evidence
-                from .residuals import scene_residuals
+            if opts.residuals or opts.prune_residuals:  # the Gaussians behind the evidence (.residuals)
+                from .residuals import scene_residuals, score_pruned
 
-                scene_res["residuals"] = scene_residuals(run.bundle, scene_res, out, ctx=ctx, xis=opts.xis)
+                with warning_log.where(scene=bundle.name):
+                    scene_res["residuals"], values = scene_residuals(run.bundle, scene_res, out, ctx=ctx,
+                                                                     xis=opts.xis, warn=warning_log.warn)
+                    if opts.prune_residuals:  # the unranked what-if METHOD+pruned, under scenes.S.pruned
+                        scene_res["pruned"] = score_pruned(run.bundle, values, opts, open_what_if,
+                                                           lambda r: evaluate_scene(r, cache, quiet, progress), out)
             views_of[bundle.name] = {v: k for k, v in enumerate(run.views)}
             if opts.compat:
                 from ..aggregate.compat import apply_compat

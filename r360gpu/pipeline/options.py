@@ -49,6 +49,9 @@ class EvaluateOptions:
     antialiased: bool = False  # render every splat scene in the antialiased mode (score --antialiased)
     orbit: int = 0  # score --orbit N: N more cameras around the target, results under scenes.S.orbit (.orbit)
     residuals: bool = False  # score --residuals: residuals/SCENE/METHOD.ply per splat method (.residuals)
+    # score --prune-residuals Q: each splat method re-scored without its top-Q residual Gaussians, as an
+    # unranked METHOD+pruned under scenes.S.pruned (.residuals); implies residuals
+    prune_residuals: int | float | None = None
 
     def __post_init__(self):
         from ..metrics.compat import check_compat
@@ -76,6 +79,9 @@ class EvaluateOptions:
                                  ("fit_views", self.fit_views, 1), ("seed (--seed)", self.seed, 0)):
             if isinstance(value, bool) or not isinstance(value, Integral) or value < low:
                 raise InputError(f"{flag} must be an integer >= {low}, got {value!r}")
+        from .residuals import check_prune
+
+        check_prune(self.prune_residuals)
         if self.depth not in (None, "expected", "median"):
             raise InputError(f"depth (--depth) must be 'expected' or 'median', got {self.depth!r}")
         if self.views is not None:
@@ -92,7 +98,7 @@ class EvaluateOptions:
         per-view value.
         """
         d = asdict(self)  # the GhtParams becomes {"nu", "tau", "kappa", "omega"}
-        for k in ("pictures", "n_boot", "n_perm", "seed", "controls", "orbit", "residuals"):
+        for k in ("pictures", "n_boot", "n_perm", "seed", "controls", "orbit", "residuals", "prune_residuals"):
             d.pop(k)
         d["xis"] = [float(x) for x in self.xis]
         d["views"] = None if self.views is None else list(self.views)

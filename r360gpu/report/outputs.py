@@ -90,6 +90,9 @@ def summary_lines(results: dict) -> list[str]:
             where = "; ".join(f"{a} in {', '.join(s)}" for a, s in results["validity"].items() if s)
             lines.append(f"  ! axis not 'ok' (weak or blind probe) in some scene: {where}")
     lines += control_lines(results)
+    from .pruned_table import pruned_lines
+
+    lines += pruned_lines(results)  # score --prune-residuals: the unranked what-ifs beside their methods
     lines += expectation_lines(results)
     lines += no_depth_lines(results)
     t = results.get("timing") or {}

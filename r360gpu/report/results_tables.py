@@ -405,6 +405,11 @@ def build_results_tables(results: dict) -> tuple[list[Table], list[str]]:
     orbit = orbit_table(results)  # score --orbit N: capture vs orbit, never in the axes above
     if orbit is not None:
         tables.append(orbit)
+    from .pruned_table import pruned_table
+
+    pruned = pruned_table(results)  # score --prune-residuals Q: METHOD+pruned what-ifs, never ranked
+    if pruned is not None:
+        tables.append(pruned)
     for build, what in ((xi_table, "threshold (xi) sweep"), (boundary_table, "mask-boundary sweep")):
         t = build(results)
         if t is None:

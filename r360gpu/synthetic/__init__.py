@@ -10,7 +10,9 @@ known failure modes (:mod:`.methods`): ``clean``, ``floaters``,
 scene bundles (:mod:`.bundle`) that ``r360gpu score`` reads like real data.
 
 Scenes (:data:`SCENES`): ``room`` (a living room, prompt "sofa") and
-``garden`` (a walled patio on a lawn, prompt "bench").
+``garden`` (a walled patio on a lawn, prompt "bench"), the default set; and
+``garden_open`` (by name: the garden without the wall behind the bench, so
+an orbit sees the bench's far side).
 
 Public API::
 
@@ -18,7 +20,7 @@ Public API::
                        scenes=("room", "garden"), detail=1.0, methods=None,
                        camera_format="colmap", ctx=None, progress=False) -> list[Path]
     make_scene(name, *, seed=0, n_views=20, width=480, height=360, detail=1.0) -> SyntheticScene
-    make_room(rng, ...), make_garden(rng, ...)          one function per scene
+    make_room(rng, ...), make_garden(rng, ...), make_garden_open(rng, ...)   one function per scene
     make_method(scene, method, *, seed=0) -> Gaussians
     clean / floaters / recoloured / hole / over_removal (scene, rng) -> Gaussians
     target_masks(scene, *, ctx=None) -> {view: (H, W) bool}
@@ -32,7 +34,7 @@ from __future__ import annotations
 
 from .bundle import CAMERA_FORMATS, SCENES, generate_benchmark, make_method, make_scene, write_bundle
 from .cameras import Rig, orbit_cameras, view_kinds
-from .garden import make_garden
+from .garden import make_garden, make_garden_open
 from .masks import target_masks
 from .methods import DEFAULT_METHODS, METHODS, backside, clean, floaters, hole, over_removal, recoloured
 from .room import make_room
@@ -41,6 +43,6 @@ from .scene import SyntheticScene, hidden_background
 __all__ = [
     "CAMERA_FORMATS", "DEFAULT_METHODS", "METHODS", "backside", "SCENES", "Rig", "SyntheticScene",
     "generate_benchmark", "make_scene", "make_method", "write_bundle",
-    "make_room", "make_garden", "clean", "floaters", "recoloured", "hole", "over_removal",
+    "make_room", "make_garden", "make_garden_open", "clean", "floaters", "recoloured", "hole", "over_removal",
     "target_masks", "hidden_background", "orbit_cameras", "view_kinds",
 ]

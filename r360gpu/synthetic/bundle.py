@@ -35,14 +35,16 @@ from .. import __version__
 from ..errors import InputError
 from ..io import Gaussians, save_colmap, save_ply, save_transforms_json
 from ..util.atomic import write_bytes, write_text
-from .garden import make_garden
+from .garden import make_garden, make_garden_open
 from .masks import target_masks
 from .methods import DEFAULT_METHODS, EXPECTED, METHODS
 from .room import make_room
 from .scene import SyntheticScene
 
-#: Scene builders by name.
-SCENES: dict[str, Callable[..., SyntheticScene]] = {"room": make_room, "garden": make_garden}
+#: Scene builders by name (``garden_open``, the bench in open space, only by name: the default
+#: benchmark is room and garden).
+SCENES: dict[str, Callable[..., SyntheticScene]] = {"room": make_room, "garden": make_garden,
+                                                   "garden_open": make_garden_open}
 CAMERA_FORMATS = ("colmap", "transforms")
 #: Marker file of a synthetic bundle (a folder holding it may be overwritten).
 MARKER = "synthetic.json"

@@ -10,6 +10,11 @@ arc in front of the bench.
 
 The bench colour is drawn from a small palette by the seed; positions are
 jittered by a few centimetres.
+
+``garden_open`` (:func:`make_garden_open`) is the same garden without the
+patio wall behind the bench: the bench stands in open space, so cameras all
+around it see its far side, which the capture never faces (the proof that
+``score --orbit`` catches what the capture misses, the ``backside`` method).
 """
 from __future__ import annotations
 
@@ -50,8 +55,11 @@ def _tree(name: str, base, trunk_height: float, crown, rng: np.random.Generator,
 
 
 def make_garden(rng: np.random.Generator, *, n_views: int = 20, width: int = 480, height: int = 360,
-                detail: float = 1.0) -> SyntheticScene:
-    """Build the garden scene; ``detail`` scales the number of Gaussians (1.0: about 60k)."""
+                detail: float = 1.0, open_space: bool = False) -> SyntheticScene:
+    """Build the garden scene; ``detail`` scales the number of Gaussians (1.0: about 60k).
+
+    open_space: leave out the patio wall behind the bench (the ``garden_open`` scene).
+    """
     k = 1.0 / np.sqrt(detail)
     bench_colour = np.array(BENCH_COLOURS[int(rng.integers(len(BENCH_COLOURS)))])
     jx, jy = rng.uniform(-0.08, 0.08, 2)
@@ -104,10 +112,12 @@ def make_garden(rng: np.random.Generator, *, n_views: int = 20, width: int = 480
     (px0, px1), (py0, py1) = PATIO
     bg.append(surface("patio", (c[0] + px0, c[1] + py0, 0.012), (px1 - px0, 0, 0), (0, py1 - py0, 0), 0.045 * k,
                       tx.paving(rng), rng))
-    brick = tx.bricks(rng)
-    bg.append(box("garden-wall", (c[0], c[1] + 0.75, 0.6), (3.6, 0.24, 1.2), 0.035 * k, brick, rng, shell=True))
-    bg.append(box("garden-wall", (c[0], c[1] + 0.75, 1.225), (3.7, 0.3, 0.05), 0.03 * k,
-                  tx.flat((0.7, 0.68, 0.62), rng), rng, shell=True))
+    if not open_space:
+        brick = tx.bricks(rng)
+        bg.append(box("garden-wall", (c[0], c[1] + 0.75, 0.6), (3.6, 0.24, 1.2), 0.035 * k, brick, rng,
+                      shell=True))
+        bg.append(box("garden-wall", (c[0], c[1] + 0.75, 1.225), (3.7, 0.3, 0.05), 0.03 * k,
+                      tx.flat((0.7, 0.68, 0.62), rng), rng, shell=True))
     pot = tx.flat((0.66, 0.36, 0.22), rng, variation=0.05)
     for dx in (-1.07, 1.07):
         base = (c[0] + dx, c[1] + 0.05, 0.012)
@@ -121,5 +131,11 @@ def make_garden(rng: np.random.Generator, *, n_views: int = 20, width: int = 480
     neighbourhood = Solid((c[0], c[1], 0.7), (2.8, 1.8, 1.4))
     rig = Rig(target=(c[0], c[1], 0.45), front=-np.pi / 2, arc=np.deg2rad(120.0), radius=(2.5, 3.1),
               height=(1.3, 1.8))
-    return build_scene("garden", "bench", bg, target, solids, neighbourhood, rig, n_views=n_views, width=width,
-                       height=height, rng=rng)
+    return build_scene("garden_open" if open_space else "garden", "bench", bg, target, solids, neighbourhood, rig,
+                       n_views=n_views, width=width, height=height, rng=rng)
+
+
+def make_garden_open(rng: np.random.Generator, *, n_views: int = 20, width: int = 480, height: int = 360,
+                     detail: float = 1.0) -> SyntheticScene:
+    """The garden without the patio wall: the bench in open space (see the module docstring)."""
+    return make_garden(rng, n_views=n_views, width=width, height=height, detail=detail, open_space=True)

@@ -31,6 +31,7 @@ from .compose import Compositor
 from .frame import FrameLoop
 from .input import Input
 from .layers import SplatLayer, build_layers
+from .residuals import ResidualHighlight
 from .live import LiveMeter
 from .overlays import OverlayPass
 from .frame_pictures import Pictures
@@ -83,6 +84,7 @@ class ViewerApp:
         self.pictures = Pictures(self)
         self.meter = LiveMeter(self)
         self.target = SceneTarget(self)
+        self.residuals = ResidualHighlight(self)
         self.captures = Captures(self, self.capture_dir)
         self.loop = FrameLoop(self)
         self._configure_canvas()
@@ -235,4 +237,5 @@ class ViewerApp:
             self.captures.set_recording(False)
         for layer in self.layers.values():
             layer.release()
+        self.residuals.release()
         self.target.release()

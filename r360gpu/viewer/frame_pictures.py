@@ -93,6 +93,9 @@ class Pictures:
         images: dict[str, PlaneImage | None] = {}
         for name in self.involved():
             layer = app.layers[name]
+            if ov.residuals and name in s.shown():  # key O: the Gaussians coloured by their residual
+                layer = app.residuals.layer(name) or layer
+                layer.load()
             before = layer.renders_done
             images[name] = layer.image(cam, view)
             rendered += layer.renders_done - before

@@ -29,9 +29,15 @@ class Input:
         """Feed one key event through the state machine and carry out its actions."""
         app = self.app
         self.modifiers = tuple(modifiers)
+        was = app.state.overlays.residuals
         app.state, actions = handle_key(app.state, key, modifiers, down=down)
         for a in actions:
             self.apply(a)
+        if app.state.overlays.residuals and not was:  # key O: say when no shown scene has residuals
+            shown = app.state.shown()
+            if not any(app.residuals.available(n) for n in shown):
+                app.notify(f"no residuals for {', '.join(shown)}: score with --residuals and open the viewer "
+                           f"with --results (or open a residuals/SCENE/METHOD.ply as the method)")
         app.request_draw()
 
     def apply(self, action: Action) -> None:

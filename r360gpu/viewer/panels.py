@@ -216,7 +216,8 @@ class Panels:
         if not imgui.collapsing_header("Overlays", imgui.TreeNodeFlags_.default_open):
             return
         for attr, label in (("depth", "depth (Z)"), ("delta", "|dD| heat map (X)"), ("changed", "changed mask (V)"),
-                            ("outline", "target outline (B)"), ("probes", "probe masks (N)")):
+                            ("outline", "target outline (B)"), ("probes", "probe masks (N)"),
+                            ("residuals", "residual highlight (O)")):
             changed, v = imgui.checkbox(label, getattr(ov, attr))
             if changed:
                 app.set_state(app.state.with_overlays(**{attr: v}))

@@ -78,6 +78,7 @@ class SceneResults:
     methods: dict[str, MethodResults]
     probes: dict[str, list[dict]]
     prompt: str | None
+    residuals: dict = field(default_factory=dict)  # {method: residuals PLY path} (score --residuals)
 
     @property
     def probe_cache(self) -> Path:
@@ -138,6 +139,8 @@ def load_results(path, scene: str) -> SceneResults:
             views[r.view] = view_axes(r)
         methods[str(name)] = MethodResults(axes=dict(m.get("axes") or {}), views=views)
     probes = entry.get("probes") or doc.get("probes") or {}  # the scene's own (fitted there), else the run's
+    residuals = {str(m): path.parent / r["file"] for m, r in (entry.get("residuals") or {}).items()
+                 if isinstance(r, dict) and isinstance(r.get("file"), str)}
     return SceneResults(path=path, scene=scene, methods=methods,
                         probes={k: list(probes.get(k) or []) for k in ("semantic", "structural")},
-                        prompt=entry.get("prompt"))
+                        prompt=entry.get("prompt"), residuals=residuals)

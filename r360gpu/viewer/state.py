@@ -23,7 +23,7 @@ COMPARE_MODES = ("none", "side", "wipe")
 #: Colour maps of the depth and |dD| overlays (see :mod:`r360gpu.viewer.colormaps`).
 COLORMAPS = ("turbo", "viridis", "inferno", "gray")
 #: Overlay switches and the key toggling each.
-OVERLAY_KEYS = {"z": "depth", "x": "delta", "v": "changed", "b": "outline", "n": "probes"}
+OVERLAY_KEYS = {"z": "depth", "x": "delta", "v": "changed", "b": "outline", "n": "probes", "o": "residuals"}
 #: Movement keys -> (forward, right, up) unit steps.
 #: (Q closes the window, so down is C.)
 MOVE_KEYS = {"w": (1, 0, 0), "s": (-1, 0, 0), "d": (0, 1, 0), "a": (0, -1, 0), "e": (0, 0, 1), "c": (0, 0, -1)}
@@ -62,6 +62,8 @@ KEY_BINDINGS = (
     ("V", "overlay: changed mask (|dD| above the GHT threshold)"),
     ("B", "overlay: target mask outline (at evaluation views)"),
     ("N", "overlay: probe masks (when cached for the view)"),
+    ("O", "residual highlight: colour a method's Gaussians by their residual (score --residuals; "
+          "view --results, or a residuals PLY as the method)"),
     ("M", "next colour map"),
     ("[ / ]", "overlay opacity down / up"),
     ("P", "screenshot of the view (PNG); Shift + P: the whole window with the panels"),
@@ -101,6 +103,7 @@ class Overlays:
     changed: bool = False
     outline: bool = True
     probes: bool = False
+    residuals: bool = False  # the method's Gaussians coloured by their residual (viewer.residuals)
     colormap: str = "turbo"
     opacity: float = 0.6
     depth_auto: bool = True
