@@ -250,7 +250,7 @@ def test_interrupted_run_names_how_to_resume(tmp_path, capsys, monkeypatch):
     b = renders_bundle(tmp_path / "b")
     import importlib
 
-    pipeline_evaluate = importlib.import_module("r360gpu.pipeline.evaluate")  # the module, not the function
+    pipeline_evaluate = importlib.import_module("r360gpu.pipeline.schedule")  # where views are gathered
 
     def interrupt(*a, **k):
         raise KeyboardInterrupt
@@ -267,7 +267,7 @@ def test_ctrl_c_inside_an_extension_import_is_an_interrupt(tmp_path, capsys, mon
     b = renders_bundle(tmp_path / "b")
     import importlib
 
-    pipeline_evaluate = importlib.import_module("r360gpu.pipeline.evaluate")
+    pipeline_evaluate = importlib.import_module("r360gpu.pipeline.schedule")
 
     def extension_import(*a, **k):
         try:

@@ -170,7 +170,7 @@ def test_chunks_scored_from_pickled_inputs_give_the_runs_cells(tmp_path, ctx):
 
 
 def test_views_in_flight_shrink_for_large_images():
-    from r360gpu.pipeline.evaluate import LOOKAHEAD, MEMORY_BUDGET, _in_flight
+    from r360gpu.pipeline.schedule import LOOKAHEAD, MEMORY_BUDGET, _in_flight
 
     assert _in_flight(20 << 20) == (LOOKAHEAD, LOOKAHEAD + 1)  # 480x360, 7 sources
     assert _in_flight(MEMORY_BUDGET // 2) == (1, 1)
@@ -248,9 +248,8 @@ def _small_benchmark(root, ctx, scenes=("room",)):
 def test_splat_views_are_rendered_ahead_while_the_first_is_probed(tmp_path, ctx, monkeypatch):
     """With every source rendered on the GPU thread, a view's size is known once it is rendered:
     the next views are rendered while the host threads probe the first."""
+    import r360gpu.pipeline.schedule as ev
     import r360gpu.pipeline.stages as st
-
-    ev = importlib.import_module("r360gpu.pipeline.evaluate")  # (the package exports a function of that name)
 
     folder = _small_benchmark(tmp_path / "b", ctx)[0]
     rendered, waited = [], []
@@ -345,13 +344,12 @@ def test_a_scene_that_cannot_be_opened_ahead_fails_at_its_turn(tmp_path, ctx, mo
 
 
 def test_host_threads_scale_with_cores_and_the_variable_is_checked(monkeypatch):
-    import importlib
     import os
 
     import pytest
 
     from r360gpu.errors import InputError
-    ev = importlib.import_module("r360gpu.pipeline.evaluate")  # the package exports a function of that name
+    import r360gpu.pipeline.schedule as ev
 
     monkeypatch.delenv("R360GPU_HOST_THREADS", raising=False)
     for cores, want in ((None, 2), (1, 2), (2, 2), (4, 2), (6, 4), (16, ev.MAX_HOST_THREADS), (128, ev.MAX_HOST_THREADS)):

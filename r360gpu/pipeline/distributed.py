@@ -1,7 +1,7 @@
 """Scoring on a Ray cluster: the views of a scene cut into tasks, one wgpu device per worker.
 
 :func:`open_executor` gives the executor :func:`~.evaluate.evaluate` hands to
-:func:`~.evaluate.evaluate_scene`; its :meth:`RayExecutor.score_scene`
+:func:`~.schedule.evaluate_scene`; its :meth:`RayExecutor.score_scene`
 returns the cells of the views the view cache does not hold.  Per scene:
 
 * the driver opens the :class:`~.run.SceneRun` as a serial run does, so the

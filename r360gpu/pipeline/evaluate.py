@@ -1,9 +1,9 @@
 """evaluate(): scenes in, the results document out."""
 from __future__ import annotations
 
-import contextvars
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError
@@ -13,7 +13,7 @@ from .options import EvaluateOptions, default_probes
 from .picture_sink import PictureSink
 from .results_doc import ResultsDocument
 from .run import SceneRun, Timer
-from .stages import gather
+from .schedule import evaluate_scene, host_threads
 
 
 def evaluate(
@@ -60,25 +60,47 @@ def evaluate(
     # One collector from the first file read: warnings of loading (a COLMAP model's distortion,
     # a BOM in prompt.txt) reach results.json as the pipeline's do.
     with warning_log.collecting():
-        return _load_and_evaluate(bundles, out, semantic_probes, structural_probes, options, ctx, adapter, device,
-                                  force, progress, log, executor, ray_address, kept)
+        return _load_and_evaluate(bundles, _Call(
+            opts=options or EvaluateOptions(), ctx=ctx, probes=(semantic_probes, structural_probes, None), out=out,
+            progress=progress, log=log, executor=executor, kept=kept), adapter=adapter, device=device, force=force,
+            ray_address=ray_address)
 
 
-def _load_and_evaluate(bundles, out, semantic_probes, structural_probes, options, ctx, adapter, device, force,
-                       progress, log, executor, ray_address, kept) -> dict:
+@dataclass
+class _Call:
+    """What one evaluate() call runs with, from the caller's arguments to the opened context.
+
+    probes: (semantic, structural, defaults); a list given for an axis is used for
+    every scene, None lets each scene take its folder's probe outputs or ``defaults``.
+    """
+
+    opts: EvaluateOptions
+    ctx: object
+    probes: tuple
+    out: Path | None
+    progress: bool
+    log: object
+    executor: object = None
+    kept: object = None
+
+
+def _load_and_evaluate(bundles, call: _Call, *, adapter, device, force, ray_address) -> dict:
     from ..bundle import Bundle, load_bundle
     from ..gpu import get_context
 
-    opts = options or EvaluateOptions()
+    opts = call.opts
     opts._check()  # before any work, also when a field was changed after the options were built
     host_threads()  # R360GPU_HOST_THREADS too
-    if executor is not None or ray_address is not None:
+    log = call.log
+    if call.executor is not None or ray_address is not None:
         from .distributed import open_executor
 
-        executor = open_executor(executor, ray_address=ray_address, adapter=adapter, device=device, log=log)
-    ctx = ctx or get_context(adapter, device=device)
+        call.executor = open_executor(call.executor, ray_address=ray_address, adapter=adapter, device=device, log=log)
+    call.ctx = call.ctx or get_context(adapter, device=device)
+    semantic_probes, structural_probes, _ = call.probes
     # None: not given; each scene then takes its folder's probe outputs or the defaults (probes.registry.scene_probes)
     defaults = default_probes() if semantic_probes is None or structural_probes is None else None
+    call.probes = (semantic_probes, structural_probes, defaults)
     if isinstance(bundles, (str, Path, Bundle)):
         bundles = [bundles]
     sel = list(opts.views) if opts.views else None  # validated as `check --views` does
@@ -97,20 +119,22 @@ def _load_and_evaluate(bundles, out, semantic_probes, structural_probes, options
         raise InputError(f"two bundles share a scene name (names are compared ignoring case): {names}")
     for line in missing_methods(loaded):
         log(f"note: {line}")
-    out = Path(out) if out is not None else None
+    call.out = out = Path(call.out) if call.out is not None else None
     cache = RunCache(out, force=force)
     sink = PictureSink(out, opts.pictures, embed_cache=cache.embed)
     with warning_log.collecting():
         try:
-            return _evaluate(loaded, opts, ctx, (semantic_probes, structural_probes, defaults), cache, sink, out,
-                             progress, log, executor, kept)
+            return _evaluate(loaded, call, cache, sink)
         finally:
-            if kept is not None:
-                kept.clear()
+            if call.kept is not None:
+                call.kept.clear()
 
 
-def _evaluate(loaded, opts, ctx, probes, cache, sink, out, progress, log, executor=None, kept=None) -> dict:
+def _evaluate(loaded, call: _Call, cache: RunCache, sink: PictureSink) -> dict:
     from ..util.imports import ImportAhead
+
+    opts, ctx, probes, out, progress, log = call.opts, call.ctx, call.probes, call.out, call.progress, call.log
+    executor, kept = call.executor, call.kept
 
     # the cross-scene statistics (two scenes or more) use scipy.stats, first needed once every view is scored
     later = ImportAhead(*(["scipy.stats"] if len(loaded) >= 2 else []))
@@ -291,244 +315,3 @@ def missing_methods(bundles) -> list[str]:
             lines.append(f"scene {b.name} has no method {', '.join(gone)}; the cross-scene tables use the "
                          f"methods every scene has")
     return lines
-
-
-#: Views whose host-side work (reading, probes) may run ahead of the view being measured, at least.
-LOOKAHEAD = 2
-#: Threads for the host-side work at most; the GPU thread and the writer thread come on top.
-MAX_HOST_THREADS = 8
-
-
-def host_threads() -> int:
-    """Threads that read a view's files and run its probes, several views at once.
-
-    One per CPU core beyond the GPU and writer threads, between 2 and
-    :data:`MAX_HOST_THREADS`: the probes spend most of their time in OpenCV and
-    numpy, which release the GIL, so a many-core machine runs that many views'
-    probes at once (the built-in probes' Python parts still share one core's
-    worth of GIL).  ``R360GPU_HOST_THREADS`` sets the count (at least 1), e.g.
-    to compare counts in a benchmark.  Results do not depend on it: views are
-    measured and written in their order whatever finishes first.
-    """
-    import os
-
-    given = os.environ.get("R360GPU_HOST_THREADS", "").strip()
-    if given:
-        try:
-            n = int(given)
-        except ValueError:
-            n = 0
-        if n < 1:
-            raise InputError(f"R360GPU_HOST_THREADS must be a whole number >= 1, got {given!r}")
-        return n
-    return max(2, min(MAX_HOST_THREADS, (os.cpu_count() or 2) - 2))
-
-
-def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool, executor=None,
-                   rendered=None) -> dict:
-    """Every view of one scene (from the view cache where it has them); the scene's results entry.
-
-    rendered: called (once, on this thread) when the last view to score here is rendered.
-    """
-    from ..aggregate.results import method_axes
-    from ..aggregate.validity import scene_validity
-    from ..metrics.record import ViewRecord
-
-    bundle, opts = run.bundle, run.opts
-    view_cache, cells_of, todo = _cached_views(run, cache, sink)
-    if todo and run.fit_pending and run.fit():
-        # the fit record no longer holds: the key changes, so look the views up again
-        view_cache, cells_of, todo = _cached_views(run, cache, sink)
-    for v in cells_of:
-        warning_log.replay(next(iter(cells_of[v].values())).get("warnings"))
-        run.done(v)
-    if executor is not None and todo:
-        # The executor hook: the views the cache lacks are scored elsewhere (.distributed.RayExecutor),
-        # which stores their cells (and pictures) in the cache as they arrive.
-        cells_of.update(executor.score_scene(run, view_cache, sink, progress))
-        todo = []
-    done = f" ({len(cells_of)} cached)" if cells_of else ""
-    # The progress iterator reports an item once the next one is asked for: primed with the
-    # first view, advanced as each view is done.  score_views runs to its end (its writer
-    # thread is then closed, every picture written) before the scene is assembled.
-    ticks = iter(_progress(todo, f"scoring {bundle.name}{done}", progress))
-    next(ticks, None)
-    for v, cells in score_views(run, todo, sink, view_cache, rendered=rendered):
-        cells_of[v] = cells
-        next(ticks, None)
-    scored = [*bundle.methods, *run.controls.values()]
-    records: dict = {m: [] for m in scored}
-    boundaries: dict = {m: [] for m in scored}
-    pictures: dict = {m: {} for m in scored}
-    for v in run.views:
-        for m, cell in cells_of[v].items():
-            records[m].append(ViewRecord.from_dict(cell["record"]))
-            boundaries[m].append(cell.get("boundary"))
-            if cell.get("picture"):
-                pictures[m][v] = cell["picture"]
-    scene = {
-        "prompt": bundle.prompt,
-        "n_views": len(run.views),
-        "views": run.views,
-        "reference": bundle.reference is not None,
-        "structural_mode": run.mode,
-        "depth": run.depth_mode,
-        "sources": run.describe_sources(),
-        "methods": {},
-    }
-    if getattr(run, "frame_check", None):  # do pre's cameras see its splats (r360gpu.metrics.frame_check)
-        scene["frame_check"] = run.frame_check
-    if run.target_record is not None:  # [target]: which views' masks were given, which rendered
-        scene["target"] = run.target_record
-    if getattr(bundle, "expected", None):  # scene.toml [expected.METHOD]: known failures, checked by the report
-        scene["expected"] = bundle.expected
-    for m in bundle.methods:
-        axes = method_axes(records[m], xis=opts.xis, boundary=boundaries[m] if opts.boundary else None)
-        scene["methods"][m] = {"axes": axes, "views": [r.to_dict() for r in records[m]], "pictures": pictures[m]}
-    if run.controls:
-        scene["controls"] = {c: {"source": src, "axes": method_axes(records[src], xis=opts.xis),
-                                 "views": [r.to_dict() for r in records[src]]}
-                             for c, src in run.controls.items()}
-    scene["validity"], scene["validity_notes"], scene["detectability"] = scene_validity(scene, xi=0.3)
-    return scene
-
-
-def _cached_views(run: SceneRun, cache: RunCache, sink: PictureSink):
-    """(view cache, {view: cells} of the views it has, views to score)."""
-    if run.fingerprint is None:  # renders held on the device: what they hold is not known, nothing is cached
-        return None, {}, list(run.views)
-    view_cache = cache.views(run.bundle.name, {
-        "bundle": run.fingerprint, "options": run.opts.scoring_key(), "probes": run.probes_desc, "mode": run.mode,
-        "depth": run.depth_mode, "lpips": run.lpips.describe() if run.lpips else None})
-    cells_of, todo = {}, []
-    for v in run.views:
-        cells = view_cache.load_view(run.bundle.methods, v, pictures=sink.enabled) if view_cache else None
-        if cells is not None and run.controls:  # the controls' cells (no pictures) must be there too
-            ctl = view_cache.load_view(run.controls.values(), v, pictures=False)
-            cells = None if ctl is None else {**cells, **ctl}
-        if cells is None:
-            todo.append(v)
-        else:
-            cells_of[v] = cells
-    return view_cache, cells_of, todo
-
-
-def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rendered=None):
-    """Score ``views``, yielding (view, cells) in order, with the stages overlapped:
-
-    this (the GPU) thread renders on the device and measures; :func:`host_threads`
-    threads read renders, masks and run the probes, one view ahead per thread
-    (at least ``LOOKAHEAD``); :func:`writer_threads` writer threads write each
-    view's pictures and then its cache cells (so a cached cell always has its
-    picture).  Once the first view's
-    size is known (when it is rendered, or when its files are read), fewer
-    views are kept in flight when they would hold more than ``MEMORY_BUDGET``
-    bytes (large images: 4K and up).  ``rendered`` is called once the last
-    view is rendered.
-    """
-    from collections import deque
-    from concurrent.futures import ThreadPoolExecutor
-
-    from .stages import measure, on_host, picture_jobs, render_on_device, view_sources
-    from .writer import BackgroundWriter
-
-    if not views:
-        return
-    # files read by the host threads: a view's size is known once its first one is read
-    host_sources = any(on_host(source) for _, _, source in view_sources(run))
-    threads = host_threads()
-    host = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="r360-host")
-    writer = None
-    lookahead = 0  # until the first view's size is known
-    inflight: deque = deque()
-    ok = False
-    try:
-        pending = iter(views)
-        while True:
-            while len(inflight) <= lookahead:
-                v = next(pending, None)
-                if v is None:
-                    if rendered is not None:
-                        rendered, call = None, rendered
-                        call()
-                    break
-                with warning_log.where(view=v):
-                    data = render_on_device(run, v)
-                if writer is None and not host_sources:  # every image is here: its size is known now
-                    lookahead, bound = _in_flight(_view_bytes(data), threads)
-                    writer = BackgroundWriter(bound=bound, workers=writer_threads(threads))
-                # contextvars do not follow work into a pool: the run's warning log and the
-                # view's place in it go along explicitly
-                inflight.append((v, host.submit(contextvars.copy_context().run, _gather, run, data)))
-            if not inflight:
-                break
-            v, fut = inflight.popleft()
-            data = fut.result()
-            if writer is None:
-                lookahead, bound = _in_flight(_view_bytes(data), threads)
-                writer = BackgroundWriter(bound=bound, workers=writer_threads(threads))
-            with warning_log.where(view=v):
-                cells, geos = measure(run, data, sink)
-                jobs = picture_jobs(run, data, geos, cells) if sink.enabled else []
-            # a view's warnings go with its first cell (once: counts add up on replay)
-            next(iter(cells.values()))["warnings"] = warning_log.for_view(run.bundle.name, v)
-            writer.submit(contextvars.copy_context().run, _finish_view, run, sink, view_cache, v, cells, jobs)
-            run.done(v)
-            yield v, cells
-        ok = True
-    finally:
-        for _, fut in inflight:
-            fut.cancel()
-        host.shutdown(wait=True, cancel_futures=True)
-        if writer is not None:
-            writer.close(wait_errors=ok)
-
-
-#: Bytes of renders the overlapped schedule may hold beyond the view being measured.
-MEMORY_BUDGET = 2 << 30
-
-
-def _gather(run: SceneRun, data):
-    with warning_log.where(view=data.view):
-        return gather(run, data)
-
-
-def _view_bytes(data) -> int:
-    imgs = [*data.pres.values(), data.ref, *data.posts.values()]
-    return sum(getattr(a, "nbytes", 0) for im in imgs if im is not None for a in (im.rgb, im.depth, im.alpha))
-
-
-def _in_flight(view_bytes: int, threads: int = 1) -> tuple[int, int]:
-    """(views read ahead, views waiting for the writers) within MEMORY_BUDGET (at least 0 and 1).
-
-    Up to one view ahead per host thread (at least LOOKAHEAD), so every thread
-    has a view to work on, and a view waiting for each writer."""
-    ahead = max(LOOKAHEAD, threads)
-    slots = MEMORY_BUDGET // max(1, view_bytes)
-    lookahead = min(ahead, max(0, slots // 2))
-    return lookahead, min(max(LOOKAHEAD + 1, writer_threads(threads) + 1), max(1, slots - lookahead))
-
-
-def writer_threads(threads: int) -> int:
-    """Writer threads beside ``threads`` host threads: a contact sheet costs about a third of a view's
-    probes on one core, so one writer per two host threads (one on a 2-core machine)."""
-    return max(1, threads // 2)
-
-
-def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, cells: dict, jobs: list) -> None:
-    """Writer thread: the view's pictures, then its cache cells."""
-    import time
-
-    t = time.perf_counter()
-    if jobs:
-        sink.view(jobs)
-    if jobs:
-        run.timer.add("pictures", t)
-    if view_cache is not None:
-        view_cache.store_view(view, cells, run.changed_inputs(view))
-
-
-def _progress(views, desc, enabled):
-    from ..util.progress import progress
-
-    return progress(views, desc=desc, unit="view", enabled=enabled)
