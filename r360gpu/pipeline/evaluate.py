@@ -171,22 +171,9 @@ def _evaluate(loaded, call: _Call, cache: RunCache, sink: PictureSink) -> dict:
                     scene_res = evaluate_scene(run, cache, sink, progress, executor, rendered=scenes.opener(i + 1))
                 finally:
                     run.release()
-            if opts.orbit:  # --orbit N: the scene from all around, under scenes.S.orbit (pipeline.orbit)
-                from .orbit import score_orbit
-
-                with warning_log.where(scene=bundle.name):
-                    scene_res["orbit"] = score_orbit(run.bundle, opts, open_what_if,
-                                                     lambda r: evaluate_scene(r, cache, sink, progress), ctx=ctx,
-                                                     warn=warning_log.warn)
-            if opts.residuals or opts.prune_residuals:  # the Gaussians behind the evidence (.residuals)
-                from .residuals import scene_residuals, score_pruned
-
-                with warning_log.where(scene=bundle.name):
-                    scene_res["residuals"], values = scene_residuals(run.bundle, scene_res, out, ctx=ctx,
-                                                                     xis=opts.xis, warn=warning_log.warn)
-                    if opts.prune_residuals:  # the unranked what-if METHOD+pruned, under scenes.S.pruned
-                        scene_res["pruned"] = score_pruned(run.bundle, values, opts, open_what_if,
-                                                           lambda r: evaluate_scene(r, cache, quiet, progress), out)
+            with warning_log.where(scene=bundle.name):
+                _what_ifs(run.bundle, scene_res, call, open_what_if,
+                          lambda r, pictures=True: evaluate_scene(r, cache, sink if pictures else quiet, progress))
             views_of[bundle.name] = {v: k for k, v in enumerate(run.views)}
             if opts.compat:
                 from ..aggregate.compat import apply_compat
@@ -211,6 +198,24 @@ def _evaluate(loaded, call: _Call, cache: RunCache, sink: PictureSink) -> dict:
         scenes.close()
         plots.close()
     return results
+
+
+def _what_ifs(bundle, scene_res: dict, call: _Call, open_what_if, score) -> None:
+    """The scene beyond its capture views, into ``scene_res``: the orbit (``--orbit N``, under
+    scenes.S.orbit), the residual Gaussians and the unranked METHOD+pruned what-ifs."""
+    opts, ctx = call.opts, call.ctx
+    if opts.orbit:  # --orbit N: the scene from all around (pipeline.orbit)
+        from .orbit import score_orbit
+
+        scene_res["orbit"] = score_orbit(bundle, opts, open_what_if, score, ctx=ctx, warn=warning_log.warn)
+    if opts.residuals or opts.prune_residuals:  # the Gaussians behind the evidence (pipeline.residuals)
+        from .residuals import scene_residuals, score_pruned
+
+        scene_res["residuals"], values = scene_residuals(bundle, scene_res, call.out, ctx=ctx, xis=opts.xis,
+                                                         warn=warning_log.warn)
+        if opts.prune_residuals:  # the what-ifs have no contact sheets
+            scene_res["pruned"] = score_pruned(bundle, values, opts, open_what_if,
+                                               lambda r: score(r, pictures=False), call.out)
 
 
 def _say_probes(run: SceneRun, log) -> None:
