@@ -60,7 +60,7 @@ def test_compare_modes_cycle(s0):
 def test_overlay_keys(s0):
     s, _ = press(s0, "z", "x", "v", "n")
     ov = s.overlays
-    assert ov.depth and ov.delta and ov.changed and ov.probes and ov.any_delta()
+    assert ov.depth and ov.delta_heat and ov.changed and ov.probes and ov.any_delta()
     s, _ = press(s, "b")
     assert not s.overlays.outline  # on by default, toggled off
     s, _ = press(s, "x", "v")

@@ -112,7 +112,7 @@ class Pictures:
                 self.missing.append(name)
                 continue
             settings = OverlaySettings(
-                depth=ov.depth, delta_heat=ov.delta, changed=ov.changed, outline=ov.outline and view is not None,
+                depth=ov.depth, delta_heat=ov.delta_heat, changed=ov.changed, outline=ov.outline and view is not None,
                 probes=ov.probes and view is not None, colormap=ov.colormap, opacity=ov.opacity,
                 depth_range=ov.depth_range, heat_range=ov.delta_range,
                 outline_px=max(1, int(round(1.5 * img.width / max(1, lay.rects[0][2])))),

@@ -215,7 +215,7 @@ class Panels:
         app, ov = self.app, self.app.state.overlays
         if not imgui.collapsing_header("Overlays", imgui.TreeNodeFlags_.default_open):
             return
-        for attr, label in (("depth", "depth (Z)"), ("delta", "|dD| heat map (X)"), ("changed", "changed mask (V)"),
+        for attr, label in (("depth", "depth (Z)"), ("delta_heat", "|dD| heat map (X)"), ("changed", "changed mask (V)"),
                             ("outline", "target outline (B)"), ("probes", "probe masks (N)"),
                             ("residuals", "residual highlight (O)")):
             changed, v = imgui.checkbox(label, getattr(ov, attr))

@@ -23,7 +23,7 @@ COMPARE_MODES = ("none", "side", "wipe")
 #: Colour maps of the depth and |dD| overlays (see :mod:`r360gpu.viewer.colormaps`).
 COLORMAPS = ("turbo", "viridis", "inferno", "gray")
 #: Overlay switches and the key toggling each.
-OVERLAY_KEYS = {"z": "depth", "x": "delta", "v": "changed", "b": "outline", "n": "probes", "o": "residuals"}
+OVERLAY_KEYS = {"z": "depth", "x": "delta_heat", "v": "changed", "b": "outline", "n": "probes", "o": "residuals"}
 #: Movement keys -> (forward, right, up) unit steps.
 #: (Q closes the window, so down is C.)
 MOVE_KEYS = {"w": (1, 0, 0), "s": (-1, 0, 0), "d": (0, 1, 0), "a": (0, -1, 0), "e": (0, 0, 1), "c": (0, 0, -1)}
@@ -99,7 +99,7 @@ class Overlays:
     """
 
     depth: bool = False
-    delta: bool = False
+    delta_heat: bool = False  # the |dD| heat map (OverlaySettings.delta holds its statistics)
     changed: bool = False
     outline: bool = True
     probes: bool = False
@@ -113,7 +113,7 @@ class Overlays:
 
     def any_delta(self) -> bool:
         """Whether an overlay needs the depth change against pre."""
-        return self.delta or self.changed
+        return self.delta_heat or self.changed
 
 
 @dataclass(frozen=True)
