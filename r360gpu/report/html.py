@@ -176,7 +176,7 @@ def table_html(table: Table, *, flags: dict[int, str] | None = None, caption: bo
     out.append("</tbody></table>")
     text = _scroll("\n".join(out))
     if table.notes:
-        text += '\n<p class="notes">' + " ".join(_e(n) for n in table.notes) + "</p>"
+        text += '\n<p class="notes">' + "<br>\n".join(_e(n) for n in table.notes) + "</p>"
     return text
 
 
