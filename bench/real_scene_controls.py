@@ -46,12 +46,17 @@ def cut_target(means: np.ndarray, frac: float = 0.08) -> np.ndarray:
 def orbit(means: np.ndarray, n: int, width: int, height: int) -> dict:
     """Cameras on a circle around the scene's median, perpendicular to its longest axis... tilted 25 degrees."""
     lo, hi = np.percentile(means, [5, 95], axis=0)
-    centre = np.median(means, axis=0)
+    return ring(means, np.median(means, axis=0), 1.6 * float(np.max(hi - lo)), n, width, height)
+
+
+def ring(means: np.ndarray, centre: np.ndarray, radius: float, n: int, width: int, height: int) -> dict:
+    """n cameras on a circle of ``radius`` around ``centre`` in the plane across the scene's longest
+    axis, 25% of the radius above it, looking at ``centre`` with that axis up."""
+    lo, hi = np.percentile(means, [5, 95], axis=0)
     axis = int(np.argmax(hi - lo))
     up = np.zeros(3)
     up[axis] = 1.0
     a, b = [i for i in range(3) if i != axis]
-    radius = 1.6 * float(np.max(hi - lo))
     cams = {}
     for i in range(n):
         t = 2 * np.pi * i / n

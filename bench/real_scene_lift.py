@@ -39,35 +39,19 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from real_scene_controls import cut_target  # noqa: E402
+from real_scene_controls import cut_target, ring  # noqa: E402
 
 from r360gpu.gpu import get_context  # noqa: E402
-from r360gpu.io import Camera, load_gaussians  # noqa: E402
+from r360gpu.io import load_gaussians  # noqa: E402
 from r360gpu.lift import lift_target, target_masks  # noqa: E402
 from r360gpu.render import Renderer  # noqa: E402
-from r360gpu.synthetic.cameras import look_at  # noqa: E402
 
 
-def ring(means: np.ndarray, target: np.ndarray, n: int, distance: float, width: int, height: int) -> dict:
-    """n cameras around the target's centre (see the module docstring)."""
-    lo, hi = np.percentile(means, [5, 95], axis=0)
-    axis = int(np.argmax(hi - lo))
-    up = np.zeros(3)
-    up[axis] = 1.0
-    a, b = [i for i in range(3) if i != axis]
+def target_ring(means: np.ndarray, target: np.ndarray, n: int, distance: float, width: int, height: int) -> dict:
+    """n cameras around the target's centre at ``distance`` times its radius (the module docstring)."""
     centre = np.median(means[target], axis=0)
     radius = distance * float(np.quantile(np.linalg.norm(means[target] - centre, axis=1), 0.9))
-    cams = {}
-    for i in range(n):
-        t = 2 * np.pi * i / n
-        eye = centre.copy()
-        eye[a] += radius * np.cos(t)
-        eye[b] += radius * np.sin(t)
-        eye[axis] += 0.25 * radius
-        name = f"view_{i:03d}"
-        cams[name] = Camera.from_camera_to_world(look_at(eye, centre, up), 0.9 * width, 0.9 * width,
-                                                 width / 2, height / 2, width, height, name)
-    return cams
+    return ring(means, centre, radius, n, width, height)
 
 
 def difference_masks(g, target: np.ndarray, cams: dict, delta: float, ctx) -> dict:
@@ -105,7 +89,7 @@ def main(argv=None) -> int:
     ctx = get_context()
     g = load_gaussians(args.scene)
     truth = cut_target(g.means)
-    cams = ring(g.means, truth, args.views, args.distance, width, height)
+    cams = target_ring(g.means, truth, args.views, args.distance, width, height)
     t0 = time.perf_counter()
     masks = {v: m for v, m in difference_masks(g, truth, cams, args.delta, ctx).items() if m.any()}
     names = sorted(masks)
