@@ -17,7 +17,9 @@ import numpy as np
 import pytest
 
 from r360gpu.errors import R360Warning
-from r360gpu.report.html import best_per_axis, low_axis_warnings, pick_views, table_html, write_html
+from r360gpu.report.html import pick_views, write_html
+from r360gpu.report.html_blocks import table_html
+from r360gpu.report.html_sections import best_per_axis, low_axis_warnings
 from r360gpu.report.results_tables import write_tables
 from r360gpu.report.results_tables import main_table
 
@@ -105,7 +107,7 @@ def test_page_is_self_contained_and_every_image_decodes(report):
     assert files and all((out / u).is_file() and u.startswith("pictures/") and u.endswith(".png") for u in files)
     assert "http://" not in text and "https://" not in text
     # embedded sheets are the files written by the picture functions (re-encoded as JPEG)
-    from r360gpu.report.html import _jpeg_uri
+    from r360gpu.report.html_blocks import jpeg_uri as _jpeg_uri
 
     rel = results["scenes"]["room"]["methods"]["ghost"]["pictures"]["01"]
     assert _jpeg_uri((out / rel).read_bytes()) in text
