@@ -384,3 +384,24 @@ def test_results_do_not_depend_on_the_number_of_host_threads(tmp_path, ctx, monk
     assert sheets["1"] and sheets["1"].keys() == sheets["4"].keys()
     for k, a in sheets["1"].items():
         assert np.array_equal(a, sheets["4"][k]), k
+
+
+def test_pictures_read_each_depth_back_once(tmp_path, ctx, monkeypatch):
+    """The methods of a view share pre's depth: the picture jobs read each image's depth back once,
+    not once per method."""
+    import r360gpu.render.sources as sources
+    from r360gpu.pipeline.stages import gather, measure, picture_jobs, render_on_device
+
+    bundle = load_bundle(_small_benchmark(tmp_path / "b", ctx)[0])
+    sem, stru = default_probes()
+    run = SceneRun(bundle, EvaluateOptions(**OPTS), ctx, sem, stru, cache=RunCache(None), timer=Timer())
+    sink = PictureSink(tmp_path / "o", True)
+    data = gather(run, render_on_device(run, run.views[0]))
+    cells, geos = measure(run, data, sink)
+    calls = []
+    real = sources.host_depth
+    monkeypatch.setattr(sources, "host_depth", lambda depth, c: calls.append(id(depth)) or real(depth, c))
+    jobs = picture_jobs(run, data, geos, cells)
+    run.release()
+    assert len(jobs) == len(bundle.methods) >= 3
+    assert sorted(calls) == sorted(set(calls)) and len(calls) == len(bundle.methods) + 1  # pre + each method

@@ -238,9 +238,17 @@ def measure(run, data: ViewData, sink) -> tuple[dict, dict]:
 def picture_jobs(run, data: ViewData, geos: dict, cells: dict | None = None) -> list:
     """Keyword arguments of :meth:`~.picture_sink.PictureSink.method_view`, one per method.
 
-    Reads device depth back here (the GPU thread), so the sink works on host arrays only.
+    Reads device depth back here (the GPU thread), so the sink works on host arrays only: each
+    image's once, however many methods share it (a pre source is every method's).
     """
     from ..render.sources import host_depth
+
+    read: dict = {}
+
+    def depth_of(img):
+        if id(img.depth) not in read:
+            read[id(img.depth)] = host_depth(img.depth, run.ctx)
+        return read[id(img.depth)]
 
     jobs = []
     first = run.sem[0].name if run.sem else None
@@ -255,7 +263,7 @@ def picture_jobs(run, data: ViewData, geos: dict, cells: dict | None = None) -> 
         semantic = (data.sem_pre[run.pre_of[m]][first], data.sem_post[m][first]) if first else None
         d_pre = d_post = None
         if geo is not None:
-            d_pre, d_post = host_depth(pre.depth, run.ctx), host_depth(post.depth, run.ctx)
+            d_pre, d_post = depth_of(pre), depth_of(post)
         jobs.append(dict(scene=run.bundle.name, method=m, view=data.view, pre_rgb=pre.rgb, post_rgb=post.rgb,
                          ref_rgb=None if ref is None else ref.rgb, pre_depth=d_pre, post_depth=d_post,
                          mask=data.mask, geo=geo, compat=run.opts.compat, semantic=semantic,
