@@ -2,9 +2,7 @@
 // target mask (r360gpu/lift/device.py; numpy reference tests/lift_oracle.py).
 //
 // The same front-to-back compositing as render_rasterize.wgsl, on the same
-// tile lists (one 16x16 tile per workgroup of 8x4 threads, each thread two
-// 2x2 pixel blocks 8 rows apart, Gaussians loaded 256 at a time into
-// workgroup memory), but instead of colours it sums, per Gaussian g,
+// tile lists and the same pixels per thread (tile_pixels.wgsl), but instead of colours it sums, per Gaussian g,
 //   w_in[g]  += alpha T m(p)        w_out[g] += alpha T (1 - m(p))
 // over the tile's pixels p, with m the mask value in [0, 1] and alpha T the
 // weight the rasteriser blends g with at p (same skip and stop rules).
@@ -17,6 +15,7 @@
 // overflow the 32-bit workgroup sums.
 
 //!include common.wgsl
+//!include tile_pixels.wgsl
 
 struct Params {
     width: u32,
@@ -45,13 +44,7 @@ var<workgroup> s_pos_op: array<vec4<f32>, 256>;
 var<workgroup> s_conic: array<vec4<f32>, 256>;
 var<workgroup> s_in: array<atomic<u32>, 256>;
 var<workgroup> s_out: array<atomic<u32>, 256>;
-var<workgroup> done_count: atomic<u32>;
-var<workgroup> done_snapshot: u32;
 
-const GROUPS: u32 = 2u;
-const THREADS: u32 = 32u;
-const GROUP_ROWS: u32 = 8u;
-const BATCH: u32 = 256u;
 
 // 64-bit add of v into acc[i] (low word) and acc[i + 1] (high word).
 fn add64(i: u32, v: u32) {
@@ -73,22 +66,18 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>,
     if (wtile >= p.num_tiles) {
         return;
     }
-    let tile = p.tile_begin + wtile;
-    let x0 = (tile % p.tiles_x) * 16u + 2u * lid.x;
-    let y0 = (tile / p.tiles_x) * 16u + 2u * lid.y;
-    let xs = vec4<u32>(x0, x0 + 1u, x0, x0 + 1u);
-    let pix_x = vec4<f32>(xs);
+    let px = tile_pixels(p.tile_begin + wtile, p.tiles_x, lid, p.width, p.height);
+    let xs = px.xs;
+    let pix_x = px.x;
+    let pix_y = px.y;
     let zero = vec4<f32>(0.0);
-    var pix_y: array<vec4<f32>, GROUPS>;
     var m_in: array<vec4<f32>, GROUPS>;
     var done: array<vec4<bool>, GROUPS>;
     var t_rem: array<vec4<f32>, GROUPS>;
     var all_done = true;
     for (var q = 0u; q < GROUPS; q++) {
-        let y = y0 + q * GROUP_ROWS;
-        let ys = vec4<u32>(y, y, y + 1u, y + 1u);
-        pix_y[q] = vec4<f32>(ys);
-        let inside = (xs < vec4<u32>(p.width)) & (ys < vec4<u32>(p.height));
+        let ys = px.ys[q];
+        let inside = px.inside[q];
         var m = zero;
         for (var l = 0u; l < 4u; l++) {
             if (inside[l]) {
@@ -113,11 +102,7 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>,
 
     let batches = (end - start + BATCH - 1u) / BATCH;
     for (var b = 0u; b < batches; b++) {
-        workgroupBarrier();
-        if (tid == 0u) {
-            done_snapshot = atomicLoad(&done_count);
-        }
-        if (workgroupUniformLoad(&done_snapshot) == THREADS) {
+        if (tile_finished(tid)) {
             break;
         }
         let first = start + b * BATCH;

@@ -1,14 +1,7 @@
 // Front-to-back alpha compositing of one 16x16 tile per workgroup (INRIA 3DGS
 // forward pass), plus expected and median depth.
 //
-// A workgroup of 8x4 threads covers the tile; each thread owns two 2x2 blocks
-// of pixels (each held in the lanes of vec4s), 8 rows apart; pixel (x, y) is
-// centred at (x, y) in the pixel-index coordinates of render_project.wgsl.
-// Eight pixels per thread amortise every read of a Gaussian, which matters on
-// CPU implementations where per-lane loads dominate (measured on lavapipe: one
-// pixel per thread 4.5x slower, 16 pixels per thread 3x slower: registers
-// spill).  The tile's depth-sorted Gaussians are loaded 256 at a time into
-// workgroup memory.  Per pixel and Gaussian:
+// The tile's pixels, threads and batches are tile_pixels.wgsl's.  Per pixel and Gaussian:
 //   power = -0.5 (a dx^2 + c dy^2) - b dx dy      (d = mean - pixel)
 //   skip if power > 0;  alpha = min(0.99, opacity * exp(power));  skip if alpha < 1/255
 //   stop (before blending) if T * (1 - alpha) < 1e-4
@@ -24,6 +17,7 @@
 // count the tile's evaluated and blended pixel-Gaussian pairs (for benchmarks).
 
 //!include common.wgsl
+//!include tile_pixels.wgsl
 
 struct Params {
     width: u32,
@@ -43,8 +37,6 @@ override ALPHA_MAX: f32;
 override ALPHA_MIN: f32;
 override T_MIN: f32;
 override MEDIAN_T: f32;
-// The 16x16 tile (TILE) is built into the workgroup shape below (8 x 4
-// threads, 2 x 2 pixels each, 2 blocks 8 rows apart); the host checks TILE == 16.
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> ranges: array<u32>;
@@ -64,15 +56,9 @@ override MEDIAN_T: f32;
 var<workgroup> s_pos_op: array<vec4<f32>, 256>;
 var<workgroup> s_conic: array<vec4<f32>, 256>;
 var<workgroup> s_rgb: array<vec4<f32>, 256>;
-var<workgroup> done_count: atomic<u32>;
-var<workgroup> done_snapshot: u32;
 var<workgroup> evaluated_count: atomic<u32>;
 var<workgroup> blended_count: atomic<u32>;
 
-const GROUPS: u32 = 2u;       // 2x2 pixel blocks per thread
-const THREADS: u32 = 32u;     // 8 x (8 / GROUPS), the workgroup size
-const GROUP_ROWS: u32 = 8u;   // pixel rows between a thread's blocks
-const BATCH: u32 = 256u;      // Gaussians loaded into workgroup memory at a time
 
 fn count_true(v: vec4<bool>) -> u32 {
     return dot(select(vec4<u32>(0u), vec4<u32>(1u), v), vec4<u32>(1u));
@@ -87,21 +73,15 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>,
     if (wtile >= p.num_tiles) {
         return;
     }
-    let tile = p.tile_begin + wtile;
-    let x0 = (tile % p.tiles_x) * 16u + 2u * lid.x;
-    let y0 = (tile / p.tiles_x) * 16u + 2u * lid.y;
-    let xs = vec4<u32>(x0, x0 + 1u, x0, x0 + 1u);
-    let pix_x = vec4<f32>(xs);
-    var ys: array<vec4<u32>, GROUPS>;
-    var pix_y: array<vec4<f32>, GROUPS>;
-    var inside: array<vec4<bool>, GROUPS>;
+    let px = tile_pixels(p.tile_begin + wtile, p.tiles_x, lid, p.width, p.height);
+    let xs = px.xs;
+    let pix_x = px.x;
+    let ys = px.ys;
+    let pix_y = px.y;
+    let inside = px.inside;
     var done: array<vec4<bool>, GROUPS>;
     var all_done = true;
     for (var q = 0u; q < GROUPS; q++) {
-        let y = y0 + q * GROUP_ROWS;
-        ys[q] = vec4<u32>(y, y, y + 1u, y + 1u);
-        pix_y[q] = vec4<f32>(ys[q]);
-        inside[q] = (xs < vec4<u32>(p.width)) & (ys[q] < vec4<u32>(p.height));
         done[q] = !inside[q];
         all_done = all_done && all(done[q]);
     }
@@ -142,11 +122,7 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>,
 
     let batches = (end - start + BATCH - 1u) / BATCH;
     for (var b = 0u; b < batches; b++) {
-        workgroupBarrier();
-        if (tid == 0u) {
-            done_snapshot = atomicLoad(&done_count);
-        }
-        if (workgroupUniformLoad(&done_snapshot) == THREADS) {
+        if (tile_finished(tid)) {
             break;
         }
         let first = start + b * BATCH;
