@@ -122,8 +122,8 @@ class Gaussians:
         """A hex digest of every value (shapes included): equal for equal Gaussians.
 
         Computed anew on each call (the arrays may be read-only views of a
-        caller's array that the caller can still change); about 0.2 s per
-        million Gaussians of SH degree 3.
+        caller's array that the caller can still change): 0.39 s per million
+        Gaussians of SH degree 3 on a 2-core machine (blake2b over 236 MB).
         """
         import hashlib
 
