@@ -170,7 +170,7 @@ def fingerprint(bundle, sources, digests: dict | None = None) -> str | None:
         if s is not None and getattr(s, "kind", None) == "device":
             return None
         h.update(json.dumps(None if s is None else s.describe(), sort_keys=True, default=str).encode())
-        if s is not None and s.path == "<in memory>" and getattr(s, "gaussians", None) is not None:
+        if getattr(s, "in_memory", False):
             # the description holds the count, not the values: two edits of the same size must not share results
             h.update(s.gaussians.content_digest().encode())
         h.update(repr(getattr(s, "background", None)).encode())

@@ -46,6 +46,7 @@ class SceneSource:
         if depth not in ("expected", "median"):
             raise InputError(f"depth mode must be 'expected' or 'median', got {depth!r}")
         in_memory = isinstance(scene, Gaussians)
+        self.in_memory = in_memory  # what it holds is known by its values only (pipeline.cache.fingerprint)
         self.path = "<in memory>" if in_memory else scene
         self.depth_mode = depth
         self.frame = frame
