@@ -17,11 +17,12 @@ def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, a
     """{view: {method: cell}} for ``views`` of one scene, computed in this process.
 
     bundle: a bundle folder or a loaded Bundle; options: EvaluateOptions
-    (its ``views`` patterns select the scene's views the fit may use);
+    (its ``views`` patterns select the scene's views, as :func:`~.evaluate.evaluate`
+    selects them: the fit views are among them);
     views: names among the scene's views; cells as :func:`~.stages.score_view`
     gives them (no pictures, no cache: the caller owns the output folder).
     """
-    from ..bundle import Bundle, load_bundle
+    from ..bundle import load_bundle
     from ..errors import InputError
     from ..gpu import get_context
     from .cache import RunCache
@@ -30,7 +31,7 @@ def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, a
     from .stages import score_view
 
     ctx = ctx or get_context(adapter)
-    b = bundle if isinstance(bundle, Bundle) else load_bundle(bundle)
+    b = load_bundle(bundle, views=list(options.views) if options.views else None)
     run = SceneRun(b, options, ctx, list(semantic_probes), list(structural_probes), cache=RunCache(None),
                    timer=Timer())
     try:

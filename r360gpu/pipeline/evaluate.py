@@ -103,8 +103,10 @@ def _load_and_evaluate(bundles, call: _Call, *, adapter, device, force, ray_addr
     call.probes = (semantic_probes, structural_probes, defaults)
     if isinstance(bundles, (str, Path, Bundle)):
         bundles = [bundles]
-    sel = list(opts.views) if opts.views else None  # validated as `check --views` does
-    loaded = [b if isinstance(b, Bundle) else load_bundle(b, views=sel) for b in bundles]
+    # --views, applied here and only here: a folder is loaded with it (checked as `check --views` does),
+    # a Bundle object narrowed to it unless loaded with it (bundle.views.narrow_views)
+    sel = list(opts.views) if opts.views else None
+    loaded = [load_bundle(b, views=sel) for b in bundles]
     loaded = [b.with_render_settings(antialiased=True if opts.antialiased else None) for b in loaded]
     if opts.compat:  # public folders: depth is read as the public scripts read it (aggregate.compat)
         from ..bundle.remove360_layout import without_depth

@@ -26,7 +26,6 @@ score a chunk of its views (:func:`r360gpu.pipeline.stages.score_view`).
 from __future__ import annotations
 
 import copy
-import fnmatch
 import threading
 import time
 from dataclasses import dataclass, field
@@ -55,22 +54,6 @@ class Timer:
         """Add seconds measured elsewhere (a Ray task's stage totals)."""
         with self._lock:
             self.totals[stage] = self.totals.get(stage, 0.0) + seconds
-
-
-def select_views(names: list[str], patterns, where=None) -> list[str]:
-    """The views whose name matches one of the glob patterns (all without patterns).
-
-    As ``check --views`` does (bundle.views), every pattern must select
-    something: a plain name that is not an evaluation view (no mask, no
-    camera) or a glob that matches none is an InputError naming ``where``.
-    """
-    if not patterns:
-        return list(names)
-    for p in patterns:
-        if not any(fnmatch.fnmatchcase(n, p) for n in names):
-            what = "matches no evaluation view" if any(c in p for c in "*?[") else "is not an evaluation view (no mask?)"
-            raise InputError(f"--views {p!r} {what}; views are named like {names[:3]}", where)
-    return [n for n in names if any(fnmatch.fnmatchcase(n, p) for p in patterns)]
 
 
 def open_pres(bundle, src) -> tuple[dict, dict]:
@@ -111,7 +94,7 @@ class SceneRun:
 
         self.bundle, self.opts, self.ctx = bundle, opts, ctx
         self.timer, self.kept = timer, kept
-        self.views = select_views(bundle.views, opts.views, getattr(bundle, "config", None) or bundle.root)
+        self.views = list(bundle.views)  # selected once, where the bundle was loaded (bundle.views.narrow_views)
         self.depth_mode = opts.depth or bundle.options.depth
         ref_free = bundle.reference is None or (opts.reference_free if opts.reference_free is not None
                                                 else bundle.options.reference_free)
