@@ -175,12 +175,9 @@ def _evaluate(loaded, call: _Call, cache: RunCache, sink: PictureSink) -> dict:
                     run.release()
             with warning_log.where(scene=bundle.name):
                 _what_ifs(run.bundle, scene_res, call, open_what_if,
-                          lambda r, pictures=True: evaluate_scene(r, cache, sink if pictures else quiet, progress))
+                          lambda r, pictures=True: evaluate_scene(r, cache, sink if pictures else quiet, progress,
+                                                                  what_if=True))
             views_of[bundle.name] = {v: k for k, v in enumerate(run.views)}
-            if opts.compat:
-                from ..aggregate.compat import apply_compat
-
-                apply_compat(scene_res, bundle, opts.compat, xis=opts.xis, ght=opts.ght)
             document.add_scene(bundle.name, scene_res, run.probes_desc, selection=run.probe_selection)
             n_views_done += len(run.views)
             plots.draw(bundle.name, scene_res)
