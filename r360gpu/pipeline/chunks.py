@@ -20,12 +20,13 @@ def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, a
     (its ``views`` patterns select the scene's views, as :func:`~.evaluate.evaluate`
     selects them: the fit views are among them);
     views: names among the scene's views; cells as :func:`~.stages.score_view`
-    gives them (no pictures, no cache: the caller owns the output folder).
+    gives them, written as JSON-ready dicts (:func:`~.cache.cell_json`: the record a dict) to cross
+    the process boundary (no pictures, no cache: the caller owns the output folder).
     """
     from ..bundle import load_bundle
     from ..errors import InputError
     from ..gpu import get_context
-    from .cache import RunCache
+    from .cache import RunCache, cell_json
     from .picture_sink import PictureSink
     from .run import SceneRun, Timer
     from .stages import score_view
@@ -39,6 +40,6 @@ def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, a
         if unknown:
             raise InputError(f"scene {b.name}: views {unknown[:5]} are not among its evaluation views")
         sink = PictureSink(None, False)
-        return {v: score_view(run, v, sink) for v in views}
+        return {v: {m: cell_json(c) for m, c in score_view(run, v, sink).items()} for v in views}
     finally:
         run.release()

@@ -87,11 +87,11 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
 def scene_entry(run: SceneRun, cells_of: dict, *, what_if: bool = False) -> dict:
     """The scene's results entry from the cells of its views ({view: {method: cell}}): the
     per-view records and the axes of every method and control, the controls' validity verdicts,
-    and in a compat mode the public scripts' values (:mod:`r360gpu.aggregate.compat`)."""
+    and in a compat mode the public scripts' values (:mod:`r360gpu.aggregate.compat`).  The
+    records (ViewRecord objects) become dicts here, in the entry results.json is written from."""
     from ..aggregate.compat import scene_compat
     from ..aggregate.results import method_axes
     from ..aggregate.validity import scene_validity
-    from ..metrics.record import ViewRecord
 
     bundle, opts = run.bundle, run.opts
     scored = [*bundle.methods, *run.controls.values()]
@@ -100,7 +100,7 @@ def scene_entry(run: SceneRun, cells_of: dict, *, what_if: bool = False) -> dict
     pictures: dict = {m: {} for m in scored}
     for v in run.views:
         for m, cell in cells_of[v].items():
-            records[m].append(ViewRecord.from_dict(cell["record"]))
+            records[m].append(cell["record"])
             boundaries[m].append(cell.get("boundary"))
             if cell.get("picture"):
                 pictures[m][v] = cell["picture"]
