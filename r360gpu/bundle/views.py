@@ -136,12 +136,15 @@ def narrow_views(bundle, patterns):
     if bundle.view_patterns == patterns:
         return bundle
     where = bundle.config or (None if bundle.layout == "objects" else bundle.root)
+    selected: set = set()
     for p in patterns:
-        if not matching(bundle.views, p):
+        hit = matching(bundle.views, p)
+        if not hit:
             what = "matches no evaluation view" if _has_glob(p) else "is not an evaluation view (no mask?)"
             raise InputError(f"--views {p!r} {what} of scene {bundle.name!r}; its views are named like "
                              f"{list(bundle.views[:3])} (patterns are case-sensitive)", where)
-    views = [v for v in bundle.views if any(fnmatch.fnmatchcase(v, p) for p in patterns)]
+        selected.update(hit)
+    views = [v for v in bundle.views if v in selected]
     cameras = None if bundle.cameras is None else {v: bundle.cameras[v] for v in views if v in bundle.cameras}
     return replace(bundle, views=views, cameras=cameras, masks={v: m for v, m in bundle.masks.items() if v in views},
                    view_patterns=patterns)
