@@ -138,3 +138,43 @@ def test_options_accept_true_as_public_and_reject_unknown_modes(capsys):
 def test_missing_masks_folder_is_an_input_error(tmp_path):
     with pytest.raises(InputError, match="masks"):
         evaluate_public_folder(tmp_path, "public")
+
+
+def test_compat_axes_are_made_once_from_the_own_axes():
+    """The scene's compat axes are built beside r360gpu's own (kept under compat.replaced, the
+    own dict left as it was); a bundle of another layout keeps its axes and gets the note."""
+    from dataclasses import replace
+
+    from r360gpu.aggregate.compat import NOT_PUBLIC_NOTE, scene_compat
+    from r360gpu.bundle import load_bundle
+
+    bundle = load_bundle(SCENE)
+    own = {"s_sem": 0.5, "acc_seg": {"0.3": 0.5}, "s_geo": None, "s_str": 0.25, "rqs": None, "n_views": 4,
+           "n_no_depth": 4, "n_geo_excluded": 0}
+    before = json.dumps(own)
+    sc = scene_compat(bundle, list(bundle.methods), "public")
+    axes = sc.axes(own)
+    assert json.dumps(own) == before  # not patched
+    exp = expected_scene("public")
+    assert axes["s_geo"] == exp["s_geo"] and axes["s_str"] == exp["s_str"] and axes["n_no_depth"] == 0
+    assert axes["compat"]["replaced"]["s_geo"] is None and axes["compat"]["replaced"]["s_sem"] == 0.5
+    rec = sc.view({"view": "v00", "semantic": {}})
+    assert rec["compat"]["geometric"]["acc_depth"] == expected_views("public")["geometric"]["v00"]
+    other = scene_compat(replace(bundle, layout="scene.toml"), list(bundle.methods), "public-default")
+    assert other.axes(own) is own and other.notes == [NOT_PUBLIC_NOTE.format(mode="public-default")]
+    assert other.view({"view": "v00"}) == {"view": "v00"}
+    assert scene_compat(bundle, list(bundle.methods), None) is None
+    with pytest.raises(ValueError, match="one method"):
+        scene_compat(bundle, ["a", "b"], "public")
+
+
+def test_validity_weighs_the_own_axes_in_compat_mode(tmp_path):
+    """In compat mode the pipeline reads no depth of a public folder: the geometric verdict is None
+    (r360gpu computed no s_geo) although the method's s_geo is the public scripts'."""
+    out = tmp_path / "out"
+    assert cli.main(["score", str(SCENE), "--compat", "--out", str(out), "--no-pictures", "--no-boundary",
+                     "--n-boot", "50", "--n-perm", "50", "--quiet"]) == 0
+    scene = json.loads((out / "results.json").read_text())["scenes"]["office_chair"]
+    assert scene["methods"]["after"]["axes"]["s_geo"] == expected_scene("public")["s_geo"]
+    assert scene["validity"]["s_geo"] is None and scene["validity"]["s_sem"] == "ok"
+    assert scene["notes"] == []

@@ -10,6 +10,7 @@ import pytest
 from bundle_factory import make_bundle, make_remove360
 from r360gpu.bundle import load_bundle
 from r360gpu.errors import InputError
+from r360gpu.metrics.record import ViewRecord
 from r360gpu.pipeline import EvaluateOptions, default_probes, evaluate
 from r360gpu.pipeline.cache import RunCache
 from r360gpu.pipeline.picture_sink import PictureSink
@@ -32,7 +33,32 @@ def test_overlapped_views_give_the_cells_of_one_view_at_a_time(tmp_path, ctx, la
     one_by_one = {v: score_view(run, v, PictureSink(None, False)) for v in run.views}
     run.release()
     for m, entry in res["scenes"][bundle.name]["methods"].items():
-        assert entry["views"] == [one_by_one[v][m]["record"] for v in run.views]
+        assert all(isinstance(one_by_one[v][m]["record"], ViewRecord) for v in run.views)
+        assert entry["views"] == [one_by_one[v][m]["record"].to_dict() for v in run.views]
+
+
+def test_view_records_are_dicts_only_where_written(tmp_path, ctx):
+    """A cache cell is written with its record as a dict and read back as a ViewRecord; a run served
+    from the cache writes the same results."""
+    import json
+
+    from r360gpu.pipeline.cache import ViewCache
+
+    bundle = load_bundle(make_remove360(tmp_path / "b"))
+    out = tmp_path / "o"
+    opts = EvaluateOptions(pictures=False, **OPTS)
+    first = evaluate(bundle, out=out, options=opts, ctx=ctx, progress=False)
+    cell_file = sorted((out / ".r360cache" / "views").glob(f"*/{bundle.name}/after/*.json"))[0]
+    on_disk = json.loads(cell_file.read_text())
+    assert on_disk["record"]["view"] == cell_file.stem and on_disk["record"]["method"] == "after"
+    cell = ViewCache(cell_file.parent.parent, out).load_cell("after", cell_file.stem)
+    assert isinstance(cell["record"], ViewRecord) and cell["record"].to_dict() == on_disk["record"]
+    entry = first["scenes"][bundle.name]["methods"]["after"]["views"]
+    assert on_disk["record"] in entry
+    again = evaluate(bundle, out=out, options=opts, ctx=ctx, progress=False)
+    assert "render" not in again["timing"]["stages_s"] and "measure" not in again["timing"]["stages_s"]
+    drop = lambda d: {k: v for k, v in d.items() if k not in ("created", "timing")}  # noqa: E731
+    assert json.dumps(drop(again)) == json.dumps(drop(first))
 
 
 class _FailsOn(StructuralProbe):

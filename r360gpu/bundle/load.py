@@ -37,24 +37,26 @@ from .names import name_problems
 from .remove360_layout import is_remove360_folder, remove360_draft
 from .scene_toml import CONFIG_NAME, draft_from_config
 from .sources import check_renders, check_scene, with_frame
-from .views import cameras_by_view, check_masks, list_masks, select_views
+from .views import cameras_by_view, check_masks, list_masks, narrow_views, select_views
 
 
 def load_bundle(path: str | os.PathLike | Bundle, *, views: list[str] | None = None, prompt: str | None = None,
                 method_name: str | None = None, frame: str | None = None) -> Bundle:
     """Load a bundle folder (or its scene.toml); raise :class:`BundleError` listing every problem.
 
-    views: glob patterns over view names replacing scene.toml's ``views``.
+    views: glob patterns over view names replacing scene.toml's ``views`` (``--views``;
+    case-sensitive, :func:`~.views.matching`); the bundle records them (``view_patterns``).
     prompt: replaces scene.toml's ``prompt`` (for the Remove360 layout: instead
     of prompt.txt).  method_name: name of the Remove360 layout's method
     (default "after"); not used for scene.toml bundles.  frame: replaces
     scene.toml's top-level ``frame`` (the default of every splat scene; a
     source's own ``frame`` key still wins), e.g. ``"gsplat"`` (``--frame``).
     Masks are checked from their PNG headers (see the module docstring).
-    A :class:`Bundle` already loaded is returned as it is.
+    A :class:`Bundle` already loaded is returned as it is, with only the views ``views`` selects
+    (:func:`~.views.narrow_views`: a scene from objects or from METHOD=FOLDER folders).
     """
     if isinstance(path, Bundle):
-        return path
+        return path if views is None else narrow_views(path, views)
     bundle, problems = inspect_bundle(path, views=views, prompt=prompt, method_name=method_name, frame=frame,
                                       deep=False)
     if problems:
@@ -95,6 +97,8 @@ def inspect_bundle(path: str | os.PathLike, *, views: list[str] | None = None, p
                                                f"renders only (images already in the cameras' frame)"))
         draft.frame = frame
     bundle = _resolve(draft, problems, deep=deep)
+    if bundle is not None and views is not None:
+        bundle.view_patterns = tuple(views)  # selected here, once (views.narrow_views)
     return (None if problems else bundle), problems
 
 

@@ -172,6 +172,9 @@ class Bundle:
     method_pres: dict[str, SourceSpec] = field(default_factory=dict)
     #: [target] of scene.toml (r360gpu.bundle.target.TargetSpec): views without a given mask get one rendered
     target: object = None
+    #: the ``--views`` patterns ``views`` were selected by (None: none given), so a selection is made once
+    #: (:func:`r360gpu.bundle.views.narrow_views`)
+    view_patterns: tuple | None = None
 
     def sources(self) -> dict[str, SourceSpec]:
         """Every source by name: "pre", "reference" (when present), the methods, then each

@@ -18,13 +18,13 @@ order of precedence: indices, then box, then masks.
 """
 from __future__ import annotations
 
-import fnmatch
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .model import Problem
+from .views import matching
 
 TARGET_KEYS = ("masks", "indices", "property", "box")
 
@@ -107,7 +107,7 @@ def target_views(draft, where: str, cameras: dict | None, top_masks: dict | None
     if draft.view_patterns is not None:
         picked = set()
         for pat in draft.view_patterns:
-            hit = fnmatch.filter(views, pat)
+            hit = matching(views, pat)
             if not hit:
                 problems.append(Problem(where, f"pattern {pat!r} ({draft.patterns_origin}) matches no camera"))
             picked.update(hit)

@@ -1,5 +1,11 @@
 """The evaluation views of a bundle: cameras by view name, the masks folder, the view selection,
-and each selected view's mask checked against its camera."""
+and each selected view's mask checked against its camera.
+
+The view selection (scene.toml's ``views``, ``--views``, ``EvaluateOptions.views``) follows one
+rule, :func:`matching`, and is made once per scene: where its folder is loaded
+(:func:`select_views`), or, for a scene built otherwise (METHOD=FOLDER groups, ``--benchmark``
+scenes, scenes from objects), by :func:`narrow_views`.
+"""
 from __future__ import annotations
 
 import difflib
@@ -106,9 +112,48 @@ def _has_glob(pattern: str) -> bool:
     return any(c in pattern for c in "*?[")
 
 
+def matching(names, pattern: str) -> list[str]:
+    """The names ``pattern`` selects, in their order: the one rule of every view selection.
+
+    Shell-style globs (``*``, ``?``, ``[seq]``, ``[!seq]``) matched case-sensitively on every OS
+    (:func:`fnmatch.fnmatchcase`; ``fnmatch.filter`` would fold case where the OS's paths do), so a
+    selection is the same on Linux, macOS and Windows: ``View_00*`` does not select ``view_001``.
+    A pattern without those characters selects the view of exactly that name.
+    """
+    return [n for n in names if fnmatch.fnmatchcase(n, pattern)]
+
+
+def narrow_views(bundle, patterns):
+    """``bundle`` keeping only the views ``patterns`` select (:func:`matching`), with their cameras
+    and masks: the selection of a scene that was not loaded from its folder with these patterns
+    (METHOD=FOLDER groups, ``--benchmark`` scenes, scenes from objects).  A bundle these patterns
+    selected already (``bundle.view_patterns``) is returned as it is.  A pattern that selects none
+    of its views is an InputError naming the pattern and the scene's folder.
+    """
+    from dataclasses import replace
+
+    patterns = tuple(patterns)
+    if bundle.view_patterns == patterns:
+        return bundle
+    where = bundle.config or (None if bundle.layout == "objects" else bundle.root)
+    selected: set = set()
+    for p in patterns:
+        hit = matching(bundle.views, p)
+        if not hit:
+            what = "matches no evaluation view" if _has_glob(p) else "is not an evaluation view (no mask?)"
+            raise InputError(f"--views {p!r} {what} of scene {bundle.name!r}; its views are named like "
+                             f"{list(bundle.views[:3])} (patterns are case-sensitive)", where)
+        selected.update(hit)
+    views = [v for v in bundle.views if v in selected]
+    cameras = None if bundle.cameras is None else {v: bundle.cameras[v] for v in views if v in bundle.cameras}
+    return replace(bundle, views=views, cameras=cameras, masks={v: m for v, m in bundle.masks.items() if v in views},
+                   view_patterns=patterns)
+
+
 def select_views(draft: Draft, where: str, cameras: dict[str, Camera] | None, masks: dict[str, Path] | None,
                   problems: list[Problem]) -> list[str]:
-    """The evaluation views, sorted: every view with a mask, or those the draft's patterns select;
+    """The evaluation views, sorted: every view with a mask, or those the draft's patterns select
+    (:func:`matching`);
     a view needs a mask, and a camera when the bundle has cameras.  Patterns that select nothing,
     selected views without a mask and masks without a camera are problems."""
     if masks is None:  # no usable masks folder: already reported
@@ -119,12 +164,11 @@ def select_views(draft: Draft, where: str, cameras: dict[str, Camera] | None, ma
         universe = set(masks) | set(cameras or ())
         selected = set()
         for pat in draft.view_patterns:
+            matched = matching(universe, pat)
             if _has_glob(pat):
-                matched = fnmatch.filter(universe, pat)
                 if not matched:
                     problems.append(Problem(where, f"pattern {pat!r} ({draft.patterns_origin}) matches no view"))
             else:
-                matched = [pat] if pat in universe else []
                 if not matched:
                     what = "no camera and no mask" if cameras is not None else "no mask"
                     problems.append(Problem(where, f"view {pat!r} ({draft.patterns_origin}) has {what}"))

@@ -33,5 +33,6 @@ class ListAction(argparse.Action):
 
 def add_views_option(p, *, help_tail: str = "") -> None:
     p.add_argument("--views", action=ListAction, metavar="PATTERN", default=None,
-                   help="glob pattern selecting evaluation views by name; repeat the flag or give a comma list "
-                        "(--views 'frame_0*' --views frame_120 or --views 'frame_0*,frame_120')" + help_tail)
+                   help="glob pattern selecting evaluation views by name (* ? [seq], case-sensitive); repeat the "
+                        "flag or give a comma list (--views 'frame_0*' --views frame_120 or "
+                        "--views 'frame_0*,frame_120')" + help_tail)

@@ -262,7 +262,9 @@ def bundles_from_args(args) -> list:
     if getattr(args, "frame", None) is not None and (pairs or args.benchmark):
         raise InputError("--frame applies to BUNDLE folders with splat scenes, not to METHOD=FOLDER folders or "
                          "--benchmark roots (set frame in their scene.toml)")
-    views = list(args.views) if args.views else None  # validated as `check --views` does
+    # --views selects a folder's views where it is loaded, checked as `check --views` does; the other
+    # scenes (METHOD=FOLDER groups, --benchmark) are narrowed by evaluate() (bundle.views.narrow_views)
+    views = list(args.views) if args.views else None
     bundles = [load_bundle(p, views=views, prompt=args.prompt, method_name=args.method_name,
                            frame=getattr(args, "frame", None)) for p in plain]
     if args.scene_name and not pairs:

@@ -2,7 +2,9 @@
 
 * View cache: ``views/<key>/<scene>/<method>/<view>.json``, one JSON cell per
   (method, view): the :class:`~r360gpu.metrics.record.ViewRecord`, the
-  boundary table and the path of the view's picture.  ``key`` digests
+  boundary table and the path of the view's picture.  A cell in memory holds
+  the ViewRecord itself: it is written as a dict (:func:`cell_json`) and read
+  back as a ViewRecord (:func:`cell_from_json`), here only.  ``key`` digests
   everything that changes a per-view value (version, the bundle's
   fingerprint, scoring options, probe descriptions, structural mode, depth
   mode, LPIPS model), so a changed input or option misses.  A view is served
@@ -103,8 +105,8 @@ class ViewCache:
         if not p.is_file():
             return None
         try:
-            return json.loads(p.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
+            return cell_from_json(json.loads(p.read_text(encoding="utf-8")))
+        except (OSError, ValueError, KeyError, TypeError):
             return None  # a damaged cache entry is recomputed
 
     def load_view(self, methods, view: str, *, pictures: bool) -> dict | None:
@@ -148,7 +150,20 @@ class ViewCache:
 
         # compact (no indent): written for every method and view, read back by this class only;
         # a damaged cell is recomputed
-        write_json(self._path(method, view), cell, allow_nan=False, sync=False, indent=None)
+        write_json(self._path(method, view), cell_json(cell), allow_nan=False, sync=False, indent=None)
+
+
+def cell_json(cell: dict) -> dict:
+    """A view's cell as it is written: its ViewRecord as a dict (:meth:`~r360gpu.metrics.record.ViewRecord.to_dict`)."""
+    return {**cell, "record": cell["record"].to_dict()}
+
+
+def cell_from_json(d: dict) -> dict:
+    """A cell read back (:func:`cell_json`): its record a ViewRecord again (InputError, a ValueError,
+    when it is not one)."""
+    from ..metrics.record import ViewRecord
+
+    return {**d, "record": ViewRecord.from_dict(d["record"])}
 
 
 def fingerprint(bundle, sources, digests: dict | None = None) -> str | None:

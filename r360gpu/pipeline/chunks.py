@@ -17,20 +17,22 @@ def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, a
     """{view: {method: cell}} for ``views`` of one scene, computed in this process.
 
     bundle: a bundle folder or a loaded Bundle; options: EvaluateOptions
-    (its ``views`` patterns select the scene's views the fit may use);
+    (its ``views`` patterns select the scene's views, as :func:`~.evaluate.evaluate`
+    selects them: the fit views are among them);
     views: names among the scene's views; cells as :func:`~.stages.score_view`
-    gives them (no pictures, no cache: the caller owns the output folder).
+    gives them, written as JSON-ready dicts (:func:`~.cache.cell_json`: the record a dict) to cross
+    the process boundary (no pictures, no cache: the caller owns the output folder).
     """
-    from ..bundle import Bundle, load_bundle
+    from ..bundle import load_bundle
     from ..errors import InputError
     from ..gpu import get_context
-    from .cache import RunCache
+    from .cache import RunCache, cell_json
     from .picture_sink import PictureSink
     from .run import SceneRun, Timer
     from .stages import score_view
 
     ctx = ctx or get_context(adapter)
-    b = bundle if isinstance(bundle, Bundle) else load_bundle(bundle)
+    b = load_bundle(bundle, views=list(options.views) if options.views else None)
     run = SceneRun(b, options, ctx, list(semantic_probes), list(structural_probes), cache=RunCache(None),
                    timer=Timer())
     try:
@@ -38,6 +40,6 @@ def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, a
         if unknown:
             raise InputError(f"scene {b.name}: views {unknown[:5]} are not among its evaluation views")
         sink = PictureSink(None, False)
-        return {v: score_view(run, v, sink) for v in views}
+        return {v: {m: cell_json(c) for m, c in score_view(run, v, sink).items()} for v in views}
     finally:
         run.release()

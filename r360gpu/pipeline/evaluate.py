@@ -103,8 +103,10 @@ def _load_and_evaluate(bundles, call: _Call, *, adapter, device, force, ray_addr
     call.probes = (semantic_probes, structural_probes, defaults)
     if isinstance(bundles, (str, Path, Bundle)):
         bundles = [bundles]
-    sel = list(opts.views) if opts.views else None  # validated as `check --views` does
-    loaded = [b if isinstance(b, Bundle) else load_bundle(b, views=sel) for b in bundles]
+    # --views, applied here and only here: a folder is loaded with it (checked as `check --views` does),
+    # a Bundle object narrowed to it unless loaded with it (bundle.views.narrow_views)
+    sel = list(opts.views) if opts.views else None
+    loaded = [load_bundle(b, views=sel) for b in bundles]
     loaded = [b.with_render_settings(antialiased=True if opts.antialiased else None) for b in loaded]
     if opts.compat:  # public folders: depth is read as the public scripts read it (aggregate.compat)
         from ..bundle.remove360_layout import without_depth
@@ -173,12 +175,9 @@ def _evaluate(loaded, call: _Call, cache: RunCache, sink: PictureSink) -> dict:
                     run.release()
             with warning_log.where(scene=bundle.name):
                 _what_ifs(run.bundle, scene_res, call, open_what_if,
-                          lambda r, pictures=True: evaluate_scene(r, cache, sink if pictures else quiet, progress))
+                          lambda r, pictures=True: evaluate_scene(r, cache, sink if pictures else quiet, progress,
+                                                                  what_if=True))
             views_of[bundle.name] = {v: k for k, v in enumerate(run.views)}
-            if opts.compat:
-                from ..aggregate.compat import apply_compat
-
-                apply_compat(scene_res, bundle, opts.compat, xis=opts.xis, ght=opts.ght)
             document.add_scene(bundle.name, scene_res, run.probes_desc, selection=run.probe_selection)
             n_views_done += len(run.views)
             plots.draw(bundle.name, scene_res)

@@ -21,7 +21,9 @@ class EvaluateOptions:
     reference_free: True forces s_str = 1 - sim(pre, post) even with a
         reference; None follows each bundle's option.
     depth: "expected" or "median" depth; None follows each bundle.
-    views: glob patterns selecting views by name (None: the bundle's views).
+    views: glob patterns selecting views by name, case-sensitive
+        (:func:`r360gpu.bundle.views.matching`; None: the bundle's views);
+        applied once per scene, where it is loaded (:func:`~.evaluate.evaluate`).
     boundary: run the mask-boundary sweep (E15..D15).
     lpips_model: path of an LPIPS ONNX model (None: LPIPS not computed).
     pictures: write a contact sheet per (method, view) and plots.

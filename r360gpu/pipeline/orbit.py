@@ -114,6 +114,7 @@ def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None) 
         return {"requested": int(opts.orbit), "kept": 0, "note": f"no orbit: {e.problem}"}
     if orbit is None:
         return info
+    # views=None: the orbit's views are its own cameras, and its cache key names no capture selection
     run = open_run(orbit, replace(opts, views=None, orbit=0))
     try:
         res = evaluate_scene(run)

@@ -27,14 +27,15 @@ class PictureSink:
         return (Path("pictures") / scene / method / f"{view}.png").as_posix() if self.enabled else None
 
     def method_view(self, *, scene: str, method: str, view: str, pre_rgb, post_rgb, ref_rgb, pre_depth, post_depth,
-                    mask, geo, compat: bool, semantic, structural, record: dict | None = None,
+                    mask, geo, compat: bool, semantic, structural, record=None,
                     _shrink=None, _panels=None) -> str:
         """Write the sheet of one method at one view (host arrays only); returns its relative path.
 
         geo: GeometricView or None; semantic: (pre, post) predictions of the
         first semantic probe or None; structural: [(title, rgb, MaskSet)] of
-        the first structural probe; record: the view's record (its numbers
-        are drawn on the sheet, so they survive copying it).
+        the first structural probe; record: the view's
+        :class:`~r360gpu.metrics.record.ViewRecord` (its numbers are drawn on the
+        sheet, so they survive copying it).
         """
         from ..kernels.depth_change import no_depth
         from ..metrics.compat import compat_quantise, depth_delta
@@ -58,7 +59,8 @@ class PictureSink:
             semantic_pre=None if semantic is None else small.union(semantic[0]),
             semantic_post=None if semantic is None else small.union(semantic[1]),
             structural=[(t, small.rgb(rgb), small.masks(ms.masks)) for t, rgb, ms in structural],
-            width=small.width, record=record, embed_cache=self.embed_cache, memo=_panels,
+            width=small.width, record=None if record is None else record.to_dict(), embed_cache=self.embed_cache,
+            memo=_panels,
         )
         return rel
 

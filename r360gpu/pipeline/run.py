@@ -26,7 +26,6 @@ score a chunk of its views (:func:`r360gpu.pipeline.stages.score_view`).
 from __future__ import annotations
 
 import copy
-import fnmatch
 import threading
 import time
 from dataclasses import dataclass, field
@@ -55,22 +54,6 @@ class Timer:
         """Add seconds measured elsewhere (a Ray task's stage totals)."""
         with self._lock:
             self.totals[stage] = self.totals.get(stage, 0.0) + seconds
-
-
-def select_views(names: list[str], patterns, where=None) -> list[str]:
-    """The views whose name matches one of the glob patterns (all without patterns).
-
-    As ``check --views`` does (bundle.views), every pattern must select
-    something: a plain name that is not an evaluation view (no mask, no
-    camera) or a glob that matches none is an InputError naming ``where``.
-    """
-    if not patterns:
-        return list(names)
-    for p in patterns:
-        if not any(fnmatch.fnmatchcase(n, p) for n in names):
-            what = "matches no evaluation view" if any(c in p for c in "*?[") else "is not an evaluation view (no mask?)"
-            raise InputError(f"--views {p!r} {what}; views are named like {names[:3]}", where)
-    return [n for n in names if any(fnmatch.fnmatchcase(n, p) for p in patterns)]
 
 
 def open_pres(bundle, src) -> tuple[dict, dict]:
@@ -106,40 +89,19 @@ class SceneRun:
 
     def __init__(self, bundle, opts, ctx, sem_probes, str_probes, *, cache, timer: Timer, fit: bool = True,
                  kept=None):
+        from ..bundle import is_from_objects
+        from ..bundle.views import require_target
         from ..metrics.fidelity import LpipsModel
-        from ..render.sources import open_source
+        from .cache import fingerprint
 
         self.bundle, self.opts, self.ctx = bundle, opts, ctx
         self.timer, self.kept = timer, kept
-        self.views = select_views(bundle.views, opts.views, getattr(bundle, "config", None) or bundle.root)
+        self.views = list(bundle.views)  # selected once, where the bundle was loaded (bundle.views.narrow_views)
         self.depth_mode = opts.depth or bundle.options.depth
         ref_free = bundle.reference is None or (opts.reference_free if opts.reference_free is not None
                                                 else bundle.options.reference_free)
         self.mode = "reference_free" if ref_free else "reference"
-        t0 = time.perf_counter()
-        from ..bundle import is_from_objects
-        from ..util.filehash import forget_decoded
-
-        if not is_from_objects(bundle):  # what an earlier run in this process decoded is not this run's
-            forget_decoded(bundle.file_digests_paths())
-
-        def src(spec):
-            return open_source(spec, ctx=ctx, background=bundle.options.background, depth=self.depth_mode)
-
-        self.pres, self.pre_of = open_pres(bundle, src)
-        self.reference = src(bundle.reference) if bundle.reference else None
-        self.methods = {m: src(s) for m, s in bundle.methods.items()}
-        # The controls, scored like methods but never ranked: {control: source
-        # name}.  Their cells are cached under the source's name, which no
-        # method may take (bundle.model.RESERVED_METHOD_NAMES).
-        self.controls = {}
-        if opts.controls:
-            self.controls["identity"] = "pre"
-            if self.reference is not None:
-                self.controls["reference"] = "reference"
-        for src_name in self.controls.values():
-            self.pre_of[src_name] = "pre"
-        timer.add("load", t0)
+        self._open_sources()
         self.target_record = None
         if getattr(bundle, "target", None) is not None:  # [target]: a mask for every view (r360gpu.lift)
             from ..lift.resolve import resolve_target
@@ -150,9 +112,6 @@ class SceneRun:
             timer.add("target", t0)
         self._masks: dict = {}
         self._fit_renders: dict = {}
-        from ..bundle.views import require_target
-        from .cache import digest, fingerprint
-
         require_target(self.views, self.mask, bundle.masks)
         # The digests the key is made of, kept to check, before a view's cells are stored, that the
         # bytes decoded for it are these (cache.changed_inputs: hash while reading, util.filehash).
@@ -162,6 +121,42 @@ class SceneRun:
                                        digests=self.file_digests)
         # the driver checks that pre's cameras see its splats (workers score what the driver accepted)
         self.frame_check = self.check_frames(cache) if fit else {}
+        self._open_probes(sem_probes, str_probes, cache, fit)
+        self.lpips = LpipsModel(opts.lpips_model) if opts.lpips_model and self.reference is not None else None
+
+    def _open_sources(self) -> None:
+        """The pre sources, the reference, the methods and the controls, opened (timed as "load")."""
+        from ..bundle import is_from_objects
+        from ..render.sources import open_source
+        from ..util.filehash import forget_decoded
+
+        bundle, t0 = self.bundle, time.perf_counter()
+        if not is_from_objects(bundle):  # what an earlier run in this process decoded is not this run's
+            forget_decoded(bundle.file_digests_paths())
+
+        def src(spec):
+            return open_source(spec, ctx=self.ctx, background=bundle.options.background, depth=self.depth_mode)
+
+        self.pres, self.pre_of = open_pres(bundle, src)
+        self.reference = src(bundle.reference) if bundle.reference else None
+        self.methods = {m: src(s) for m, s in bundle.methods.items()}
+        # The controls, scored like methods but never ranked: {control: source
+        # name}.  Their cells are cached under the source's name, which no
+        # method may take (bundle.model.RESERVED_METHOD_NAMES).
+        self.controls = {}
+        if self.opts.controls:
+            self.controls["identity"] = "pre"
+            if self.reference is not None:
+                self.controls["reference"] = "reference"
+        for src_name in self.controls.values():
+            self.pre_of[src_name] = "pre"
+        self.timer.add("load", t0)
+
+    def _open_probes(self, sem_probes, str_probes, cache, fit: bool) -> None:
+        """The probes, wrapped in the probe cache; those that learn from the scene fitted now, or
+        (``fit_pending``) once a view has to be scored when a fit record gives their descriptions."""
+        from .cache import digest
+
         # Probes that learn from the scene are fitted as copies, one per scene: the caller's
         # objects stay as given, so the fit record's key (their description) is the same every run.
         learns = lambda p: getattr(p, "learns_from_scene", False)  # noqa: E731 (probes.base.Probe.fit)
@@ -185,7 +180,6 @@ class SceneRun:
             else:
                 self.fit_pending = True
         self.probes_desc = recorded if self.fit_pending else self._describe()
-        self.lpips = LpipsModel(opts.lpips_model) if opts.lpips_model and self.reference is not None else None
 
     @property
     def pre(self):

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextvars
 
 from ..errors import InputError
+from ..protocol import XI_DEFAULT
 from ..util import warning_log
 from .cache import RunCache
 from .picture_sink import PictureSink
@@ -51,16 +52,14 @@ def host_threads() -> int:
 
 
 def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool, executor=None,
-                   rendered=None) -> dict:
+                   rendered=None, what_if: bool = False) -> dict:
     """Every view of one scene (from the view cache where it has them); the scene's results entry.
 
     rendered: called (once, on this thread) when the last view to score here is rendered.
+    what_if: a scene scored beside the capture views (the orbit, the pruned methods): with the
+    compat depth rule, but without the capture scene's compat values and notes.
     """
-    from ..aggregate.results import method_axes
-    from ..aggregate.validity import scene_validity
-    from ..metrics.record import ViewRecord
-
-    bundle, opts = run.bundle, run.opts
+    bundle = run.bundle
     view_cache, cells_of, todo = _cached_views(run, cache, sink)
     if todo and run.fit_pending and run.fit():
         # the fit record no longer holds: the key changes, so look the views up again
@@ -82,16 +81,54 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     for v, cells in score_views(run, todo, sink, view_cache, rendered=rendered):
         cells_of[v] = cells
         next(ticks, None)
+    return scene_entry(run, cells_of, what_if=what_if)
+
+
+def scene_entry(run: SceneRun, cells_of: dict, *, what_if: bool = False) -> dict:
+    """The scene's results entry from the cells of its views ({view: {method: cell}}): the
+    per-view records and the axes of every method and control, the controls' validity verdicts,
+    and in a compat mode the public scripts' values (:mod:`r360gpu.aggregate.compat`).  The
+    records (ViewRecord objects) become dicts here, in the entry results.json is written from."""
+    from ..aggregate.compat import scene_compat
+    from ..aggregate.results import method_axes
+    from ..aggregate.validity import scene_validity
+
+    bundle, opts = run.bundle, run.opts
     scored = [*bundle.methods, *run.controls.values()]
     records: dict = {m: [] for m in scored}
     boundaries: dict = {m: [] for m in scored}
     pictures: dict = {m: {} for m in scored}
     for v in run.views:
         for m, cell in cells_of[v].items():
-            records[m].append(ViewRecord.from_dict(cell["record"]))
+            records[m].append(cell["record"])
             boundaries[m].append(cell.get("boundary"))
             if cell.get("picture"):
                 pictures[m][v] = cell["picture"]
+    scene = _scene_header(run)
+    own = {m: {"axes": method_axes(records[m], xis=opts.xis, boundary=boundaries[m] if opts.boundary else None),
+               "views": [r.to_dict() for r in records[m]]} for m in bundle.methods}
+    if run.controls:
+        scene["controls"] = {c: {"source": src, "axes": method_axes(records[src], xis=opts.xis),
+                                 "views": [r.to_dict() for r in records[src]]}
+                             for c, src in run.controls.items()}
+    # The verdicts weigh r360gpu's own readings (its probes, on the controls as on the methods),
+    # also in a compat mode, whose method axes are the public scripts'.
+    scene["validity"], scene["validity_notes"], scene["detectability"] = scene_validity(
+        {"methods": own, "controls": scene.get("controls")}, xi=XI_DEFAULT)
+    compat = None if what_if else scene_compat(bundle, list(bundle.methods), opts.compat, xis=opts.xis,
+                                               ght=opts.ght)
+    for m, entry in own.items():
+        scene["methods"][m] = {"axes": compat.axes(entry["axes"]) if compat else entry["axes"],
+                               "views": [compat.view(d) for d in entry["views"]] if compat else entry["views"],
+                               "pictures": pictures[m]}
+    if compat is not None:
+        scene["notes"] = compat.notes
+    return scene
+
+
+def _scene_header(run: SceneRun) -> dict:
+    """The scene entry's description of the run, before its measures ("methods" filled in after)."""
+    bundle = run.bundle
     scene = {
         "prompt": bundle.prompt,
         "n_views": len(run.views),
@@ -108,14 +145,6 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
         scene["target"] = run.target_record
     if getattr(bundle, "expected", None):  # scene.toml [expected.METHOD]: known failures, checked by the report
         scene["expected"] = bundle.expected
-    for m in bundle.methods:
-        axes = method_axes(records[m], xis=opts.xis, boundary=boundaries[m] if opts.boundary else None)
-        scene["methods"][m] = {"axes": axes, "views": [r.to_dict() for r in records[m]], "pictures": pictures[m]}
-    if run.controls:
-        scene["controls"] = {c: {"source": src, "axes": method_axes(records[src], xis=opts.xis),
-                                 "views": [r.to_dict() for r in records[src]]}
-                             for c, src in run.controls.items()}
-    scene["validity"], scene["validity_notes"], scene["detectability"] = scene_validity(scene, xi=0.3)
     return scene
 
 

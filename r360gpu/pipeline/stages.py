@@ -219,18 +219,20 @@ def _depth_file(spec, view: str):
 def measure(run, data: ViewData, sink) -> tuple[dict, dict]:
     """Every method's cell of the view, and its GeometricView (for the pictures).
 
-    cells: {method: {"record", "boundary", "picture"}}; the picture is the
-    path the sink will write (None without pictures).
+    cells: {method: {"record", "boundary", "picture"}}: the view's
+    :class:`~r360gpu.metrics.record.ViewRecord` (kept as one until a cell or
+    results.json is written), its boundary table, and the path the sink will
+    write the picture to (None without pictures).
     """
     t = time.perf_counter()
     cells, geos = {}, {}
     for m, res in measure_methods(run, data, list(run.methods)).items():
         geos[m] = res.geometric
-        cells[m] = {"record": res.record.to_dict(), "boundary": res.boundary,
+        cells[m] = {"record": res.record, "boundary": res.boundary,
                     "picture": sink.path_for(run.bundle.name, m, data.view)}
     controls = list(run.controls.values())
     for src, res in measure_methods(run, data, controls, boundary_sweep=False).items():  # no sweep, no picture
-        cells[src] = {"record": res.record.to_dict(), "boundary": None, "picture": None}
+        cells[src] = {"record": res.record, "boundary": None, "picture": None}
     run.timer.add("measure", t)
     return cells, geos
 
