@@ -12,8 +12,17 @@ same 640 x 480 image and the same parameters it times, per image:
 * r360gpu after: the batched export, the decoder cut to the outputs the
   generator reads, ``points_per_batch`` prompts per run;
 
-each with its image encoder run from scratch.  Mask sets are compared by
-Hungarian matching on IoU (counts, pixel-identical pairs, min IoU).  Then
+each with its image encoder run from scratch.
+
+With ``--model sam2.1`` the same for SAM 2.1 Hiera-Tiny (random weights, built and
+exported as bench/parity_sam2.py does: samexporter's ``export_sam2.py`` graphs, whose
+decoder already takes a batch of prompts): official ``SAM2AutomaticMaskGenerator``
+against r360gpu's generator on the exported pair ("after"; there is no "before"),
+with parity_sam2's generator parameters; the run "algorithm" is r360gpu's generator
+driven by the official torch predictor (parity_sam2's ``TorchSam2Models``), which
+separates the algorithm from the export's float32 differences.
+
+Mask sets are compared by Hungarian matching on IoU (counts, pixel-identical pairs, min IoU).  Then
 the projected wall time of the paper's benchmark (11 scenes x 6 methods x
 100 views; the structural probe on each post rendering and on each reference
 rendering) from the per-image times, and the encoder time that a second probe
@@ -25,6 +34,8 @@ shared, and the CPU figure moves less with the load (printed before and after).
 
     python bench/bench_amg.py --sam-src /tmp/sam-src --samexporter-src /tmp/samexporter-src \\
         [--work /tmp/probes-parity] [--points-per-side 32] [--runs official,before,after]
+    python bench/bench_amg.py --model sam2.1 --gsam2-src /tmp/gsam2-src --samexporter-src /tmp/samexporter-src \\
+        [--points-per-side 32] [--runs official,after]
 
 Needs what bench/parity_sam.py needs (torch, onnx, onnxruntime, opencv, scipy
 and the fetched sources, never committed).
@@ -57,7 +68,10 @@ SCENES, METHODS, VIEWS = 11, 6, 100
 
 def parse_args():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--sam-src", required=True, help="folder holding the fetched segment_anything package")
+    ap.add_argument("--model", choices=("sam", "sam2.1"), default="sam",
+                    help="sam: SAM ViT-B (default); sam2.1: SAM 2.1 Hiera-Tiny")
+    ap.add_argument("--sam-src", help="folder holding the fetched segment_anything package (--model sam)")
+    ap.add_argument("--gsam2-src", help="folder holding Grounded-SAM-2's sam2 package with configs (--model sam2.1)")
     P.add_model_args(ap)
     ap.set_defaults(points_per_side=32)
     ap.add_argument("--points-per-batch", type=int, default=64)
@@ -65,7 +79,16 @@ def parse_args():
     ap.add_argument("--runs", default="official,before,after",
                     help="which generators to time, in this order (comma-separated)")
     ap.add_argument("--reuse-exports", action="store_true", help="keep ONNX files already in --work (same seed)")
-    return ap.parse_args()
+    args = ap.parse_args()
+    src = {"sam": ("--sam-src", args.sam_src), "sam2.1": ("--gsam2-src", args.gsam2_src)}[args.model]
+    if not src[1]:
+        ap.error(f"--model {args.model} needs {src[0]}")
+    runs = args.runs.split(",")
+    if args.model == "sam2.1" and "before" in runs:
+        ap.error("--model sam2.1: no 'before' run (samexporter's SAM 2 decoder already takes a prompt batch)")
+    if args.model == "sam" and "algorithm" in runs:
+        ap.error("--model sam: no 'algorithm' run (bench/parity_sam.py checks the algorithm on the torch model)")
+    return args
 
 
 def scene(rng, width: int, height: int) -> np.ndarray:
@@ -159,12 +182,32 @@ def amg_params(points_per_side: int):
     return P.generator_configs(points_per_side)[0]
 
 
+def build_model(args, image):
+    """(official(params) -> masks, {run: (encoder, decoder)}, the torch-driven SamModels or None,
+    generator parameters, label) for --model."""
+    work = Path(args.work)
+    if args.model == "sam":
+        sam = P.build_sam(args.seed)
+        enc, dec1 = P.export_onnx(sam, work, batched_decoder=False, reuse=args.reuse_exports)
+        _, dec_b = P.export_onnx(sam, work, batched_decoder=True, reuse=True)
+        return (lambda params: P.official_generate(sam, image, params)[0], {"before": (enc, dec1), "after": (enc, dec_b)}, None,
+                P.generator_configs(args.points_per_side)[0], "ViT-B")
+    import parity_sam2 as P2
+
+    model = P2.build_sam2(args.seed)
+    enc, dec = work / "sam2.1_hiera_t_random.encoder.onnx", work / "sam2.1_hiera_t_random.decoder.onnx"
+    if not (args.reuse_exports and enc.is_file() and dec.is_file()):
+        enc, dec = P2.export_onnx(model, work)
+    return (lambda params: P2.official_generate(model, image, params, None), {"after": (enc, dec)},
+            P2.TorchSam2Models(model), P2.generator_configs(args.points_per_side)[0], "SAM 2.1 Hiera-Tiny")
+
+
 def main() -> int:
     if "--onnx" in sys.argv[1:]:
         return onnx_only(sys.argv[1:])
     args = parse_args()
     tv = P.use_torchvision_or_standin()
-    sys.path.insert(0, str(Path(args.sam_src).resolve()))
+    sys.path.insert(0, str(Path(args.sam_src or args.gsam2_src).resolve()))
     sys.path.insert(0, str(Path(args.samexporter_src).resolve()))
     import dataclasses
 
@@ -177,14 +220,12 @@ def main() -> int:
     width, height = (int(v) for v in args.size.lower().split("x"))
     rng = np.random.default_rng(args.seed)
     image = scene(rng, width, height)
-    sam = P.build_sam(args.seed)
     t0 = time.perf_counter()
-    enc, dec1 = P.export_onnx(sam, Path(args.work), batched_decoder=False, reuse=args.reuse_exports)
-    _, dec_b = P.export_onnx(sam, Path(args.work), batched_decoder=True, reuse=True)
-    params = dataclasses.replace(P.generator_configs(args.points_per_side)[0], points_per_batch=args.points_per_batch)
+    official, pairs, algorithm, params, label = build_model(args, image)
+    params = dataclasses.replace(params, points_per_batch=args.points_per_batch)
     print(f"# SAM automatic masks on CPU: official (torch {torch.__version__}, {tv}) vs r360gpu (onnxruntime)")
     print(f"machine: {os.cpu_count()} CPU cores; {load()}; exports ready in {time.perf_counter() - t0:.0f} s")
-    print(f"image {width}x{height}; ViT-B random weights, seed {args.seed}; points {params.points_per_side}x"
+    print(f"image {width}x{height}; {label} random weights, seed {args.seed}; points {params.points_per_side}x"
           f"{params.points_per_side}, batch {params.points_per_batch}, mask_threshold {params.mask_threshold}, "
           f"pred_iou_thresh {params.pred_iou_thresh}, stability >= {params.stability_score_thresh} (offset "
           f"{params.stability_score_offset}), box_nms {params.box_nms_thresh}")
@@ -193,13 +234,17 @@ def main() -> int:
     for run in [r.strip() for r in args.runs.split(",") if r.strip()]:
         EMBEDDINGS.clear()  # every generator encodes its image itself
         if run == "official":
-            (m, _), wall, cpu = timed(lambda: P.official_generate(sam, image, params))
-        elif run in ("before", "after"):
-            models = load_models(enc, dec1 if run == "before" else dec_b, before=run == "before")
+            m, wall, cpu = timed(lambda: official(params))
+        elif run == "algorithm" and algorithm is not None:
+            r, wall, cpu = timed(lambda: generate_masks(algorithm, image, params))
+            m = r.masks
+        elif run in pairs:
+            models = load_models(*pairs[run], before=run == "before")
             r, wall, cpu = timed(lambda: generate_masks(models, image, params))
             m = r.masks
         else:
-            raise SystemExit(f"unknown run {run!r}; use official, before, after")
+            raise SystemExit(f"unknown run {run!r}; use official, {', '.join(pairs)}"
+                             f"{', algorithm' if algorithm is not None else ''}")
         masks[run], times[run] = m, (wall, cpu)
         print(f"  {run:8s}: {wall:7.1f} s wall, {cpu:7.1f} CPU-s, {len(m)} masks   ({load()})", flush=True)
 
@@ -211,11 +256,14 @@ def main() -> int:
             s = P.match(masks[a], masks[b])
             same = s["n_off"] == s["n_r360"] == s["identical"]
             equal_all &= same
+            px = int(np.sum(np.asarray(masks[a]).sum(0) != np.asarray(masks[b]).sum(0))) if same is False and \
+                len(masks[a]) == len(masks[b]) else None
             print(f"  {a} vs {b}: {s['n_off']} / {s['n_r360']} masks, {s['identical']} pixel-identical pairs, "
-                  f"min IoU {s['min_iou']:.4f} -> {'EQUAL' if same else 'DIFFERENT'}")
+                  f"min IoU {s['min_iou']:.4f} -> {'EQUAL' if same else 'DIFFERENT'}"
+                  f"{f' (mask-count maps differ at {px} pixels)' if px is not None else ''}")
 
     if "after" in times:
-        models = load_models(enc, dec_b, before=False)
+        models = load_models(*pairs["after"], before=False)
         EMBEDDINGS.clear()
         _, enc_wall, enc_cpu = timed(lambda: models.embed(image))
         _, hit_wall, _ = timed(lambda: models.embed(image))
