@@ -15,8 +15,10 @@ from ..errors import InputError
 from ..gpu.context import BufferRange
 from ..gpu.uniforms import uniform
 from ..render.conventions import ALPHA_MAX, ALPHA_MIN, T_MIN
-from ..render.renderer import Renderer
+from ..render.binning import TileLists
 from ..render.project import tile_grid
+from ..render.rasterize import Band
+from ..render.renderer import Renderer
 
 #: Fixed-point units per unit of compositing weight (the shader's ``scale``): a tile's sum of at most
 #: 256 pixel weights must fit 32 bits (256 x 2^20 = 2^28), and 2^-20 per thread and Gaussian is far
@@ -77,20 +79,18 @@ class MaskLifter(Renderer):
                                  f"a {width}x{height} float32 mask needs {width * height * 4}")
             buf = mask
         self._mask = BufferRange(buf, 0, max(4, width * height * 4))
-        proj, order, row_counts, gx, t0, counted = self._prepare(cam, whole=True)
-        self._render_rows(proj, order, row_counts, cam, gx, 0, tile_grid(width, height)[1], buf, width * height, t0,
-                          counted)
+        prep, t0 = self._prepare(cam, whole=True)
+        self._render_rows(prep, cam, (0, tile_grid(width, height)[1]), buf, width * height, t0)
         self.views += 1
 
-    def _record_tiles(self, enc, *, proj, ranges, vals, num_keys: int, image, stride: int, row_base: int,
-                      cam: dict, tiles_x: int, window, work) -> None:
-        ctx, n = self.ctx, self.scene.n
-        params = uniform(ctx, "lift_accumulate", width=cam["width"], height=cam["height"], tiles_x=tiles_x,
-                         tile_begin=window.begin, num_tiles=window.end - window.begin, row_base=row_base,
+    def _record_tiles(self, enc, lists: TileLists, cam: dict, band: Band, work) -> None:
+        ctx, n, window, proj = self.ctx, self.scene.n, lists.window, lists.proj
+        params = uniform(ctx, "lift_accumulate", width=cam["width"], height=cam["height"], tiles_x=lists.tiles_x,
+                         tile_begin=window.begin, num_tiles=window.end - window.begin, row_base=band.row_base,
                          scale=SCALE)
         per_gaussian = max(16, n * 16)
         ctx.dispatch(enc, ctx.pipeline("lift_accumulate", "main", CONSTANTS),
-                     [params, ranges, BufferRange(vals, 0, max(4, num_keys * 4)),
+                     [params, lists.ranges, BufferRange(lists.vals, 0, max(4, lists.num_keys * 4)),
                       BufferRange(proj.pos_op, 0, per_gaussian), BufferRange(proj.conic, 0, per_gaussian),
                       self._mask, BufferRange(self.acc, 0, per_gaussian)],
                      ctx.grid(window.end - window.begin))

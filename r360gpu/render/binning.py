@@ -35,6 +35,25 @@ class TileWindow:
     keys: int | None
 
 
+@dataclass(frozen=True)
+class TileLists:
+    """One key window after the tile sort: what a per-tile pass over it reads.
+
+    proj: the view's :class:`~r360gpu.render.project.Projected` Gaussians (n of them);
+    ranges: (start, end) u32 key offsets per window tile; vals: u32 Gaussian index per
+    key, front to back within each tile; num_keys: keys in the window; tiles_x: tiles
+    per image row; window: the window's tile ids.
+    """
+
+    proj: object
+    n: int
+    ranges: BufferRange
+    vals: object
+    num_keys: int
+    tiles_x: int
+    window: TileWindow
+
+
 def plan_windows(row_counts: np.ndarray, tiles_x: int, capacity: int) -> list[TileWindow]:
     """Group whole tile rows into windows of at most ``capacity`` keys.
 

@@ -6,11 +6,14 @@ floats (width * height rounded up to a multiple of 64 so every plane starts
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..gpu.context import BufferRange, GpuContext
 from ..gpu.shaders import workgroup_threads
 from ..gpu.uniforms import uniform
+from .binning import TileLists
 from .shader_pipelines import pipeline
 
 #: Plane order in the output buffer.
@@ -27,25 +30,35 @@ def plane_windows(image, stride: int) -> list[BufferRange]:
     return [BufferRange(image, i * stride * 4, stride * 4) for i in range(len(PLANES))]
 
 
-def record_rasterize(ctx: GpuContext, enc, *, ranges: BufferRange, vals, num_keys: int, pos_op, conic, rgb,
-                     n: int, image, stride: int, row_base: int, width: int, height: int, tiles_x: int,
-                     tile_begin: int, num_tiles: int, background, min_alpha: float, work: BufferRange) -> None:
-    """Record the rasterisation of tiles [tile_begin, tile_begin + num_tiles) into ``image``.
+@dataclass(frozen=True)
+class Band:
+    """Where a per-tile pass writes: ``image`` holds planes of ``stride`` floats whose first
+    row is pixel row ``row_base`` of the view (0 unless the image is rendered in row bands)."""
 
-    ``image`` holds six planes of ``stride`` floats whose first row is pixel
-    row ``row_base`` of the width x height view (0 unless rendering in row
-    bands).  ``work`` receives two u32 per tile of the window: pixel-Gaussian
-    pairs evaluated and blended.
+    image: object
+    stride: int
+    row_base: int
+
+
+def record_rasterize(ctx: GpuContext, enc, lists: TileLists, band: Band, *, width: int, height: int, background,
+                     min_alpha: float, work: BufferRange) -> None:
+    """Record the rasterisation of the tiles of ``lists.window`` into ``band`` of a width x height view.
+
+    ``work`` receives two u32 per tile of the window: pixel-Gaussian pairs
+    evaluated and blended.
     """
-    params = uniform(ctx, "render_rasterize", width=width, height=height, tiles_x=tiles_x, tile_begin=tile_begin,
-                     num_tiles=num_tiles, bg_r=background[0], bg_g=background[1], bg_b=background[2],
-                     min_alpha=min_alpha, row_base=row_base)
-    per_gaussian = max(16, n * 16)
+    window = lists.window
+    num_tiles = window.end - window.begin
+    params = uniform(ctx, "render_rasterize", width=width, height=height, tiles_x=lists.tiles_x,
+                     tile_begin=window.begin, num_tiles=num_tiles, bg_r=background[0], bg_g=background[1],
+                     bg_b=background[2], min_alpha=min_alpha, row_base=band.row_base)
+    per_gaussian = max(16, lists.n * 16)
+    proj = lists.proj
     ctx.dispatch(
         enc, pipeline(ctx, "render_rasterize"),
-        [params, ranges, BufferRange(vals, 0, max(4, num_keys * 4)),
-         BufferRange(pos_op, 0, per_gaussian), BufferRange(conic, 0, per_gaussian), BufferRange(rgb, 0, per_gaussian),
-         *plane_windows(image, stride), work],
+        [params, lists.ranges, BufferRange(lists.vals, 0, max(4, lists.num_keys * 4)),
+         BufferRange(proj.pos_op, 0, per_gaussian), BufferRange(proj.conic, 0, per_gaussian),
+         BufferRange(proj.rgb, 0, per_gaussian), *plane_windows(band.image, band.stride), work],
         ctx.grid(num_tiles),
     )
 

@@ -12,7 +12,6 @@ wait (none for :meth:`Renderer.render_device`).
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Iterable, Iterator
@@ -22,10 +21,10 @@ import numpy as np
 from ..errors import InputError
 from ..gpu.context import GpuContext, get_context
 from ..gpu.shaders import workgroup_threads
-from .binning import TileWindow, plan_windows, record_counts, record_emit, record_ranges
+from .binning import TileLists, TileWindow, plan_windows, record_counts, record_emit, record_ranges
 from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA, TILE, RenderOptions
 from .project import WG as PROJECT_WG, Projected, camera_arrays, project, tile_grid
-from .rasterize import PLANES, image_to_numpy, plane_stride, planes_to_numpy, record_rasterize
+from .rasterize import PLANES, Band, image_to_numpy, plane_stride, planes_to_numpy, record_rasterize
 from .scene import DeviceScene
 from .scratch import Scratch
 from .sort import host_sort, radix_sort
@@ -85,6 +84,22 @@ class RenderStats:
     windows: int = 0
     evaluated: int = 0
     blended: int = 0
+
+
+@dataclass
+class Prepared:
+    """A view projected and depth-sorted (:meth:`Renderer._prepare`): what each of its key windows reads.
+
+    row_counts: (tiles_y,) key bounds per tile row; counted: the window of all the
+    image's tiles with its exact key count and the per-Gaussian key offsets, when
+    they were recorded with the projection (one-pass images), else None.
+    """
+
+    proj: Projected
+    order: object
+    row_counts: np.ndarray
+    tiles_x: int
+    counted: tuple | None
 
 
 class Renderer:
@@ -156,8 +171,8 @@ class Renderer:
         stride = plane_stride(width, height)
         if image is None:
             image = self.ctx.buffer(stride * len(PLANES) * 4, label="render.image")
-        proj, order, row_counts, gx, t0, counted = self._prepare(cam, whole=True)
-        self._render_rows(proj, order, row_counts, cam, gx, 0, len(row_counts), image, stride, t0, counted)
+        prep, t0 = self._prepare(cam, whole=True)
+        self._render_rows(prep, cam, (0, len(prep.row_counts)), image, stride, t0)
         return DeviceRender(buffer=image, width=width, height=height, plane_stride=stride)
 
     def band_rows(self, camera) -> int:
@@ -186,9 +201,7 @@ class Renderer:
 
         ``whole``: the image is rendered in one pass, so the key counts of
         the window of all its tiles are recorded in the same submission and
-        read with the row bounds.  Returns (proj, order, row_counts, tiles_x,
-        t0, counted), ``counted`` being that window with its counts
-        (:meth:`_render_window`'s ``counted``) or None.
+        read with the row bounds.  Returns (:class:`Prepared`, t0).
         """
         ctx, scratch, n = self.ctx, self.scratch, self.scene.n
         gx, gy = tile_grid(cam["width"], cam["height"])
@@ -218,16 +231,16 @@ class Renderer:
         if counted is not None:
             counted = (TileWindow(0, gx * gy, int(got[gy])), counted[1])
         t0 = self._mark("sort", t0, proj.row_counts)
-        return proj, order, row_counts, gx, t0, counted
+        return Prepared(proj, order, row_counts, gx, counted), t0
 
-    def _render_rows(self, proj, order, row_counts, cam, gx: int, row0: int, row1: int, image, stride: int,
-                     t0: float, counted=None) -> None:
-        """Rasterise tile rows [row0, row1) into ``image`` (planes of ``stride`` floats from pixel row 16 row0).
-
-        ``counted``: (window with its exact key count, offsets) from :meth:`_prepare`, used when the
-        plan is that one window."""
+    def _render_rows(self, prep: Prepared, cam: dict, rows: tuple[int, int], image, stride: int, t0: float) -> None:
+        """Rasterise tile rows [row0, row1) = ``rows`` into ``image`` (planes of ``stride`` floats from
+        pixel row 16 row0).  ``prep.counted`` is used when the plan is that one window."""
+        row0, row1 = rows
+        gx, counted = prep.tiles_x, prep.counted
+        band = Band(image, stride, row0 * TILE)
         pending = [TileWindow(w.begin + row0 * gx, w.end + row0 * gx, w.keys)
-                   for w in plan_windows(row_counts[row0:row1], gx, self._key_capacity())]
+                   for w in plan_windows(prep.row_counts[row0:row1], gx, self._key_capacity())]
         pending.reverse()
         while pending:
             window = pending.pop()
@@ -235,7 +248,7 @@ class Renderer:
                 continue
             use = counted if counted is not None and (window.begin, window.end) == (
                 counted[0].begin, counted[0].end) else None
-            window = self._render_window(proj, order, window, image, cam, gx, t0, stride, row0 * TILE, use)
+            window = self._render_window(prep, window, cam, band, t0, use)
             if isinstance(window, list):
                 pending.extend(reversed(window))
             t0 = time.perf_counter()
@@ -255,12 +268,12 @@ class Renderer:
         tile) and its ranges (8 bytes per tile) one binding."""
         return num_tiles <= self.ctx.max_workgroups**2 and num_tiles * 8 <= self.ctx.max_binding_bytes
 
-    def _render_window(self, proj: Projected, order, window: TileWindow, image, cam: dict, gx: int, t0: float,
-                       stride: int, row_base: int, counted=None):
-        """Bin, sort and rasterise one key window; returns halves if it had to be split.
+    def _render_window(self, prep: Prepared, window: TileWindow, cam: dict, band: Band, t0: float, counted=None):
+        """Bin, sort and rasterise one key window into ``band``; returns halves if it had to be split.
 
         ``counted``: (this window with its exact key count, its offsets) when already counted."""
         ctx, scratch, n = self.ctx, self.scratch, self.scene.n
+        proj, order, gx = prep.proj, prep.order, prep.tiles_x
         num_tiles = window.end - window.begin
         if not self._one_dispatch(num_tiles):
             mid = (window.begin + window.end) // 2
@@ -295,28 +308,23 @@ class Renderer:
         t0 = self._mark("sort", t0, ranges.buffer)
         enc = ctx.encoder()
         work = scratch.window("render.work", num_tiles * 8)
-        self._record_tiles(enc, proj=proj, ranges=ranges, vals=vals, num_keys=k, image=image, stride=stride,
-                           row_base=row_base, cam=cam, tiles_x=gx, window=window, work=work)
+        self._record_tiles(enc, TileLists(proj, n, ranges, vals, k, gx, window), cam, band, work)
         ctx.submit(enc)
-        self._mark("rasterize", t0, image)
+        self._mark("rasterize", t0, band.image)
         if self.count_work:
             counts = ctx.read(work.buffer, np.uint32, 2 * num_tiles).reshape(-1, 2).astype(np.int64)
             self.stats.evaluated += int(counts[:, 0].sum())
             self.stats.blended += int(counts[:, 1].sum())
         return window
 
-    def _record_tiles(self, enc, *, proj: Projected, ranges, vals, num_keys: int, image, stride: int,
-                      row_base: int, cam: dict, tiles_x: int, window: TileWindow, work) -> None:
+    def _record_tiles(self, enc, lists: TileLists, cam: dict, band: Band, work) -> None:
         """Record the per-tile pass over one window's sorted tile lists (here: the rasteriser).
 
         The one step a pass over the same tile lists replaces (target lifting,
         :mod:`r360gpu.lift.device`); everything before it is the render's own.
         """
-        record_rasterize(self.ctx, enc, ranges=ranges, vals=vals, num_keys=num_keys, pos_op=proj.pos_op,
-                         conic=proj.conic, rgb=proj.rgb, n=self.scene.n, image=image, stride=stride,
-                         row_base=row_base, width=cam["width"], height=cam["height"], tiles_x=tiles_x,
-                         tile_begin=window.begin, num_tiles=window.end - window.begin, background=self.background,
-                         min_alpha=self.options.no_coverage_alpha, work=work)
+        record_rasterize(self.ctx, enc, lists, band, width=cam["width"], height=cam["height"],
+                         background=self.background, min_alpha=self.options.no_coverage_alpha, work=work)
 
     def render(self, camera) -> Render:
         """Render ``camera`` and read the result back as numpy arrays.
@@ -334,10 +342,10 @@ class Renderer:
         out = _host_image(cam)
         stride = plane_stride(width, rows)
         image = self.scratch.get("render.image", stride * len(PLANES) * 4)
-        proj, order, row_counts, gx, t0, _ = self._prepare(cam, whole=False)
+        prep, t0 = self._prepare(cam, whole=False)
         for y0 in range(0, height, rows):
             h = min(rows, height - y0)
-            self._render_rows(proj, order, row_counts, cam, gx, y0 // TILE, -(-(y0 + h) // TILE), image, stride, t0)
+            self._render_rows(prep, cam, (y0 // TILE, -(-(y0 + h) // TILE)), image, stride, t0)
             planes = planes_to_numpy(self.ctx, image, width, h, stride)
             for c, name in enumerate("rgb"):
                 out.rgb[y0:y0 + h, :, c] = planes[name]
