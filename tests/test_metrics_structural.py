@@ -123,6 +123,12 @@ def test_match_on_matrices():
     assert match(np.zeros((0, 3)))[2] == 0.0
     _, _, t = match(np.array([[0.2, 0.7, 0.1]]))  # rectangular: best single match
     assert t == 0.7
+    from scipy.optimize import linear_sum_assignment
+
+    for v in (0.0, 0.25, 1.0):  # one mask a side, answered without scipy: what scipy answers
+        r, c, t = match(np.array([[v]]))
+        want = linear_sum_assignment(np.array([[v]]), maximize=True)
+        assert (list(r), list(c), t) == (list(want[0]), list(want[1]), v) and r.dtype == want[0].dtype
 
 
 def _brute_force(a, b, target, thr=0.1):

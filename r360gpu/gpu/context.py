@@ -466,3 +466,17 @@ def get_context(adapter: str | None = None, device=None) -> GpuContext:
         if ctx is None:
             ctx = _contexts[key] = GpuContext.create(adapter)
         return ctx
+
+
+def open_ahead(adapter: str | None = None) -> None:
+    """Start :func:`get_context` for ``adapter`` on a thread of its own, so that importing wgpu and
+    choosing the adapter (0.3-1 s on lavapipe, much of it in the driver with the GIL released) overlap
+    the caller's other start-up work.  A failure is left for the caller's own ``get_context`` call,
+    which tries again and raises it there."""
+    def run() -> None:
+        try:
+            get_context(adapter)
+        except Exception:  # noqa: BLE001 - raised again where the run asks for its context
+            pass
+
+    threading.Thread(target=run, name="r360-gpu-ahead", daemon=True).start()

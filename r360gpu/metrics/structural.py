@@ -153,6 +153,8 @@ def match(iou: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     iou = np.asarray(iou, np.float64)
     if iou.size == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), 0.0
+    if iou.shape == (1, 1):  # one mask a side, the usual case: no need to import scipy.optimize (0.2-0.6 s)
+        return np.zeros(1, np.int64), np.zeros(1, np.int64), float(iou[0, 0])
     from scipy.optimize import linear_sum_assignment  # here: the import costs every command ~0.4 s
 
     rows, cols = linear_sum_assignment(iou, maximize=True)
