@@ -243,13 +243,12 @@ def _score_and_report(bundles, out, args, executor, kept=None) -> int:
 
 def start_ahead(adapter: str | None) -> None:
     """What a run needs later, started on threads now, while its inputs are read: the GPU context
-    (evaluate asks for it first), scipy.optimize (the structural matching of a view with several
-    masks a side) and matplotlib (each scene's plots, once its views are scored)."""
+    (evaluate asks for it first) and matplotlib (each scene's plots, once its views are scored)."""
     from ..gpu import open_ahead
     from ..util.imports import ImportAhead
 
     open_ahead(adapter)
-    ImportAhead("scipy.optimize", "matplotlib.figure", "matplotlib.style")
+    ImportAhead("matplotlib.figure", "matplotlib.style")
 
 
 def bundles_from_args(args) -> list:
