@@ -243,12 +243,13 @@ def _score_and_report(bundles, out, args, executor, kept=None) -> int:
 
 def start_ahead(adapter: str | None) -> None:
     """What a run needs later, started on threads now, while its inputs are read: the GPU context
-    (evaluate asks for it first) and matplotlib (each scene's plots, once its views are scored)."""
+    (evaluate asks for it first) and the report's modules with matplotlib (each scene's plots, once
+    its views are scored, and the outputs)."""
     from ..gpu import open_ahead
     from ..util.imports import ImportAhead
 
     open_ahead(adapter)
-    ImportAhead("matplotlib.figure", "matplotlib.style")
+    ImportAhead("matplotlib.figure", "matplotlib.style", "r360gpu.report.outputs")
 
 
 def bundles_from_args(args) -> list:
