@@ -1,6 +1,6 @@
 """`r360gpu score` end to end against the public Remove360 evaluation scripts, on the same folder.
 
-    python bench/bench_vs_public.py --public PATH [--views 20 --width 1200 --height 1000] [--repeat 1]
+    python bench/bench_vs_public.py --public PATH [--views 20 --width 1200 --height 1000] [--repeat 3]
     python bench/bench_vs_public.py --public PATH --views 100 --width 290 --height 220
 
 PATH: a checkout of github.com/simonakocour/anything_left (or its bare git
@@ -18,19 +18,21 @@ as their converter leaves it), and SAM automatic-mask JSON as
 view) for the "GT" side in ``masks/<view>.json`` and the method in
 ``sam/after/<view>.json``.
 
-Timed, each as one fresh process, on fresh copies of the folder:
-* peer: the public depth_diff + semantic + depth + SAM evaluation (one thread);
-* r360gpu: ``r360gpu score FOLDER --out OUT`` with default options and the
-  same precomputed masks (``--semantic-probe png:FOLDER/gsam2
-  --structural-probe sam-json:pre=FOLDER/masks,post=FOLDER/sam/after``).
-Prints both times, the ratio, and the machine's load average; then an input
-floor: a fresh Python process that imports numpy and OpenCV, decodes every PNG
-of the folder and makes one vectorised pass over every SAM JSON byte (the
-least any Python evaluator of the folder does), with its decoding spread
-over the cores, and the ratio to the public scripts such a floor would give;
-then the same floor with r360gpu's GPU device opened (a fresh process timing
-``get_context()``; its CPU time counted as if spread perfectly over the cores
-beside the decoding), the least r360gpu as designed can take.
+Timed, each as one fresh process, in rounds (``--repeat``, default 3; medians reported), every round
+running the four in turn, each round starting one later so that each meets the same machine load:
+* input floor: one fresh Python process per core, all started together; process k of n imports
+  numpy and OpenCV, decodes every n-th PNG of the folder (from the k-th, in sorted order) with
+  ``cv2.imread(path, cv2.IMREAD_UNCHANGED)`` and reads every n-th JSON file's bytes once; the
+  floor is the wall time from the launch to the last exit (issue 27's definition);
+* r360gpu: ``r360gpu score FOLDER --out OUT --no-pictures`` and the same with default options,
+  with the same precomputed masks (``--semantic-probe png:FOLDER/gsam2
+  --structural-probe sam-json:pre=FOLDER/masks,post=FOLDER/sam/after``), on the generated folder
+  itself (checked unchanged afterwards), into a fresh output folder;
+* peer: the public depth_diff + semantic + depth + SAM evaluation (one thread), on a fresh copy
+  of the folder (its scripts write into it).
+Prints the machine's load average before, during and after, each run's time, and a table: the
+floor, both r360gpu times with their ratio to the floor (issue 27's goals: <= 1.5x without
+pictures, <= 2.5x with), and the public scripts' time with its ratio to r360gpu's default run.
 """
 from __future__ import annotations
 
@@ -138,52 +140,36 @@ def public_checkout(path: Path, tmp: Path) -> Path:
 
 
 _FLOOR_CODE = """
-import sys, time
-t0 = time.perf_counter()
+import sys
 from pathlib import Path
-import cv2, numpy as np
-t1 = time.perf_counter()
-png = js = 0.0
-for f in sorted(Path(sys.argv[1]).rglob("*")):
-    if f.suffix == ".png":
-        t = time.perf_counter(); cv2.imdecode(np.frombuffer(f.read_bytes(), np.uint8), cv2.IMREAD_UNCHANGED)
-        png += time.perf_counter() - t
-    elif f.suffix == ".json":
-        t = time.perf_counter(); int(np.count_nonzero(np.frombuffer(f.read_bytes(), np.uint8) == 116))
-        js += time.perf_counter() - t
-print(t1 - t0, png, js)
+
+import cv2
+import numpy as np
+
+folder, k, n = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+files = sorted(folder.rglob("*"))
+for f in [f for f in files if f.suffix == ".png"][k::n]:
+    if cv2.imread(str(f), cv2.IMREAD_UNCHANGED) is None:
+        sys.exit(f"cannot decode {f}")
+for f in [f for f in files if f.suffix == ".json"][k::n]:
+    f.read_bytes()
 """
 
 
-def input_floor(folder: Path, env) -> tuple[float, float, float, float]:
-    """(wall of a fresh process, its import of numpy + cv2, PNG decoding, one byte pass over the
-    SAM JSON), all single-threaded: what any Python evaluator of this folder must at least do
-    (start, decode every PNG it reads, look at every byte of the JSON once)."""
+def input_floor(folder: Path, env, processes: int) -> float:
+    """Wall seconds from launching ``processes`` fresh Python processes at once (one per core) to the
+    last one's exit; process k of n imports numpy and OpenCV, decodes every n-th PNG of the folder from
+    the k-th with ``cv2.imread(path, cv2.IMREAD_UNCHANGED)`` and reads every n-th JSON file's bytes once:
+    the least any Python evaluator of the folder does (start, decode what it scores, see every byte)."""
     t = time.perf_counter()
-    p = subprocess.run([sys.executable, "-c", _FLOOR_CODE, str(folder)], capture_output=True, text=True, env=env,
-                       check=True)
+    procs = [subprocess.Popen([sys.executable, "-c", _FLOOR_CODE, str(folder), str(k), str(processes)], env=env,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE) for k in range(processes)]
+    outs = [p.communicate() for p in procs]
     wall = time.perf_counter() - t
-    imports, png, js = (float(x) for x in p.stdout.split())
-    return wall, imports, png, js
-
-
-_DEVICE_CODE = """
-import time
-import cv2, numpy as np
-from r360gpu.gpu import get_context
-w, c = time.perf_counter(), time.process_time()
-ctx = get_context()
-print(time.perf_counter() - w, time.process_time() - c, ctx.adapter_info["adapter_type"])
-"""
-
-
-def device_open(env, cwd) -> tuple[float, float, str]:
-    """(wall, CPU of every thread, adapter type) of opening r360gpu's GPU device in a fresh process
-    that has numpy and cv2 imported already: importing wgpu's backend, the adapter, the device."""
-    p = subprocess.run([sys.executable, "-c", _DEVICE_CODE], capture_output=True, text=True, env=env, cwd=cwd,
-                       check=True)
-    wall, cpu, kind = p.stdout.split()
-    return float(wall), float(cpu), kind
+    for p, (_, err) in zip(procs, outs):
+        if p.returncode != 0:
+            sys.exit(f"input floor process failed ({p.returncode}): {err.decode()[-2000:]}")
+    return wall
 
 
 def timed(cmd, env=None, cwd=None) -> tuple[float, str]:
@@ -195,13 +181,22 @@ def timed(cmd, env=None, cwd=None) -> tuple[float, str]:
     return dt, p.stdout
 
 
+def _listing(folder: Path) -> list:
+    """(path, size, mtime) of every file under ``folder``: r360gpu must leave its input as it found it."""
+    return sorted((str(f), f.stat().st_size, f.stat().st_mtime_ns) for f in folder.rglob("*") if f.is_file())
+
+
+def _load() -> str:
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--public", required=True, type=Path, help="anything_left checkout or bare git dir")
     ap.add_argument("--views", type=int, default=20)
     ap.add_argument("--width", type=int, default=1200)
     ap.add_argument("--height", type=int, default=1000)
-    ap.add_argument("--repeat", type=int, default=1, help="runs of each (the median is reported)")
+    ap.add_argument("--repeat", type=int, default=3, help="rounds (each runs all four; medians are reported)")
     ap.add_argument("--keep", type=Path, default=None, help="keep the generated folder and outputs here")
     ap.add_argument("--r360-args", default="", help="extra r360gpu score arguments (quoted)")
     ap.add_argument("--r360-root", type=Path, default=ROOT, help="r360gpu source tree to time (default: this one)")
@@ -219,53 +214,66 @@ def main() -> int:
             shutil.rmtree(scene, ignore_errors=True)
             make_scene(scene, args.views, args.height, args.width)
             (scene / ".params").write_text(params)
+        cores = os.cpu_count() or 1
         print(f"# r360gpu score vs the public Remove360 scripts: {args.views} views of {args.width}x{args.height}")
-        print(f"generated in {time.perf_counter() - t:.1f} s; CPU cores: {os.cpu_count()}; "
-              f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        print(f"generated in {time.perf_counter() - t:.1f} s; CPU cores: {cores}; load average before: {_load()}")
         env = {**os.environ, "PYTHONPATH": f"{args.r360_root.resolve()}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
-        peer, ours = [], []
-        for k in range(args.repeat):
-            run = tmp / f"run{k}"
-            shutil.rmtree(run, ignore_errors=True)
-            shutil.copytree(scene, run / "peer")
-            dt, out = timed([sys.executable, str(HERE / "run_public.py"), str(public), str(run / "peer")], env)
-            peer.append(dt)
-            peer_axes = out.strip().splitlines()[-1]
-            s = run / "peer"
-            cmd = [sys.executable, "-m", "r360gpu", "score", str(s), "--out", str(run / "r360"), "--quiet",
-                   "--semantic-probe", f"png:{s}/gsam2",
-                   "--structural-probe", f"sam-json:pre={s}/masks,post={s}/sam/after", *args.r360_args.split()]
+        listing = _listing(scene)
+        times: dict[str, list[float]] = {"floor": [], "no-pictures": [], "default": [], "public": []}
+
+        def r360(name: str, k: int, extra: list[str]) -> None:
+            out = tmp / f"run{k}" / name
+            shutil.rmtree(out, ignore_errors=True)
+            cmd = [sys.executable, "-m", "r360gpu", "score", str(scene), "--out", str(out), "--quiet",
+                   "--semantic-probe", f"png:{scene}/gsam2",
+                   "--structural-probe", f"sam-json:pre={scene}/masks,post={scene}/sam/after", *extra,
+                   *args.r360_args.split()]
             # run from the timed tree: `python -m` puts the working directory first on sys.path,
             # ahead of PYTHONPATH, so from another checkout it would import that one
             dt, _ = timed(cmd, env, cwd=args.r360_root.resolve())
-            ours.append(dt)
-            res = json.loads((run / "r360" / "results.json").read_text())
+            times[name].append(dt)
+            res = json.loads((out / "results.json").read_text())
             ax = next(iter(res["scenes"].values()))["methods"]["after"]["axes"]
-            print(f"run {k}: public {peer[-1]:.2f} s, r360gpu {ours[-1]:.2f} s  "
-                  f"(stages {res['timing']['stages_s']})")
-            print(f"  public axes {peer_axes}; r360gpu s_sem {ax['s_sem']:.3f} s_geo {ax['s_geo']:.3f} "
-                  f"s_str {ax['s_str']:.3f}")
-        p, o = float(np.median(peer)), float(np.median(ours))
-        wall, imports, png, js = input_floor(scene, env)
-        cores = os.cpu_count() or 1
-        # the start (interpreter + imports) is serial; decoding and scanning could use every core
-        floor = wall - png - js + (png + js) / cores
-        print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
-        print(f"input floor: a process that imports numpy + cv2 ({imports:.2f} s), decodes every PNG "
-              f"({png:.2f} s) and looks at every SAM JSON byte once ({js:.2f} s) takes {wall:.2f} s on one core, "
-              f"{floor:.2f} s spread over {cores}; 10x the public scripts needs <= {p / 10:.2f} s")
-        # r360gpu also opens its GPU device: CPU work (all of it on lavapipe), counted as if it ran
-        # perfectly beside the decoding, so this floor is a lower bound for r360gpu as designed
-        dev_wall, dev_cpu, kind = device_open(env, args.r360_root.resolve())
-        dev_floor = wall - png - js + (png + js + dev_cpu) / cores
-        print(f"GPU device ({kind} adapter): opening it takes {dev_wall:.2f} s, {dev_cpu:.2f} s of CPU; the input "
-              f"floor with it, every CPU second spread over {cores} cores: {dev_floor:.2f} s")
+            scored = res["timing"]["total_s"]  # opening the scene to its last view's plots
+            print(f"  r360gpu {name}: {dt:.2f} s (views scored in {scored:.2f} s; start-up, outputs and exit "
+                  f"{dt - scored:.2f} s); s_sem {ax['s_sem']:.3f} s_geo {ax['s_geo']:.3f} s_str {ax['s_str']:.3f}; "
+                  f"thread-seconds per stage {res['timing']['stages_s']}")
+
+        def peer(k: int) -> None:
+            copy = tmp / f"run{k}" / "peer"  # the public scripts write into the scene folder
+            shutil.rmtree(copy, ignore_errors=True)
+            shutil.copytree(scene, copy)
+            dt, out = timed([sys.executable, str(HERE / "run_public.py"), str(public), str(copy)], env)
+            times["public"].append(dt)
+            shutil.rmtree(copy, ignore_errors=True)
+            print(f"  public scripts: {dt:.2f} s; axes {out.strip().splitlines()[-1]}")
+
+        def floor(k: int) -> None:
+            times["floor"].append(input_floor(scene, env, cores))
+            print(f"  input floor: {times['floor'][-1]:.2f} s")
+
+        steps = [floor, lambda k: r360("no-pictures", k, ["--no-pictures"]), lambda k: r360("default", k, []), peer]
+        for k in range(args.repeat):
+            print(f"round {k} (load average {_load()}):")
+            # each round starts one step later, so that every kind of run meets the same load
+            for step in steps[k % len(steps):] + steps[:k % len(steps)]:
+                step(k)
+            shutil.rmtree(tmp / f"run{k}", ignore_errors=True)
+        if _listing(scene) != listing:
+            sys.exit("r360gpu score changed its input folder")
+        print(f"load average after: {_load()}")
+        med = {name: float(np.median(v)) for name, v in times.items()}
+        fl = med["floor"]
         print()
-        print("| workload | public scripts | r360gpu score | ratio | input floor | best ratio possible | "
-              "floor with the GPU device | best ratio possible with it |")
+        print(f"medians of {args.repeat} round(s); input floor: {cores} fresh processes started together, each "
+              f"importing numpy + cv2, decoding 1/{cores} of the PNGs (cv2.imread, IMREAD_UNCHANGED) and reading "
+              f"1/{cores} of the JSON bytes, launch to last exit")
+        print("| workload | input floor | r360gpu --no-pictures | / floor (goal <= 1.5) | r360gpu default | "
+              "/ floor (goal <= 2.5) | public scripts | public / r360gpu default |")
         print("|---|---|---|---|---|---|---|---|")
-        print(f"| {args.views} views {args.width}x{args.height} | {p:.2f} s | {o:.2f} s | {p / o:.2f}x | "
-              f"{floor:.2f} s | {p / floor:.1f}x | {dev_floor:.2f} s | {p / dev_floor:.1f}x |")
+        print(f"| {args.views} views {args.width}x{args.height} | {fl:.2f} s | {med['no-pictures']:.2f} s | "
+              f"{med['no-pictures'] / fl:.2f}x | {med['default']:.2f} s | {med['default'] / fl:.2f}x | "
+              f"{med['public']:.2f} s | {med['public'] / med['default']:.2f}x |")
     finally:
         if args.keep is None:
             shutil.rmtree(tmp, ignore_errors=True)

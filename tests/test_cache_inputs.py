@@ -193,3 +193,26 @@ def test_digests_are_remembered_only_for_settled_files(tmp_path, monkeypatch):
     real_open = open
     monkeypatch.setattr("builtins.open", lambda *a, **k: reads.append(a[0]) or real_open(*a, **k))
     assert filehash.content_digest(p) == first and reads == []  # remembered: not read again
+
+
+def test_a_file_keyed_before_is_not_hashed_again_when_decoded(tmp_path, monkeypatch):
+    """A run keys its inputs (content_digest) and then decodes them (read_file): the digest taken for
+    the key is the decoded bytes' as long as the file's identity and times did not change; a write
+    in between (new ctime) makes read_file hash what it read."""
+    import hashlib
+
+    p = tmp_path / "f.bin"
+    p.write_bytes(b"one")
+    filehash.forget()
+    monkeypatch.setattr(filehash, "_SETTLED_NS", -1)  # as if the file were old
+    keyed = filehash.content_digest(p)
+    hashed = []
+    real = hashlib.blake2b
+    monkeypatch.setattr(filehash.hashlib, "blake2b", lambda *a, **k: hashed.append(a) or real(*a, **k))
+    assert filehash.read_file(p) == b"one" and filehash.decoded_digest(p) == keyed and hashed == []
+    import time
+
+    time.sleep(0.05)  # past the file system clock's tick (what _SETTLED_NS, patched here, guards against)
+    p.write_bytes(b"two")  # same size, new bytes, new ctime: the key no longer holds
+    assert filehash.read_file(p) == b"two" and hashed
+    assert filehash.decoded_digest(p) == real(b"two", digest_size=16).hexdigest() != keyed

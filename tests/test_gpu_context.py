@@ -7,6 +7,7 @@ import pytest
 from r360gpu.errors import GpuUnavailableError
 from r360gpu.gpu import GpuContext, adapter as adapter_mod, get_context
 from r360gpu.kernels import mask_iou
+from r360gpu.kernels.reference import mask_iou_reference
 
 
 def test_cpu_adapter_is_found_by_name_and_kind():
@@ -146,3 +147,28 @@ def test_device_time_per_kernel(ctx):
         assert fresh.profile_end() == {}
     fresh.features = fresh.features - {"timestamp-query"}
     assert not fresh.profile_begin() and fresh.profile_end() == {}
+
+
+def _facts(c: GpuContext) -> dict:
+    return {**c.describe(), "limits": {k: c.limits.get(k) for k in (
+        "max-storage-buffer-binding-size", "max-buffer-size", "max-compute-workgroups-per-dimension",
+        "min-storage-buffer-offset-alignment")}, "alignment": c.storage_offset_alignment}
+
+
+def test_cpu_adapter_context_opens_its_device_on_first_use():
+    """On a CPU adapter the device waits for its first use; what the context says of it before
+    (results.json's adapter entry, the limits kernels split by) is what the opened device says."""
+    c = GpuContext.create("cpu")
+    assert c.adapter_info["adapter_type"] == "CPU" and not c.device_open
+    before = _facts(c)
+    rng = np.random.default_rng(0)
+    a, b = rng.uniform(size=(3, 17, 9)) < 0.5, rng.uniform(size=(2, 17, 9)) < 0.5
+    assert c.kernel_backend("mask_iou") == "cpu"
+    np.testing.assert_array_equal(mask_iou.mask_iou(a, b, ctx=c).iou, mask_iou_reference(a, b)[3])
+    assert not c.device_open  # the host path never touched it
+    buf = c.buffer(np.arange(5, dtype=np.uint32))  # first use opens it
+    assert c.device_open
+    np.testing.assert_array_equal(c.read(buf, np.uint32), np.arange(5, dtype=np.uint32))
+    assert _facts(c) == before
+    with pytest.raises(ValueError, match="needs a device or an adapter"):
+        GpuContext()

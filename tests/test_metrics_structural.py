@@ -125,6 +125,29 @@ def test_match_on_matrices():
     assert t == 0.7
 
 
+def test_matching_uses_scipys_own_assignment_without_importing_scipy_optimize():
+    """match() solves with scipy's compiled linear_sum_assignment loaded on its own (the package
+    import costs a run 0.2-0.6 s): the same function's answers, and scipy.optimize not imported."""
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np; from r360gpu.metrics.structural import linear_sum_assignment, match; "
+            "f = linear_sum_assignment(); print(f.__module__, 'scipy.optimize' in sys.modules); "
+            "print(match(np.array([[0.5, 0.5], [0.5, 0.5], [0.2, 0.9]]))[:2])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.splitlines()[0] == "scipy.optimize._lsap False"
+    from scipy.optimize import linear_sum_assignment as official
+
+    from r360gpu.metrics.structural import linear_sum_assignment
+
+    rng = np.random.default_rng(0)
+    for shape in [(1, 1), (2, 3), (4, 2), (5, 5)]:
+        for m in (rng.uniform(size=shape), np.round(rng.uniform(size=shape), 1), np.full(shape, 0.5)):  # ties too
+            got, want = linear_sum_assignment()(m, maximize=True), official(m, maximize=True)
+            assert all(np.array_equal(g, w) and g.dtype == w.dtype for g, w in zip(got, want))
+            assert all(np.array_equal(g, w) for g, w in zip(match(m)[:2], want))
+
+
 def _brute_force(a, b, target, thr=0.1):
     def iou(p, q):
         u = np.logical_or(p, q).sum()

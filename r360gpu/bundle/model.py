@@ -234,14 +234,21 @@ class Bundle:
     def file_digests(self) -> dict[str, str | None]:
         """{path: content digest, None when missing} of every file the bundle reads
         (:meth:`fingerprint`); a run keeps them to check that what it decoded is what it keyed."""
-        out: dict[str, str | None] = {}
-        for f in self._referenced_files():
-            key = os.fspath(f)
+        files = [os.fspath(f) for f in self._referenced_files()]
+
+        def one(f: str) -> str | None:
             try:
-                out[key] = content_digest(f, Path(f).stat())
+                return content_digest(f, Path(f).stat())
             except OSError:
-                out[key] = None
-        return out
+                return None
+
+        if len(files) < 8:
+            return {f: one(f) for f in files}
+        # on every core: reading and hashing release the GIL (a first run hashes every rendering)
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(min(8, os.cpu_count() or 1), thread_name_prefix="r360-hash") as pool:
+            return dict(zip(files, pool.map(one, files)))
 
     def file_digests_paths(self) -> list[str]:
         """The paths :meth:`file_digests` hashes, without hashing them."""

@@ -241,6 +241,17 @@ def _score_and_report(bundles, out, args, executor, kept=None) -> int:
     return 0
 
 
+def start_ahead(adapter: str | None) -> None:
+    """What a run needs later, started on threads now, while its inputs are read: the GPU context
+    (evaluate asks for it first) and the report's modules with matplotlib (each scene's plots, once
+    its views are scored, and the outputs)."""
+    from ..gpu import open_ahead
+    from ..util.imports import ImportAhead
+
+    open_ahead(adapter)
+    ImportAhead("matplotlib.figure", "matplotlib.style", "r360gpu.report.outputs")
+
+
 def bundles_from_args(args) -> list:
     """The scenes the command line names: plain bundles, METHOD=FOLDER groups, and a --benchmark root."""
     from dataclasses import replace
@@ -279,6 +290,7 @@ def bundles_from_args(args) -> list:
 
 
 def run(args) -> int:
+    start_ahead(args.adapter)
     from ..util.outdir import check_output_folder
 
     from ..util.warning_log import collecting

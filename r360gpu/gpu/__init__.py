@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from .adapter import ENV_VAR, list_adapters, select_adapter
-from .context import BufferRange, GpuContext, get_context
+from .context import BufferRange, GpuContext, get_context, open_ahead
 from .shaders import available_shaders, shader_path
 
 __all__ = [
@@ -12,6 +12,7 @@ __all__ = [
     "available_shaders",
     "get_context",
     "list_adapters",
+    "open_ahead",
     "select_adapter",
     "shader_path",
 ]

@@ -51,6 +51,22 @@ _STAGED_READ_BYTES = 256 * 1024  # reads this large use the reusable staging buf
 _UNIFORMS_KEPT = 512  # distinct uniform buffers a context keeps for reuse
 
 
+#: The adapter type on which kernels with a host path take it (GpuContext.kernel_backend).
+_CPU_TYPE = "CPU"
+
+
+def _requested(adapter) -> tuple[dict, list]:
+    """The limits and optional features a context requests of ``adapter``'s device."""
+    alimits = dict(adapter.limits)
+    return ({k: alimits[k] for k in _WANTED_LIMITS if k in alimits},
+            [f for f in _OPTIONAL_FEATURES if f in adapter.features])
+
+
+def _open_device(adapter):
+    limits, features = _requested(adapter)
+    return adapter.request_device_sync(label="r360gpu", required_features=features, required_limits=limits)
+
+
 @dataclass(frozen=True)
 class BufferRange:
     """A window of a buffer bound to one binding: ``size`` bytes from ``offset``."""
@@ -73,10 +89,30 @@ class GpuContext:
         chunking paths on small inputs).
     """
 
-    def __init__(self, device, *, limit_binding_bytes: int | None = None, limit_workgroups: int | None = None):
-        self.device = device
-        self.queue = device.queue
-        limits = dict(device.limits)
+    def __init__(self, device=None, *, limit_binding_bytes: int | None = None, limit_workgroups: int | None = None,
+                 adapter=None):
+        # device None: opened from ``adapter`` on first use (see :meth:`create`); until then the
+        # limits and features are those it will have (tests/test_gpu_context.py compares them)
+        if device is None and adapter is None:
+            raise ValueError("GpuContext needs a device or an adapter to open one from")
+        self._device, self._adapter = device, adapter
+        self._caps = (limit_binding_bytes, limit_workgroups)
+        self._open_lock = threading.Lock()
+        if device is not None:
+            self._set_device_facts(dict(device.limits), set(device.features), getattr(device, "adapter_info", None))
+        else:
+            # wgpu gives a device the adapter's limits where none is requested
+            self._set_device_facts(dict(adapter.limits), set(_requested(adapter)[1]), adapter.info)
+        self._modules: dict[str, Any] = {}
+        self._pipelines: dict[tuple, Any] = {}
+        self._scratch: dict = {}
+        self._staging = None
+        self._uniforms: OrderedDict[bytes, Any] = OrderedDict()
+        self._profile: dict | None = None
+        self._lock = threading.Lock()
+
+    def _set_device_facts(self, limits: dict, features: set, info) -> None:
+        limit_binding_bytes, limit_workgroups = self._caps
         self.limits = limits
         binding = int(limits.get("max-storage-buffer-binding-size", 128 << 20))
         buffer = int(limits.get("max-buffer-size", binding))
@@ -89,8 +125,8 @@ class GpuContext:
         wg = int(limits.get("max-compute-workgroups-per-dimension", 65535))
         self.max_workgroups = min(wg, int(limit_workgroups)) if limit_workgroups else wg
         self.storage_offset_alignment = int(limits.get("min-storage-buffer-offset-alignment", 256))
-        self.features = set(device.features)
-        info = getattr(device, "adapter_info", None) or {}
+        self.features = set(features)
+        info = info or {}
         self.adapter_info = {
             "name": str(info.get("device", "unknown")),
             "vendor": str(info.get("vendor", "")),
@@ -98,26 +134,43 @@ class GpuContext:
             "adapter_type": str(info.get("adapter_type", "unknown")),
             "description": str(info.get("description", "")),
         }
-        self._modules: dict[str, Any] = {}
-        self._pipelines: dict[tuple, Any] = {}
-        self._scratch: dict = {}
-        self._staging = None
-        self._uniforms: OrderedDict[bytes, Any] = OrderedDict()
-        self._profile: dict | None = None
-        self._lock = threading.Lock()
+
+    @property
+    def device(self):
+        """The ``wgpu.GPUDevice``; a context made by :meth:`create` on a CPU adapter opens it here,
+        the first time anything needs it."""
+        if self._device is None:
+            with self._open_lock:
+                if self._device is None:
+                    device = _open_device(self._adapter)
+                    # the device's own facts from now on (the same as requested: tests/test_gpu_context.py)
+                    self._set_device_facts(dict(device.limits), set(device.features),
+                                           getattr(device, "adapter_info", None))
+                    self._device = device
+        return self._device
+
+    @property
+    def queue(self):
+        return self.device.queue
+
+    @property
+    def device_open(self) -> bool:
+        """Whether the device has been opened (a deferred one opens on first use)."""
+        return self._device is not None
 
     # -- construction -----------------------------------------------------
     @classmethod
     def create(cls, adapter: str | None = None, **kwargs) -> "GpuContext":
-        """Open a device on the adapter chosen by ``adapter`` / ``R360GPU_ADAPTER``."""
+        """A context on the adapter chosen by ``adapter`` / ``R360GPU_ADAPTER``.
+
+        On a CPU adapter (lavapipe) every kernel with a host path takes it (:meth:`kernel_backend`),
+        so a run of those kernels never touches the device: it is opened on first use (0.3 s of CPU
+        on lavapipe spared where nothing renders).  On a GPU it is opened here.
+        """
         ad = select_adapter(adapter)
-        alimits = dict(ad.limits)
-        required = {k: alimits[k] for k in _WANTED_LIMITS if k in alimits}
-        features = [f for f in _OPTIONAL_FEATURES if f in ad.features]
-        device = ad.request_device_sync(
-            label="r360gpu", required_features=features, required_limits=required
-        )
-        return cls(device, **kwargs)
+        if str(ad.info.get("adapter_type")) == _CPU_TYPE:
+            return cls(adapter=ad, **kwargs)
+        return cls(_open_device(ad), **kwargs)
 
     @classmethod
     def from_device(cls, device, **kwargs) -> "GpuContext":
@@ -139,7 +192,7 @@ class GpuContext:
         forced = os.environ.get(f"R360GPU_{kernel.upper()}")
         if forced in ("gpu", "cpu"):
             return forced
-        return "cpu" if self.adapter_info.get("adapter_type") == "CPU" else "gpu"
+        return "cpu" if self.adapter_info.get("adapter_type") == _CPU_TYPE else "gpu"
 
     def describe(self) -> dict:
         """Adapter name, backend and the limits that matter; goes into every result."""
@@ -413,3 +466,17 @@ def get_context(adapter: str | None = None, device=None) -> GpuContext:
         if ctx is None:
             ctx = _contexts[key] = GpuContext.create(adapter)
         return ctx
+
+
+def open_ahead(adapter: str | None = None) -> None:
+    """Start :func:`get_context` for ``adapter`` on a thread of its own, so that importing wgpu and
+    choosing the adapter (0.3-1 s on lavapipe, much of it in the driver with the GIL released) overlap
+    the caller's other start-up work.  A failure is left for the caller's own ``get_context`` call,
+    which tries again and raises it there."""
+    def run() -> None:
+        try:
+            get_context(adapter)
+        except Exception:  # noqa: BLE001 - raised again where the run asks for its context
+            pass
+
+    threading.Thread(target=run, name="r360-gpu-ahead", daemon=True).start()

@@ -48,8 +48,10 @@ We follow the paper.  Where the public reference code
 """
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -153,10 +155,35 @@ def match(iou: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     iou = np.asarray(iou, np.float64)
     if iou.size == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), 0.0
-    from scipy.optimize import linear_sum_assignment  # here: the import costs every command ~0.4 s
-
-    rows, cols = linear_sum_assignment(iou, maximize=True)
+    rows, cols = linear_sum_assignment()(iou, maximize=True)
     return rows, cols, float(iou[rows, cols].sum())
+
+
+@functools.cache
+def linear_sum_assignment():
+    """``scipy.optimize.linear_sum_assignment``, loaded without the ``scipy.optimize`` package where
+    scipy keeps it as its own compiled module (``scipy/optimize/_lsap``, scipy >= 1.6): the package
+    imports scipy.linalg, scipy.special and the rest (0.2-0.6 s of a run that needs this one function).
+    The same function (tests/test_metrics_structural.py); anything else gets the package's."""
+    import importlib.machinery
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec("scipy")
+        folder = Path(spec.origin).parent / "optimize"
+        found = [folder / f"_lsap{suffix}" for suffix in importlib.machinery.EXTENSION_SUFFIXES
+                 if (folder / f"_lsap{suffix}").is_file()]
+        if found:
+            loader = importlib.machinery.ExtensionFileLoader("scipy.optimize._lsap", str(found[0]))
+            module = importlib.util.module_from_spec(
+                importlib.util.spec_from_file_location("scipy.optimize._lsap", found[0], loader=loader))
+            loader.exec_module(module)
+            return module.linear_sum_assignment
+    except (ImportError, AttributeError, OSError, TypeError):
+        pass
+    from scipy.optimize import linear_sum_assignment as lsa
+
+    return lsa
 
 
 def sim_from_matching(n_a: int, n_b: int, total: float) -> float:
