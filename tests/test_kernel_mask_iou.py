@@ -227,3 +227,39 @@ def test_area_kernel_and_host_popcount_agree(ctx, small_ctx):
             np.testing.assert_array_equal(p.areas_host, want)
         p.areas_host = None  # force the GPU kernel
         np.testing.assert_array_equal(K.areas(p, ctx=c), want)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (9, 33), (30, 64), (17, 95)])
+def test_take_equals_packing_the_selected_masks(ctx, shape):
+    rng = np.random.default_rng(shape[0] * 100 + shape[1])
+    m = rng.random((6, *shape)) < 0.3
+    m[2] = False  # an empty mask (zero box)
+    p = K.pack(m, ctx=ctx)
+    for index in ([4, 0, 2], [], [5], [1, 1, 3], list(range(6))):
+        sub, want = K.take(p, index, m, ctx=ctx), K.pack(m[np.asarray(index, np.int64)], ctx=ctx)
+        np.testing.assert_array_equal(K.to_host(sub, ctx=ctx), K.to_host(want, ctx=ctx))
+        np.testing.assert_array_equal(sub.boxes_host, want.boxes_host)
+        np.testing.assert_array_equal(K.areas(sub, ctx=ctx), K.areas(want, ctx=ctx))
+        other = rng.random((3, *shape)) < 0.5
+        np.testing.assert_array_equal(K.mask_iou(sub, other, ctx=ctx).iou, K.mask_iou(want, other, ctx=ctx).iou)
+
+
+def test_take_from_device_packed_masks_needs_the_source(ctx):
+    m = np.zeros((3, 4, 40), np.uint32)
+    m[1, 1:3, 5:30] = 1
+    packed = K.pack(K.DeviceMasks(ctx.buffer(m.ravel()), 3, 4, 40), ctx=ctx)
+    np.testing.assert_array_equal(K.to_host(K.take(packed, [1, 0], m, ctx=ctx), ctx=ctx), K.pack_bits(m[[1, 0]]))
+    with pytest.raises(ValueError, match="packed from"):
+        K.take(packed, [0], ctx=ctx)
+
+
+def test_pack_memo_packs_each_array_once(ctx):
+    rng = np.random.default_rng(3)
+    a = rng.random((4, 10, 50)) < 0.4
+    memo = K.PackMemo(ctx)
+    first = memo.pack(a)
+    assert memo.pack(a) is first  # the same array: the same pack
+    copy = a.copy()
+    assert memo.pack(copy) is not first  # equal content, another array: packed on its own
+    np.testing.assert_array_equal(K.to_host(memo.pack(copy), ctx=ctx), K.pack_bits(a))
+    assert memo.pack(first) is first  # a PackedMasks passes through

@@ -19,7 +19,8 @@ from r360gpu.metrics.sensitivity import (
     perturb_mask,
     threshold_sweep,
 )
-from r360gpu.metrics.structural import structural_summary, structural_view
+from r360gpu.kernels import mask_iou as K
+from r360gpu.metrics.structural import retained, structural_from_ious, structural_summary, structural_view
 
 
 def _disc_offsets(r):
@@ -200,3 +201,32 @@ def test_missing_inputs_are_errors_not_empty_predictions(ctx):
         boundary_sensitivity([BoundaryInput(t, None, None, geometric=t)], ctx=ctx)
     with pytest.raises(InputError):
         boundary_sensitivity([BoundaryInput(t)], semantic=False, geometric=False, structural_mode="both", ctx=ctx)
+
+
+def test_structural_rows_equal_the_whole_iou_matrix_way(ctx):
+    # Many masks, retained at some offsets and not at others: the sweep's IoUs between retained masks
+    # (computed for the masks retained at any offset) equal, bit for bit, the entries of the whole matrix.
+    rng = np.random.default_rng(12)
+    h, w = 60, 90
+    t = np.zeros((h, w), bool)
+    t[15:45, 20:70] = True
+    a = np.zeros((25, h, w), bool)
+    b = np.zeros((20, h, w), bool)
+    for stack in (a, b):
+        for k in range(stack.shape[0]):
+            r0, c0 = rng.integers(0, h - 5), rng.integers(0, w - 5)
+            stack[k, r0 : r0 + rng.integers(3, 40), c0 : c0 + rng.integers(3, 60)] = True
+    offs = (-12, -6, 0, 6, 12)
+    for mode in ("reference", "reference_free"):
+        table = boundary_sensitivity([BoundaryInput(t, masks_a=a, masks_b=b)], semantic=False, geometric=False,
+                                     structural_mode=mode, offsets=offs, ctx=ctx)
+        whole = K.mask_iou(a, b, ctx=ctx).iou
+        kept = []
+        for k, o in enumerate(offs):
+            m = perturb_mask(t, o)
+            keep_a, keep_b = retained(K.iou_with_target(a, m, ctx=ctx)), retained(K.iou_with_target(b, m, ctx=ctx))
+            kept.append((len(keep_a), len(keep_b)))
+            sv = structural_from_ious(keep_a, keep_b, whole[np.ix_(keep_a, keep_b)], area_target=int(m.sum()), mode=mode)
+            s = structural_summary([sv], mode=mode)
+            assert table.rows["sim_sam"][k] == s.sim_sam and table.rows["s_str"][k] == s.s_str
+        assert len(set(kept)) > 2  # the retained sets differ between offsets

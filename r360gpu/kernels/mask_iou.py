@@ -227,6 +227,48 @@ def pack(masks, *, ctx: GpuContext | None = None) -> PackedMasks:
     return out
 
 
+def take(p: PackedMasks, index, masks=None, *, ctx: GpuContext | None = None) -> PackedMasks:
+    """Masks ``index`` (int indices, in that order) of a packed stack, equal to packing ``masks[index]``.
+
+    From the host words when the stack has them (no second pass over the pixels); otherwise
+    ``masks`` (the stack ``p`` was packed from) is indexed and packed.
+    """
+    index = np.asarray(index, np.int64).reshape(-1)
+    if p.words_host is None:
+        if masks is None:
+            raise ValueError("take: a stack packed on the device needs the masks it was packed from")
+        return pack(np.asarray(masks)[index], ctx=ctx)
+    ctx = ctx or get_context()
+    areas = p.areas_host[index] if p.areas_host is not None else None
+    out = PackedMasks(int(index.shape[0]), p.height, p.width, areas_host=areas,
+                      words_host=np.ascontiguousarray(p.words_host[index]), boxes_host=p.boxes_host[index])
+    if ctx.kernel_backend(SHADER) == "gpu":
+        device_chunks(out, ctx)
+    return out
+
+
+class PackMemo:
+    """Each stack packed once while the memo lives (a view's worth of work), by identity.
+
+    The memo holds every array it packed, so an id cannot be reused while it lives; the arrays must not
+    change meanwhile (probe outputs do not).  Anything else given to :meth:`pack` is packed each time.
+    """
+
+    def __init__(self, ctx: GpuContext | None = None):
+        self.ctx = ctx
+        self._packs: dict[int, tuple[object, PackedMasks]] = {}
+
+    def pack(self, masks) -> PackedMasks:
+        if not isinstance(masks, np.ndarray):
+            return pack(masks, ctx=self.ctx)
+        hit = self._packs.get(id(masks))
+        if hit is not None and hit[0] is masks:
+            return hit[1]
+        packed = pack(masks, ctx=self.ctx)
+        self._packs[id(masks)] = (masks, packed)
+        return packed
+
+
 def device_chunks(p: PackedMasks, ctx: GpuContext) -> list[PackedChunk]:
     """The stack's binding-sized chunks on the device, uploaded from the host words on first use."""
     if p.chunks or p.words_host is None or p.n == 0:

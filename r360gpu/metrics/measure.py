@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..kernels import mask_iou as K
 from .fidelity import LpipsModel, fidelity_views
 from .geometric import GeometricView, GhtParams, acc_depth_views
 from .record import ViewRecord
@@ -99,6 +100,7 @@ def measure_view_methods(
         if sweep:
             boundary_targets(target, ctx=ctx)  # once for all methods (memoised)
         parts = {}
+        packs = K.PackMemo(ctx)  # the first rendering's masks serve every method: packed once
         for m in names:
             mo = methods[m]
             sem_views = [semantic_view(semantic_pre[p], mo.semantic[p], target, view=view, ctx=ctx)
@@ -107,7 +109,8 @@ def measure_view_methods(
                 pairs = {p: (mo.structural[p], structural_first[p]) for p in str_names}
             else:
                 pairs = {p: (structural_first[p], mo.structural[p]) for p in str_names}
-            str_views = [structural_view(a, b, target, mode=mode, view=view, ctx=ctx) for a, b in pairs.values()]
+            str_views = [structural_view(a, b, target, mode=mode, view=view, ctx=ctx, packs=packs)
+                         for a, b in pairs.values()]
             g = geo.get(m)
             rows = None
             if sweep:
@@ -116,7 +119,7 @@ def measure_view_methods(
                     [BoundaryInput(target, pred_pre=semantic_pre[sem_names[0]], pred_post=mo.semantic[sem_names[0]],
                                    masks_a=a, masks_b=b, geometric=g if g is not None else NOT_GIVEN, view=view)],
                     geometric=g is not None, structural_mode=mode, xis=xis, compat=compat, ght_params=ght_params,
-                    ctx=ctx,
+                    ctx=ctx, packs=packs,
                 )
                 rows = {row: table.row(row) for row in table.rows}
             parts[m] = (sem_views, str_views, g, rows)

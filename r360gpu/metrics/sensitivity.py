@@ -254,6 +254,7 @@ def boundary_sensitivity(
     ght_params: GhtParams = GhtParams(),
     include_empty_targets: bool = False,
     ctx=None,
+    packs: K.PackMemo | None = None,
 ) -> BoundaryTable:
     """Recompute the axes of one (scene, method) with eroded / dilated targets.
 
@@ -266,6 +267,7 @@ def boundary_sensitivity(
     xis: acc_seg thresholds (0.3 always included).
     compat, ght_params: passed to acc_depth_view when depths (not a
         GeometricView) are given.
+    packs: packs kept across the calls of one view (see :class:`~r360gpu.kernels.mask_iou.PackMemo`).
     Returns a :class:`BoundaryTable`.
     """
     offs = tuple(int(o) for o in offsets)
@@ -275,6 +277,7 @@ def boundary_sensitivity(
     sem_views: dict[int, list] = {o: [] for o in offs}
     geo_vals: dict[int, list] = {o: [] for o in offs}
     str_views: dict[int, list] = {o: [] for o in offs}
+    packs = packs if packs is not None else K.PackMemo(ctx)
 
     for inp in inputs:
         m = target_mask(inp.target, inp.view)
@@ -298,19 +301,26 @@ def boundary_sensitivity(
             inp.given("masks_a", "masks_b")
             a = mask_stack(inp.masks_a, m.shape, "structural probe masks (first rendering)", inp.view)
             b = mask_stack(inp.masks_b, m.shape, "structural probe masks (second rendering)", inp.view)
-            pa, pb = K.pack(a, ctx=ctx), K.pack(b, ctx=ctx)
-            iou_ab = K.mask_iou(pa, pb, ctx=ctx).iou
+            pa, pb = packs.pack(a), packs.pack(b)
             ra = K.mask_iou(pa, targets, ctx=ctx)
             rb = K.mask_iou(pb, targets, ctx=ctx)
+            keeps = [(retained(ra.iou[:, j], retain_iou), retained(rb.iou[:, j], retain_iou)) for j in range(len(offs))]
+            # IoUs only between masks retained at some offset: each entry is its own pair's counts, so the
+            # submatrices are those of the whole matrix.
+            none = np.zeros(0, np.int64)
+            any_a = np.unique(np.concatenate([none, *(ka for ka, _ in keeps)])).astype(np.int64)
+            any_b = np.unique(np.concatenate([none, *(kb for _, kb in keeps)])).astype(np.int64)
+            if len(any_a) and len(any_b):
+                iou_ab = K.mask_iou(K.take(pa, any_a, a, ctx=ctx), K.take(pb, any_b, b, ctx=ctx), ctx=ctx).iou
+            else:
+                iou_ab = np.zeros((len(any_a), len(any_b)))
             name = probe_name(inp.masks_a, inp.masks_b)
-            for j, o in enumerate(offs):
-                keep_a = retained(ra.iou[:, j], retain_iou)
-                keep_b = retained(rb.iou[:, j], retain_iou)
+            for j, (o, (keep_a, keep_b)) in enumerate(zip(offs, keeps)):
                 str_views[o].append(
                     structural_from_ious(
                         keep_a,
                         keep_b,
-                        iou_ab[np.ix_(keep_a, keep_b)],
+                        iou_ab[np.ix_(np.searchsorted(any_a, keep_a), np.searchsorted(any_b, keep_b))],
                         area_target=int(rb.area_b[j]),
                         mode=structural_mode,
                         probe=name,

@@ -242,6 +242,7 @@ def structural_view(
     retain_iou: float = RETAIN_IOU,
     view: str = "",
     ctx=None,
+    packs: K.PackMemo | None = None,
 ) -> StructuralView:
     """sim^v of one view.
 
@@ -252,19 +253,22 @@ def structural_view(
     target: (H, W) target mask M^v, non-zero = target.
     retain_iou: retention threshold on IoU(mask, M^v) (paper: 0.1).
     view: view name, used in error messages.
+    packs: packs kept across the calls of one view (the same masks are then packed once).
     """
     check_mode(mode)
     m = target_mask(target, view)
     a = mask_stack(masks_a, m.shape, "structural probe masks (first rendering)", view)
     b = mask_stack(masks_b, m.shape, "structural probe masks (second rendering)", view)
+    packs = packs if packs is not None else K.PackMemo(ctx)
+    pa, pb = packs.pack(a), packs.pack(b)
     t = K.pack(m, ctx=ctx)
-    ra = K.mask_iou(a, t, ctx=ctx)
-    rb = K.mask_iou(b, t, ctx=ctx)
+    ra = K.mask_iou(pa, t, ctx=ctx)
+    rb = K.mask_iou(pb, t, ctx=ctx)
     area_t = int(rb.area_b[0])
     keep_a = retained(ra.iou[:, 0], retain_iou)
     keep_b = retained(rb.iou[:, 0], retain_iou)
     if len(keep_a) and len(keep_b):
-        iou_ab = K.mask_iou(a[keep_a], b[keep_b], ctx=ctx).iou
+        iou_ab = K.mask_iou(K.take(pa, keep_a, a, ctx=ctx), K.take(pb, keep_b, b, ctx=ctx), ctx=ctx).iou
     else:
         iou_ab = np.zeros((len(keep_a), len(keep_b)))
     return structural_from_ious(

@@ -10,7 +10,7 @@ nearest-neighbour sampling.  This module holds those steps:
 * :func:`as_rgb_uint8` -- a view's image as uint8 RGB (float 0..1 is scaled);
 * :func:`working_size` / :func:`to_working` -- the downscaled working image;
 * :func:`label_masks` -- bool (K, H, W) masks at the view's size from a
-  working-resolution label image.
+  working-resolution label image (:func:`lut_masks`: from tables over its labels).
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ import numpy as np
 
 from r360gpu.errors import InputError
 
-__all__ = ["as_rgb_uint8", "working_size", "to_working", "upsample_rows_cols", "label_masks"]
+__all__ = ["as_rgb_uint8", "working_size", "to_working", "upsample_rows_cols", "label_masks", "lut_masks"]
 
 
 def as_rgb_uint8(image, what: str = "image") -> np.ndarray:
@@ -95,10 +95,29 @@ def label_masks(labels: np.ndarray, ids: np.ndarray, size: tuple[int, int]) -> n
     hi = int(max(labels.max(), ids.max()))
     slot = np.full(hi - lo + 1, -1, np.int64)
     slot[ids - lo] = np.arange(k)
-    small_slot = slot[labels.astype(np.int64) - lo]
-    rows, cols = upsample_rows_cols(labels.shape, (out_h, out_w))
-    full_slot = small_slot[rows[:, None], cols[None, :]].reshape(-1)
-    keep = np.flatnonzero(full_slot >= 0)
-    masks = np.zeros((k, out_h * out_w), bool)
-    masks[full_slot[keep], keep] = True
+    return lut_masks(labels if lo == 0 else labels.astype(np.int64) - lo, [slot], k, (out_h, out_w))
+
+
+def lut_masks(labels: np.ndarray, luts, k: int, size: tuple[int, int]) -> np.ndarray:
+    """bool (K, H, W) masks from a label image and tables over its labels.
+
+    labels: int (h, w) label image at working resolution, values 0..n-1.
+    luts: int64 (n,) tables, each mapping a label to the mask its pixels
+        belong to (0..k-1) or -1 (none); a pixel can be in one mask per table.
+    size: (H, W) of the view; labels are upsampled by nearest neighbour
+        (:func:`upsample_rows_cols`), which commutes with the tables.
+    """
+    out_h, out_w = int(size[0]), int(size[1])
+    hw = out_h * out_w
+    masks = np.zeros(k * hw, bool)
+    if k == 0:
+        return masks.reshape(0, out_h, out_w)
+    if labels.shape != (out_h, out_w):
+        rows, cols = upsample_rows_cols(labels.shape, (out_h, out_w))
+        labels = labels[rows[:, None], cols[None, :]]
+    flat = labels.reshape(-1)
+    for lut in luts:
+        slot = lut[flat]
+        keep = np.flatnonzero(slot >= 0)
+        masks[slot[keep] * hw + keep] = True
     return masks.reshape(k, out_h, out_w)

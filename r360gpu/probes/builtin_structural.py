@@ -97,7 +97,7 @@ import numpy as np
 
 from r360gpu.errors import InputError
 from r360gpu.probes.base import MaskSet, ProbeView, StructuralProbe
-from r360gpu.probes.builtin import as_rgb_uint8, label_masks, to_working, working_size
+from r360gpu.probes.builtin import as_rgb_uint8, label_masks, lut_masks, to_working, working_size
 
 __all__ = [
     "REFERENCE_AREA",
@@ -230,13 +230,39 @@ def _slic_labels(work: np.ndarray, params: StructuralParams) -> np.ndarray:
     return slic.getLabels()
 
 
+def _raster_firsts(flat: np.ndarray) -> np.ndarray | None:
+    """First index of each label when ``flat`` is already numbered 0..n-1 in
+    raster order of first occurrence (int64 (n,), increasing), else None.
+
+    Such labels never go below 0 and rise by at most 1 over their running
+    maximum, so every value up to the maximum has appeared; the graph
+    segmenter numbers its regions that way, which spares a sort of every pixel.
+    """
+    if flat.size == 0 or flat[0] != 0 or flat.min() < 0:
+        return None
+    steps = np.diff(np.maximum.accumulate(flat))
+    if steps.size and steps.max() > 1:
+        return None
+    return np.concatenate(([0], np.flatnonzero(steps) + 1)).astype(np.int64)
+
+
+def _compact_firsts(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(labels renumbered 0..n-1 in raster order of first occurrence, int32;
+    the first pixel (flat index) of each new label, int64 (n,), increasing)."""
+    flat = labels.reshape(-1)
+    firsts = _raster_firsts(flat)
+    if firsts is not None:
+        return labels.astype(np.int32), firsts
+    _, first, inverse = np.unique(flat, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty(first.shape[0], np.int64)
+    rank[order] = np.arange(first.shape[0])
+    return rank[inverse].reshape(labels.shape).astype(np.int32), first[order].astype(np.int64)
+
+
 def _compact(labels: np.ndarray) -> np.ndarray:
     """Labels renumbered 0..n-1 in raster order of first occurrence, int32."""
-    flat = labels.reshape(-1)
-    _, first, inverse = np.unique(flat, return_index=True, return_inverse=True)
-    rank = np.empty(first.shape[0], np.int64)
-    rank[np.argsort(first, kind="stable")] = np.arange(first.shape[0])
-    return rank[inverse].reshape(labels.shape).astype(np.int32)
+    return _compact_firsts(labels)[0]
 
 
 def _adjacent_pairs(labels: np.ndarray) -> np.ndarray:
@@ -314,11 +340,20 @@ def _merge_similar(labels: np.ndarray, work: np.ndarray, delta_e: float) -> np.n
     return root[labels].astype(np.int32)
 
 
+def _working_lab(work: np.ndarray) -> np.ndarray:
+    """float32 (h, w, 3) CIELAB of a uint8 RGB image (OpenCV's float conversion)."""
+    return cv2.cvtColor(work.astype(np.float32) / np.float32(255.0), cv2.COLOR_RGB2Lab)
+
+
 def edge_strength(work: np.ndarray, blur: float) -> np.ndarray:
     """float32 (h, w) colour edge strength of a uint8 RGB image: the Sobel
     gradient magnitude of the (blurred) CIELAB image, summed over the three
     channels in quadrature, in Delta-E per pixel (Sobel / 8)."""
-    lab = cv2.cvtColor(work.astype(np.float32) / np.float32(255.0), cv2.COLOR_RGB2Lab)
+    return _lab_edge_strength(_working_lab(work), blur)
+
+
+def _lab_edge_strength(lab: np.ndarray, blur: float) -> np.ndarray:
+    """:func:`edge_strength` of an image already converted by :func:`_working_lab`."""
     if blur > 0:
         lab = cv2.GaussianBlur(lab, (0, 0), float(blur))
     total = np.zeros(lab.shape[:2], np.float32)
@@ -354,42 +389,58 @@ def _boundaries(labels: np.ndarray, strength: np.ndarray) -> tuple[list, list, l
 def hierarchy_levels(work: np.ndarray, params: StructuralParams) -> list[np.ndarray]:
     """The partitions of the segmentation hierarchy (module docstring, "hierarchy").
 
-    work: uint8 (h, w, 3) RGB working image.  Returns one int32 (h, w) label
+    work: uint8 (h, w, 3) RGB working image.  Returns one int64 (h, w) label
     image per threshold of ``params.levels`` (finest first); a region that no
     merge touched between two levels keeps its label, so equal labels across
     levels are the same region.
     """
-    fine = StructuralParams(method="graph", sigma=params.sigma, k=params.fine_k, min_area_frac=params.fine_min_area_frac)
-    labels = _compact(_graph_labels(work, fine))
-    n = int(labels.max()) + 1
-    lab = cv2.cvtColor(work.astype(np.float32) / np.float32(255.0), cv2.COLOR_RGB2Lab).reshape(-1, 3)
-    flat = labels.reshape(-1)
-    count = np.bincount(flat, minlength=n).astype(np.float64).tolist()
-    sums = np.stack([np.bincount(flat, weights=lab[:, c].astype(np.float64), minlength=n) for c in range(3)],
-                    axis=1).tolist()
-    weight = float(params.colour_weight)
-    # boundary[a][b] = [summed edge strength, length]; one list shared by both directions.
-    boundary: list[dict[int, list[float]]] = [dict() for _ in range(n)]
-    for a, b, total, length in zip(*_boundaries(labels, edge_strength(work, float(params.edge_blur)))):
-        boundary[a][b] = boundary[b][a] = [total, length]
+    labels, _, tables = _hierarchy(work, params)
+    return [table[labels] for table in tables]
 
-    def cost(a: int, b: int) -> float:
+
+def _hierarchy(work: np.ndarray, params: StructuralParams) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The hierarchy as tables over its finest partition: (fine labels, int32
+    (h, w), numbered in raster order of first pixel; each fine label's first
+    pixel, int64 (n,), increasing; per level, int64 (n,): the region id of
+    each fine label).  Every level is a union of fine regions, so the tables
+    say everything about the levels without a pass over the pixels per level."""
+    fine = StructuralParams(method="graph", sigma=params.sigma, k=params.fine_k, min_area_frac=params.fine_min_area_frac)
+    labels, firsts = _compact_firsts(_graph_labels(work, fine))
+    n = int(labels.max()) + 1
+    lab_image = _working_lab(work)
+    lab = lab_image.reshape(-1, 3)
+    flat = labels.reshape(-1)
+    count = np.bincount(flat, minlength=n).astype(np.float64)
+    sums_array = np.stack([np.bincount(flat, weights=lab[:, c].astype(np.float64), minlength=n) for c in range(3)],
+                          axis=1)
+    # Mean colours kept per region (the same float divisions the cost would repeat on every call).
+    means = (sums_array / count[:, None]).tolist()
+    count, sums = count.tolist(), sums_array.tolist()
+    weight = float(params.colour_weight)
+
+    def cost(a: int, b: int, total: float, length: float) -> float:
         # Mean edge strength along the shared boundary, raised to the colour
         # difference of the two regions' means (weighted): texture edges inside
         # an object are weak on average and its parts have similar colours, while
         # an occlusion boundary is strong along most of its length or separates
-        # different colours.
-        total, length = boundary[a][b]
-        ca, cb = count[a], count[b]
-        delta_e = sum((sums[a][c] / ca - sums[b][c] / cb) ** 2 for c in range(3)) ** 0.5
+        # different colours.  (Written out as sum() of the three squares added
+        # them, left to right, so every cost is the same float.)
+        ma, mb = means[a], means[b]
+        delta_e = ((ma[0] - mb[0]) ** 2 + (ma[1] - mb[1]) ** 2 + (ma[2] - mb[2]) ** 2) ** 0.5
         return max(total / length, weight * delta_e)
 
-    heap = [(cost(a, b), a, b, 0, 0) for a in range(n) for b in boundary[a] if a < b]
+    # boundary[a][b] = [summed edge strength, length]; one list shared by both directions.
+    boundary: list[dict[int, list[float]]] = [dict() for _ in range(n)]
+    heap = []
+    for a, b, total, length in zip(*_boundaries(labels, _lab_edge_strength(lab_image, float(params.edge_blur)))):
+        boundary[a][b] = boundary[b][a] = [total, length]
+        heap.append((cost(a, b, total, length), a, b, 0, 0))
+    # Entries are distinct tuples, so the order of pops is that of the sorted entries whatever the heap's layout.
     heapq.heapify(heap)
     version = [0] * n
     alive = [True] * n
     parent = np.arange(n, dtype=np.int64)
-    out = []
+    tables = []
     for threshold in params.levels:
         while heap and heap[0][0] < threshold:
             _, a, b, va, vb = heapq.heappop(heap)
@@ -399,23 +450,31 @@ def hierarchy_levels(work: np.ndarray, params: StructuralParams) -> list[np.ndar
             alive[gone] = False
             parent[gone] = keep
             count[keep] += count[gone]
-            sums[keep] = [sums[keep][c] + sums[gone][c] for c in range(3)]
+            sk, sg = sums[keep], sums[gone]
+            sk = sums[keep] = [sk[0] + sg[0], sk[1] + sg[1], sk[2] + sg[2]]
+            ck = count[keep]
+            means[keep] = [sk[0] / ck, sk[1] / ck, sk[2] / ck]
             version[keep] += 1
+            edges = boundary[keep]
             for other, edge in boundary[gone].items():
                 if other == keep:
                     continue
                 del boundary[other][gone]
-                if other in boundary[keep]:
-                    both = boundary[keep][other]
+                if other in edges:
+                    both = edges[other]
                     both[0] += edge[0]
                     both[1] += edge[1]
                 else:
-                    boundary[keep][other] = boundary[other][keep] = edge
-            boundary[keep].pop(gone, None)
+                    edges[other] = boundary[other][keep] = edge
+            edges.pop(gone, None)
             boundary[gone] = {}
-            for other in sorted(boundary[keep]):
-                lo, hi = (keep, other) if keep < other else (other, keep)
-                heapq.heappush(heap, (cost(lo, hi), lo, hi, version[lo], version[hi]))
+            vk = version[keep]
+            for other in sorted(edges):
+                total, length = edges[other]
+                if keep < other:
+                    heapq.heappush(heap, (cost(keep, other, total, length), keep, other, vk, version[other]))
+                else:
+                    heapq.heappush(heap, (cost(other, keep, total, length), other, keep, version[other], vk))
         root = parent.copy()
         while True:  # path halving over the whole array until every id points at its root
             nxt = root[root]
@@ -424,36 +483,44 @@ def hierarchy_levels(work: np.ndarray, params: StructuralParams) -> list[np.ndar
             root = nxt
         # A region's id at this level: its root and that root's merge count, so
         # a region unchanged since the previous level keeps its id.
-        ids = root * (n + 1) + np.asarray(version, np.int64)[root]
-        out.append(ids[labels])
-    return out
+        tables.append(root * (n + 1) + np.asarray(version, np.int64)[root])
+    return labels, firsts, tables
 
 
 def _hierarchy_masks(work: np.ndarray, params: StructuralParams, size: tuple[int, int]) -> np.ndarray:
     """bool (K, H, W): every distinct region of the hierarchy's levels covering at
     least ``min_area_frac`` of the image, largest first (ties: raster order of
-    their first pixel), at most ``max_masks``; masks of different levels overlap."""
-    total = work.shape[0] * work.shape[1]
+    their first pixel), at most ``max_masks``; masks of different levels overlap.
+
+    Areas and first pixels come from the fine regions (a region's area is the
+    sum of its fine regions' areas, its first pixel that of its lowest fine
+    label, fine labels being numbered in raster order); the masks from one
+    table per level mapping each fine label to its mask (:func:`lut_masks`)."""
+    labels, firsts, tables = _hierarchy(work, params)
+    fine_area = np.bincount(labels.reshape(-1), minlength=firsts.shape[0]).astype(np.float64)
+    total = labels.size
     seen: set[int] = set()
     found = []  # (-area, first pixel, level, id)
-    levels = hierarchy_levels(work, params)
-    for level, ids in enumerate(levels):
-        flat = ids.reshape(-1)
-        unique, first, counts = np.unique(flat, return_index=True, return_counts=True)
-        for u, f, c in zip(unique.tolist(), first.tolist(), counts.tolist()):
+    regions = []  # per level: (region ids sorted, each fine label's index among them)
+    for level, table in enumerate(tables):
+        unique, lowest, inverse = np.unique(table, return_index=True, return_inverse=True)
+        regions.append((unique, inverse))
+        counts = np.bincount(inverse, weights=fine_area).astype(np.int64)  # sums of ints < 2**53: exact
+        for u, f, c in zip(unique.tolist(), firsts[lowest].tolist(), counts.tolist()):
             if u in seen or c < params.min_area_frac * total:
                 continue
             seen.add(u)
             found.append((-c, f, level, u))
     found.sort()
     found = found[: int(params.max_masks)]
-    if not found:
-        return np.zeros((0, size[0], size[1]), bool)
-    out = np.zeros((len(found), size[0], size[1]), bool)
-    for level in sorted({f[2] for f in found}):
+    luts = []
+    for level, (unique, inverse) in enumerate(regions):
         rows = [i for i, f in enumerate(found) if f[2] == level]
-        out[rows] = label_masks(levels[level], np.asarray([found[i][3] for i in rows], np.int64), size)
-    return out
+        if rows:
+            slot = np.full(unique.shape[0], -1, np.int64)
+            slot[np.searchsorted(unique, [found[i][3] for i in rows])] = rows
+            luts.append(slot[inverse])
+    return lut_masks(labels, luts, len(found), size)
 
 
 def segment_labels(rgb: np.ndarray, params: StructuralParams) -> np.ndarray:
