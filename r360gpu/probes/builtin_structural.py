@@ -475,16 +475,21 @@ def _hierarchy(work: np.ndarray, params: StructuralParams) -> tuple[np.ndarray, 
                     heapq.heappush(heap, (cost(keep, other, total, length), keep, other, vk, version[other]))
                 else:
                     heapq.heappush(heap, (cost(other, keep, total, length), other, keep, version[other], vk))
-        root = parent.copy()
-        while True:  # path halving over the whole array until every id points at its root
-            nxt = root[root]
-            if np.array_equal(nxt, root):
-                break
-            root = nxt
-        # A region's id at this level: its root and that root's merge count, so
-        # a region unchanged since the previous level keeps its id.
-        tables.append(root * (n + 1) + np.asarray(version, np.int64)[root])
+        tables.append(_level_ids(parent, version))
     return labels, firsts, tables
+
+
+def _level_ids(parent: np.ndarray, version: list[int]) -> np.ndarray:
+    """int64 (n,): each fine label's region id at the current level: its root
+    and that root's merge count, so a region unchanged since the previous level
+    keeps its id."""
+    root = parent.copy()
+    while True:  # path halving over the whole array until every id points at its root
+        nxt = root[root]
+        if np.array_equal(nxt, root):
+            break
+        root = nxt
+    return root * (parent.shape[0] + 1) + np.asarray(version, np.int64)[root]
 
 
 def _hierarchy_masks(work: np.ndarray, params: StructuralParams, size: tuple[int, int]) -> np.ndarray:
