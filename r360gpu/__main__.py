@@ -8,9 +8,9 @@ except KeyboardInterrupt:  # Ctrl-C during the first imports
 
 
 def _exit(code: int) -> None:
-    """Exit with ``code`` without the interpreter's teardown (freeing every module's objects: 0.2-0.35 s
-    after a scoring run) once nothing is left to do: every output of a command is written and closed
-    before main() returns, and the atexit functions still run.  With another thread still working,
+    """Exit with ``code`` without the interpreter's teardown (freeing every module's objects) once
+    nothing is left to do: every output of a command is written and closed before main() returns,
+    and the atexit functions still run.  With another thread still working,
     the ordinary exit waits for it."""
     import atexit
     import os

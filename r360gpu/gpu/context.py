@@ -164,8 +164,8 @@ class GpuContext:
         """A context on the adapter chosen by ``adapter`` / ``R360GPU_ADAPTER``.
 
         On a CPU adapter (lavapipe) every kernel with a host path takes it (:meth:`kernel_backend`),
-        so a run of those kernels never touches the device: it is opened on first use (0.3 s of CPU
-        on lavapipe spared where nothing renders).  On a GPU it is opened here.
+        so a run of those kernels never touches the device: it is opened on first use (none of
+        lavapipe's device set-up where nothing renders).  On a GPU it is opened here.
         """
         ad = select_adapter(adapter)
         if str(ad.info.get("adapter_type")) == _CPU_TYPE:
@@ -470,7 +470,7 @@ def get_context(adapter: str | None = None, device=None) -> GpuContext:
 
 def open_ahead(adapter: str | None = None) -> None:
     """Start :func:`get_context` for ``adapter`` on a thread of its own, so that importing wgpu and
-    choosing the adapter (0.3-1 s on lavapipe, much of it in the driver with the GIL released) overlap
+    choosing the adapter (much of it in the driver with the GIL released) overlap
     the caller's other start-up work.  A failure is left for the caller's own ``get_context`` call,
     which tries again and raises it there."""
     def run() -> None:

@@ -163,7 +163,8 @@ def match(iou: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 def linear_sum_assignment():
     """``scipy.optimize.linear_sum_assignment``, loaded without the ``scipy.optimize`` package where
     scipy keeps it as its own compiled module (``scipy/optimize/_lsap``, scipy >= 1.6): the package
-    imports scipy.linalg, scipy.special and the rest (0.2-0.6 s of a run that needs this one function).
+    imports scipy.linalg, scipy.special and the rest, which a run that needs this one function
+    does not use (docs/benchmarks.md: where the time goes against the input floor).
     The same function (tests/test_metrics_structural.py); anything else gets the package's."""
     import importlib.machinery
     import importlib.util

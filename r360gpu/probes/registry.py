@@ -373,7 +373,7 @@ def scene_probes(bundle, semantic: list | None, structural: list | None, *, comp
     "source": "command line" | "folder" | "default", "why": str}}.
     """
     given = {"semantic": semantic, "structural": structural}
-    fallback: dict = {}  # built when an axis needs it: the built-ins import scipy.ndimage (0.2-0.5 s)
+    fallback: dict = {}  # built when an axis needs it: the built-ins import scipy.ndimage
     out, selection = {}, {}
     for axis in ("semantic", "structural"):
         if given[axis] is not None:
