@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import InputError
 from ..gpu.context import BufferRange, GpuContext, get_context
 from ..gpu.shaders import shader_constant
+from ..util.memo import ByIdentity
 
 SHADER = "mask_iou"
 _HOST_COUNTS = hasattr(np, "bitwise_count")  # numpy >= 2; else intersections always run the kernel
@@ -248,25 +249,19 @@ def take(p: PackedMasks, index, masks=None, *, ctx: GpuContext | None = None) ->
 
 
 class PackMemo:
-    """Each stack packed once while the memo lives (a view's worth of work), by identity.
-
-    The memo holds every array it packed, so an id cannot be reused while it lives; the arrays must not
-    change meanwhile (probe outputs do not).  Anything else given to :meth:`pack` is packed each time.
+    """Each stack packed once while the memo lives (a view's worth of work), by identity
+    (:class:`~r360gpu.util.memo.ByIdentity`); the arrays must not change meanwhile (probe outputs
+    do not).  Anything but a numpy array given to :meth:`pack` is packed each time.
     """
 
     def __init__(self, ctx: GpuContext | None = None):
         self.ctx = ctx
-        self._packs: dict[int, tuple[object, PackedMasks]] = {}
+        self._memo = ByIdentity()
 
     def pack(self, masks) -> PackedMasks:
         if not isinstance(masks, np.ndarray):
             return pack(masks, ctx=self.ctx)
-        hit = self._packs.get(id(masks))
-        if hit is not None and hit[0] is masks:
-            return hit[1]
-        packed = pack(masks, ctx=self.ctx)
-        self._packs[id(masks)] = (masks, packed)
-        return packed
+        return self._memo.get(pack, (masks,), lambda: pack(masks, ctx=self.ctx))
 
 
 def device_chunks(p: PackedMasks, ctx: GpuContext) -> list[PackedChunk]:
