@@ -288,7 +288,7 @@ def _merge_similar(labels: np.ndarray, work: np.ndarray, delta_e: float) -> np.n
     pairs = _adjacent_pairs(labels)
     if n < 2 or pairs.shape[0] == 0:
         return labels
-    lab = cv2.cvtColor(work.astype(np.float32) / np.float32(255.0), cv2.COLOR_RGB2Lab).reshape(-1, 3)
+    lab = _working_lab(work).reshape(-1, 3)
     flat = labels.reshape(-1)
     count = np.bincount(flat, minlength=n).astype(np.float64)
     sums = np.stack([np.bincount(flat, weights=lab[:, c].astype(np.float64), minlength=n) for c in range(3)], axis=1)
