@@ -30,6 +30,8 @@ running the four in turn, each round starting one later so that each meets the s
   itself (checked unchanged afterwards), into a fresh output folder;
 * peer: the public depth_diff + semantic + depth + SAM evaluation (one thread), on a fresh copy
   of the folder (its scripts write into it).
+Every timed process reads its bytecode from ``__pycache__``, compiled beforehand for r360gpu and
+the public checkout (``common.bytecode_env``), as for any user after a first run.
 Prints the machine's load average before, during and after, each run's time, and a table: the
 floor, both r360gpu times with their ratio to the floor (issue 27's goals: <= 1.5x without
 pictures, <= 2.5x with), and the public scripts' time with its ratio to r360gpu's default run.
@@ -51,6 +53,8 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+from common import bytecode_env  # noqa: E402
 
 
 def sam_json_text(masks: list[np.ndarray]) -> str:
@@ -217,7 +221,9 @@ def main() -> int:
         cores = os.cpu_count() or 1
         print(f"# r360gpu score vs the public Remove360 scripts: {args.views} views of {args.width}x{args.height}")
         print(f"generated in {time.perf_counter() - t:.1f} s; CPU cores: {cores}; load average before: {_load()}")
-        env = {**os.environ, "PYTHONPATH": f"{args.r360_root.resolve()}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
+        # bytecode compiled once beforehand, as a user's checkout and installed packages have it
+        env = {**bytecode_env([args.r360_root.resolve() / "r360gpu", public]),
+               "PYTHONPATH": f"{args.r360_root.resolve()}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
         listing = _listing(scene)
         times: dict[str, list[float]] = {"floor": [], "no-pictures": [], "default": [], "public": []}
 

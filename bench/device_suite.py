@@ -21,7 +21,8 @@ runs out is stopped and marked so; the next one still runs):
    tests/onnx_graphs.py (they check the path, not the speed; marked so);
 5. ``r360gpu demo`` from nothing (bench/bench_demo.py's run) with
    ``R360GPU_HOST_THREADS=2`` (the count a 2-core machine uses), then with
-   the host threads scaled to the machine's cores: wall times, goal < 5 s;
+   the host threads scaled to the machine's cores, then with ``--processes auto``
+   (one worker process per two cores): wall times, goal < 5 s;
 6. target lifting and target-mask rendering against a plain render
    (bench/bench_lift.py) at 1M Gaussians, 24 views, 1920x1080: both ratios,
    goal <= 1.5 each.
@@ -181,6 +182,8 @@ def build_steps(args, work: Path) -> list[Step]:
     two.env = {"R360GPU_HOST_THREADS": "2"}
     steps.append(two)
     steps.append(Step("demo", [py, "-c", DEMO_SCRIPT, str(work / "demo"), *adapter, *demo_size], 0.15))
+    steps.append(Step("demo, --processes auto", [py, "-c", DEMO_SCRIPT, str(work / "demop"), *adapter, *demo_size,
+                                                 "--processes", "auto"], 0.15))
     lift_size = (["--n", "100000", "--views", "4", "--width", "480", "--height", "270"] if small
                  else ["--n", "1000000", "--views", "24", "--width", "1920", "--height", "1080"])
     steps.append(Step("lift", [py, str(HERE / "bench_lift.py"), *lift_size, "--repeat", "1"], 0.15))

@@ -26,5 +26,9 @@ class GpuUnavailableError(R360Error, RuntimeError):
     """No usable wgpu adapter (e.g. no Vulkan driver installed)."""
 
 
+class WorkerLostError(R360Error, RuntimeError):
+    """A worker process that was scoring views ended without an answer (killed, out of memory)."""
+
+
 class R360Warning(UserWarning):
     """Non-fatal problems in the input (dropped Gaussians, resized masks, ...)."""

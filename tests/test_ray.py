@@ -25,50 +25,11 @@ from r360gpu.pipeline.distributed import FAIL_ONCE_ENV, RayExecutor, RayOptions,
 from r360gpu.report.outputs import write_outputs
 from r360gpu.synthetic import generate_benchmark
 
+from run_compare import comparable as _comparable, tree as _tree, tree_differences as _tree_differences
+
 ROOT = Path(__file__).resolve().parents[1]
 OPTS = dict(n_boot=200, n_perm=100)
 CLI_STATS = ["--n-boot", "200", "--n-perm", "100"]
-
-
-def _comparable(doc: dict) -> dict:
-    """A results document without what differs between equal runs (timing, creation time)."""
-    return {k: v for k, v in doc.items() if k not in ("timing", "created")}
-
-
-def _tree(folder: Path, sub: str) -> dict:
-    """{relative path: bytes} of every file under folder/sub."""
-    base = folder / sub
-    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(base.rglob("*")) if p.is_file()}
-
-
-def _tree_differences(a: dict, b: dict) -> list[str]:
-    """What differs between two {path: bytes} trees, short: files on one side only, and for PNGs
-    that differ, where their pixels differ (a byte dump of a whole sheet says nothing).
-
-    Two PNGs of the same size with identical pixels are equal: ISA-L's deflate (report.png) has been
-    seen, once in about ten runs of the Ray test, to give a sheet another byte stream of the same
-    length for the same pixels; the pictures' content is what a serial and a Ray run must share."""
-    import cv2
-    import numpy as np
-
-    out = [f"only in the first: {k}" for k in sorted(a.keys() - b.keys())]
-    out += [f"only in the second: {k}" for k in sorted(b.keys() - a.keys())]
-    for k in sorted(a.keys() & b.keys()):
-        if a[k] == b[k]:
-            continue
-        ia, ib = (cv2.imdecode(np.frombuffer(x, np.uint8), cv2.IMREAD_UNCHANGED) for x in (a[k], b[k]))
-        if ia is None or ib is None or ia.shape != ib.shape:
-            out.append(f"{k}: {len(a[k])} vs {len(b[k])} bytes, images "
-                       f"{None if ia is None else ia.shape} vs {None if ib is None else ib.shape}")
-            continue
-        d = np.abs(ia.astype(np.int16) - ib.astype(np.int16)).reshape(ia.shape[0], ia.shape[1], -1).max(axis=2)
-        ys, xs = np.nonzero(d)
-        if ys.size == 0 and len(a[k]) == len(b[k]):
-            continue  # the same pixels, another deflate stream of the same length (see above)
-        where = f"rows {ys.min()}-{ys.max()}, columns {xs.min()}-{xs.max()}" if ys.size else "no pixel"
-        out.append(f"{k}: {len(a[k])} vs {len(b[k])} bytes; {ys.size} pixels differ (at most by {d.max()}), {where} "
-                   f"of {ia.shape[1]}x{ia.shape[0]}")
-    return out
 
 
 def test_tree_differences_name_files_and_pixels():
@@ -257,7 +218,7 @@ def test_a_worker_on_another_version_fails_clearly(scenes, ray_instance, monkeyp
 
     common = {"version": "0.0.0-other"}
     with pytest.raises(InputError, match="same version on every node"):
-        distributed.ray_score_task(common, ["view_000"])
+        distributed.score_task(common, ["view_000"])
 
 
 def test_model_probes_reopen_their_files_when_sent_to_a_worker(tmp_path):

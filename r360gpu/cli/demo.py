@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import time
 
-from .score import add_scoring_options, options_from_args, score_and_report
+from .score import add_processes_option, add_scoring_options, options_from_args, processes_from_args, score_and_report
 
 
 def register(sub) -> None:
@@ -20,6 +20,7 @@ def register(sub) -> None:
     p.add_argument("--height", type=int, default=360, help="render height (default 360)")
     p.add_argument("--scene-seed", type=int, default=0, help="seed of the procedural scenes (default 0)")
     add_scoring_options(p)
+    add_processes_option(p)
     p.set_defaults(func=run)
 
 
@@ -33,6 +34,7 @@ def run(args) -> int:
     out = check_output_folder(args.out)  # before any work
     check_output_folder(out / "report")
     options_from_args(args)  # every option checked before the benchmark is generated
+    executor = processes_from_args(args)
     t = time.perf_counter()
     print(f"generating the synthetic benchmark in {out / 'benchmark'} ...")
     reused: list = []
@@ -43,4 +45,4 @@ def run(args) -> int:
                                  ctx=get_context(args.adapter))  # scoring's context: its renders are kept
     unchanged = f" ({', '.join(reused)} unchanged since the last run: kept)" if reused else ""
     print(f"  {len(bundles)} scenes in {time.perf_counter() - t:.1f} s{unchanged}")
-    return score_and_report(bundles, out / "report", args, kept=kept)
+    return score_and_report(bundles, out / "report", args, executor=executor, kept=kept)

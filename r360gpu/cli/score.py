@@ -104,7 +104,14 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def add_processes_option(g) -> None:
+    g.add_argument("--processes", metavar="N", default=None,
+                   help="score the views in N worker processes on this machine, each with its own GPU device "
+                        "('auto': one per two cores); default: all in this process, stages overlapped on threads")
+
+
 def add_ray_options(p) -> None:
+    add_processes_option(p.add_argument_group("Parallel scoring on this machine"))
     g = p.add_argument_group("Ray (scale-out; needs pip install 'r360gpu[ray]')")
     g.add_argument("--ray", metavar="ADDRESS", default=None,
                    help="score the views as Ray tasks: 'local' starts a Ray instance here, 'auto' joins the cluster "
@@ -123,11 +130,35 @@ def add_ray_options(p) -> None:
                         "(default 30)")
 
 
+def processes_from_args(args):
+    """A ProcessExecutor for --processes N (N > 1, or 'auto'), else None."""
+    from ..errors import InputError
+
+    value = getattr(args, "processes", None)
+    if value is None:
+        return None
+    from ..pipeline.processes import ProcessExecutor, default_workers
+
+    if value == "auto":
+        workers = default_workers()
+    else:
+        try:
+            workers = int(value)
+        except ValueError:
+            raise InputError(f"--processes takes a number of worker processes or 'auto', got {value!r}") from None
+        if workers < 1:
+            raise InputError(f"--processes must be at least 1, got {workers}")
+    return ProcessExecutor(workers, adapter=args.adapter) if workers > 1 else None
+
+
 def executor_from_args(args):
-    """A RayExecutor for --ray (None without it); the other --ray-* flags need --ray."""
+    """A RayExecutor for --ray, a ProcessExecutor for --processes (None without them); the other
+    --ray-* flags need --ray."""
     from ..errors import InputError
 
     address = args.ray
+    if address is not None and getattr(args, "processes", None) is not None:
+        raise InputError("--processes and --ray cannot be combined (Ray places its own workers)")
     if address is None:
         given = [flag for flag, unset in (("--ray-cpus", args.ray_cpus is None),
                                           ("--ray-gpus-per-task", args.ray_gpus_per_task is None),
@@ -136,7 +167,7 @@ def executor_from_args(args):
                                           ("--ray-timeout", args.ray_timeout is None)) if not unset]
         if given:
             raise InputError(f"{', '.join(given)} need(s) --ray")
-        return None
+        return processes_from_args(args)
     from ..pipeline.distributed import DEFAULT_CONNECT_TIMEOUT, RayExecutor, RayOptions, import_ray, probe_cluster
 
     timeout = DEFAULT_CONNECT_TIMEOUT if args.ray_timeout is None else args.ray_timeout

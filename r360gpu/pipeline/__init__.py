@@ -17,7 +17,9 @@ Read in this order:
   schema, built in one place (each scene's probe descriptions kept with the scene);
 * :mod:`.chunks`    -- :func:`~.chunks.score_chunk`: a chunk of views from picklable inputs,
   for executors in other processes;
-* :mod:`.distributed` -- the Ray executor: uncached views scored as Ray tasks (optional ``ray``).
+* :mod:`.distributed` -- the Ray executor: uncached views scored as Ray tasks (optional ``ray``),
+  and what every executor of view chunks shares;
+* :mod:`.processes` -- the same in worker processes on this machine (``--processes N``).
 
 Pooling across scenes is :mod:`r360gpu.aggregate.pooling`; scenes built from
 in-memory objects are :func:`r360gpu.bundle.scene_from_objects`.

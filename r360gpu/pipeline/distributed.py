@@ -10,7 +10,7 @@ returns the cells of the views the view cache does not hold.  Per scene:
 * the views missing from the view cache are cut into chunks of consecutive
   views, one Ray task each: (scene bundle, options, the fitted probe objects,
   the chunk).  Views already cached are not sent;
-* a task (:func:`ray_score_task`) checks that its node runs the driver's
+* a task (:func:`score_task`) checks that its node runs the driver's
   r360gpu version, opens its own GPU context, rebuilds the SceneRun without
   fitting and without any cache (the driver's ``--out`` need not be shared),
   reads the bundle's files by their absolute paths (every node must see the
@@ -133,12 +133,13 @@ class RayOptions:
 
 
 def open_executor(executor, *, ray_address=None, adapter=None, device=None, log=print):
-    """The executor ``evaluate(executor=...)`` names: None/"serial" (none), "ray", or a RayExecutor."""
+    """The executor ``evaluate(executor=...)`` names: None/"serial" (none), "ray", or an executor
+    object (a :class:`RayExecutor`, a :class:`~.processes.ProcessExecutor`)."""
     if executor is None or executor == "serial":
         if ray_address is not None:
             raise InputError("ray_address is given but executor is not 'ray'")
         return None
-    if isinstance(executor, RayExecutor):
+    if isinstance(executor, ChunkExecutor):
         return executor
     if executor != "ray":
         raise InputError(f"unknown executor {executor!r} (use 'serial' or 'ray')")
@@ -168,8 +169,9 @@ def _check_sendable(bundle) -> None:
                              "(DeviceViewsSource); they cannot be sent to Ray workers (score it without Ray)")
 
 
-class RayExecutor:
-    """Scores the uncached views of each scene as Ray tasks (module docstring).
+class ChunkExecutor:
+    """What every executor that scores chunks of views elsewhere shares: which views to send,
+    what goes with them, and taking a finished chunk's results into ``--out``.
 
     adapter: the GPU adapter choice each worker opens (as ``--adapter``;
         None: the worker's R360GPU_ADAPTER or auto).
@@ -177,8 +179,9 @@ class RayExecutor:
         results are written (tests stop the driver there).
     """
 
-    def __init__(self, options: RayOptions | None = None, *, adapter: str | None = None, log=print, on_task=None):
-        self.options = options or RayOptions()
+    kind = "?"
+
+    def __init__(self, *, adapter: str | None = None, log=print, on_task=None):
         self.adapter = adapter
         self.log = log
         self.on_task = on_task
@@ -186,6 +189,61 @@ class RayExecutor:
         self.nodes: dict = {}        # node id -> tasks run there
         self.adapters: set = set()   # adapters the tasks ran on
         self.tasks = 0
+
+    @staticmethod
+    def todo(run, view_cache, sink) -> list:
+        """The views of ``run`` the view cache lacks."""
+        bundle = run.bundle
+        return [v for v in run.views if view_cache is None or
+                view_cache.load_scored(bundle.methods, run.controls.values(), v, pictures=sink.enabled) is None]
+
+    @staticmethod
+    def chunk_size(chunk: int | None, n_views: int, workers: int) -> int:
+        """``chunk``, or by default ceil(views / (2 x workers)) views per task, at most MAX_CHUNK."""
+        return chunk or min(MAX_CHUNK, max(1, math.ceil(n_views / (2 * workers))))
+
+    def common(self, run, sink) -> dict:
+        """What every task of ``run``'s scene needs besides its views."""
+        from .. import __version__
+
+        _check_sendable(run.bundle)
+        return {"version": __version__, "bundle": run.bundle, "opts": run.opts, "adapter": self.adapter,
+                "sem": _fitted_probes(run.sem), "stru": _fitted_probes(run.stru), "pictures": sink.enabled,
+                "probes_desc": run.probes_desc}
+
+    def take(self, run, view_cache, sink, result) -> None:
+        """Write one task's pictures, then its cells (so a cached cell's picture exists), merge the rest."""
+        from ..util.atomic import write_bytes
+
+        if sink.enabled:
+            for rel, data in result["pictures"].items():
+                write_bytes(sink.out / rel, data)
+        if view_cache is not None:
+            for v, cells in result["cells"].items():
+                view_cache.store_view(v, cells, run.changed_inputs(v, result.get("decoded", {}).get(v)))
+        warning_log.replay(result["warnings"])
+        for stage, s in result["timing"].items():
+            run.timer.add_seconds(stage, s)
+        self.nodes[result["node"]] = self.nodes.get(result["node"], 0) + 1
+        if result["adapter"] not in self.adapters:
+            self.adapters.add(result["adapter"])
+            here = run.ctx.describe().get("name", "?")
+            if result["adapter"] != here:  # results.json names the driver's adapter
+                self.log(f"note: {self.kind} tasks ran on adapter {result['adapter']!r}; this process uses {here!r}")
+        self.tasks += 1
+        if self.on_task is not None:
+            self.on_task(self.tasks)
+
+
+class RayExecutor(ChunkExecutor):
+    """Scores the uncached views of each scene as Ray tasks (module docstring); adapter, on_task:
+    as :class:`ChunkExecutor`."""
+
+    kind = "Ray"
+
+    def __init__(self, options: RayOptions | None = None, *, adapter: str | None = None, log=print, on_task=None):
+        super().__init__(adapter=adapter, log=log, on_task=on_task)
+        self.options = options or RayOptions()
         self._ray = None
         self._started = False
         self._remote = None
@@ -243,28 +301,20 @@ class RayExecutor:
         """{view: cells} for the views of ``run`` the view cache lacks; stored there as they arrive."""
         bundle = run.bundle
         _check_sendable(bundle)
-        todo = [v for v in run.views if view_cache is None or
-                view_cache.load_scored(bundle.methods, run.controls.values(), v, pictures=sink.enabled) is None]
+        todo = self.todo(run, view_cache, sink)
         if not todo:
             return {}
         ray = self.start()
         gpus, cpus, workers = self._resources()
-        size = self.options.chunk or min(MAX_CHUNK, max(1, math.ceil(len(todo) / (2 * workers))))
-        chunks = chunk_views(todo, size)
+        chunks = chunk_views(todo, self.chunk_size(self.options.chunk, len(todo), workers))
         if self._remote is None:
-            self._remote = ray.remote(ray_score_task)
+            self._remote = ray.remote(score_task)
         task = self._remote.options(num_cpus=cpus, num_gpus=gpus, max_retries=self.options.max_retries,
                                     retry_exceptions=False)
-        from .. import __version__
-
-        common = ray.put({
-            "version": __version__, "bundle": bundle, "opts": run.opts, "adapter": self.adapter,
-            "sem": _fitted_probes(run.sem), "stru": _fitted_probes(run.stru), "pictures": sink.enabled,
-            "probes_desc": run.probes_desc,
-        })
+        common = ray.put(self.common(run, sink))
         pending = {task.remote(common, chunk): chunk for chunk in chunks}
         self.sent_views += [(bundle.name, v) for v in todo]
-        bar = _TaskProgress(bundle.name, len(chunks), len(todo), self.log, progress)
+        bar = TaskProgress(bundle.name, "on Ray", len(chunks), len(todo), self.log, progress)
         fresh: dict = {}
         t0 = time.perf_counter()
         try:
@@ -273,12 +323,9 @@ class RayExecutor:
                 for ref in done:
                     chunk = pending.pop(ref)
                     result = self._get(ray, ref, bundle.name, chunk)
-                    self._take(run, view_cache, sink, result)
+                    self.take(run, view_cache, sink, result)
                     fresh.update(result["cells"])
-                    self.tasks += 1
                     bar.update(len(chunk))
-                    if self.on_task is not None:
-                        self.on_task(self.tasks)
         except BaseException:
             for ref in pending:  # a driver stopping early leaves no tasks behind
                 ray.cancel(ref, force=True)
@@ -299,45 +346,26 @@ class RayExecutor:
                 raise cause from None
             raise RuntimeError(f"Ray task for scene {scene} views {chunk[0]}..{chunk[-1]} failed: {e}") from None
 
-    def _take(self, run, view_cache, sink, result) -> None:
-        """Write one task's pictures, then its cells (so a cached cell's picture exists), merge the rest."""
-        from ..util.atomic import write_bytes
-
-        if sink.enabled:
-            for rel, data in result["pictures"].items():
-                write_bytes(sink.out / rel, data)
-        if view_cache is not None:
-            for v, cells in result["cells"].items():
-                view_cache.store_view(v, cells, run.changed_inputs(v, result.get("decoded", {}).get(v)))
-        warning_log.replay(result["warnings"])
-        for stage, s in result["timing"].items():
-            run.timer.add_seconds(stage, s)
-        self.nodes[result["node"]] = self.nodes.get(result["node"], 0) + 1
-        if result["adapter"] not in self.adapters:
-            self.adapters.add(result["adapter"])
-            here = run.ctx.describe().get("name", "?")
-            if result["adapter"] != here:  # results.json names the driver's adapter
-                self.log(f"note: Ray tasks ran on adapter {result['adapter']!r}; this process uses {here!r}")
-
     def describe(self) -> dict:
         """What ran where (goes into the results' timing, which a comparison of runs leaves out)."""
         return {"kind": "ray", "address": self.options.address, "tasks": self.tasks, "nodes": len(self.nodes),
                 "views_sent": len(self.sent_views), "adapters": sorted(self.adapters)}
 
 
-class _TaskProgress:
-    """A progress bar over tasks on a terminal; a plain line per task otherwise."""
+class TaskProgress:
+    """A progress bar over tasks on a terminal; a plain line per task otherwise.  where: "on Ray",
+    "in N processes"."""
 
-    def __init__(self, scene, n_tasks, n_views, log, enabled):
+    def __init__(self, scene, where, n_tasks, n_views, log, enabled):
         self.scene, self.n, self.i, self.log, self.enabled = scene, n_tasks, 0, log, enabled
         self.bar = None
         if enabled and sys.stderr.isatty():
             from tqdm import tqdm
 
-            self.bar = tqdm(total=n_tasks, desc=f"scoring {scene} on Ray ({n_views} views)", unit="task",
+            self.bar = tqdm(total=n_tasks, desc=f"scoring {scene} {where} ({n_views} views)", unit="task",
                             dynamic_ncols=True, leave=True)
         elif enabled:
-            log(f"ray: scoring {scene}: {n_views} views in {n_tasks} tasks")
+            log(f"scoring {scene} {where}: {n_views} views in {n_tasks} tasks")
 
     def update(self, n_views):
         self.i += 1
@@ -351,8 +379,9 @@ class _TaskProgress:
             self.bar.close()
 
 
-def ray_score_task(common: dict, views: list) -> dict:
-    """One Ray task: score ``views`` of one scene on this node (module docstring)."""
+def score_task(common: dict, views: list) -> dict:
+    """One task (Ray's, or a worker process's): score ``views`` of one scene on this node
+    (module docstring); common: :meth:`ChunkExecutor.common`."""
     import platform
 
     from .. import __version__
@@ -362,15 +391,15 @@ def ray_score_task(common: dict, views: list) -> dict:
     _fail_once_hook()
     node = platform.node()
     if common["version"] != __version__:
-        raise InputError(f"Ray node {node} runs r360gpu {__version__} but the driver runs {common['version']}; "
+        raise InputError(f"node {node} runs r360gpu {__version__} but the driver runs {common['version']}; "
                          "install the same version on every node")
     ctx = get_context(common["adapter"])
     timer = Timer()
     with warning_log.collecting(None), warning_log.where(scene=common["bundle"].name):
-        return _ray_score_task(common, views, ctx, timer, node)
+        return _score_task(common, views, ctx, timer, node)
 
 
-def _ray_score_task(common, views, ctx, timer, node) -> dict:
+def _score_task(common, views, ctx, timer, node) -> dict:
     import tempfile
 
     from .cache import RunCache
@@ -383,7 +412,7 @@ def _ray_score_task(common, views, ctx, timer, node) -> dict:
                    timer=timer, fit=False)
     try:
         if run.probes_desc != common["probes_desc"]:
-            raise InputError(f"Ray node {node}: the probes arrived different from the driver's "
+            raise InputError(f"node {node}: the probes arrived different from the driver's "
                              f"({run.probes_desc} vs {common['probes_desc']})")
         with tempfile.TemporaryDirectory(prefix="r360gpu-ray-") as tmp:
             sink = PictureSink(Path(tmp), common["pictures"])
@@ -400,12 +429,10 @@ def _ray_score_task(common, views, ctx, timer, node) -> dict:
             decoded = {v: decoded_digests(run.view_files(v)) for v in views}
     finally:
         run.release()
-    try:
-        import ray
-
+    node_id = node
+    ray = sys.modules.get("ray")  # a Ray worker has it; a worker process does not import it
+    if ray is not None and ray.is_initialized():
         node_id = ray.get_runtime_context().get_node_id()
-    except Exception:  # outside Ray (a direct call)
-        node_id = node
     return {"cells": cells, "pictures": pictures, "timing": dict(timer.totals), "decoded": decoded,
             "warnings": {"records": warning_log.records(), "counts": warning_log.counts()},
             "node": node_id, "adapter": ctx.describe().get("name", "?")}

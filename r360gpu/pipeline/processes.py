@@ -1,0 +1,128 @@
+"""Scoring in worker processes on this machine: the views of a scene cut into tasks, one
+GPU device per worker process, no Ray needed.
+
+A serial run overlaps its stages on threads, but the Python parts of the
+probes, the measures and the pictures share one interpreter lock: on a
+machine with many cores the run uses about one core's worth of them.
+:class:`ProcessExecutor` (``score --processes N``) runs N worker processes
+instead; per scene, as the Ray executor does (:mod:`.distributed`, whose
+task function and bookkeeping it shares):
+
+* this process opens the :class:`~.run.SceneRun` as a serial run does, so the
+  probes that learn from the scene are fitted once, here;
+* the views the view cache lacks are cut into chunks of consecutive views
+  (ceil(views / (2 x workers)), at most 16, or ``chunk``), each scored by a
+  worker with :func:`~.distributed.score_task`: the worker opens its own GPU
+  device (once, on its first task) and scores the chunk without any cache;
+* as chunks finish, their pictures and then their cells are written into
+  ``--out`` exactly where a serial run writes them, so an interrupted run
+  resumes from the view cache.
+
+The cells are the values :func:`~.stages.score_view` computes, so the
+results document equals the serial run's (``tests/test_processes.py``).
+Workers are started with the ``spawn`` method: a fork of a process that
+holds a GPU device and threads is not safe.  A worker that dies (killed, out
+of memory) ends the run with an error naming the chunk; the chunks already
+written stay in the view cache.
+"""
+from __future__ import annotations
+
+import os
+import time
+
+from ..errors import InputError, R360Error, WorkerLostError
+from .distributed import ChunkExecutor, TaskProgress, chunk_views, score_task
+
+
+def default_workers() -> int:
+    """Worker processes for ``--processes auto``: one per two cores (each worker's GPU
+    thread and host work), at least 1."""
+    return max(1, (os.cpu_count() or 1) // 2)
+
+
+class ProcessExecutor(ChunkExecutor):
+    """Scores the uncached views of each scene in ``workers`` processes (module docstring).
+
+    chunk: views per task (None: ceil(views / (2 x workers)), at most 16);
+    adapter, on_task: as :class:`~.distributed.ChunkExecutor`.  The pool is
+    started on the first scene with views to score and kept for the next
+    scenes; :meth:`close` stops it.
+    """
+
+    kind = "worker-process"
+
+    def __init__(self, workers: int, *, chunk: int | None = None, adapter: str | None = None, log=print,
+                 on_task=None):
+        if not isinstance(workers, int) or workers < 1:
+            raise InputError(f"--processes must be at least 1, got {workers!r}")
+        if chunk is not None and chunk < 1:
+            raise InputError(f"the chunk size must be at least 1, got {chunk}")
+        super().__init__(adapter=adapter, log=log, on_task=on_task)
+        self.workers = workers
+        self.chunk = chunk
+        self._pool = None
+
+    def _start(self):
+        if self._pool is None:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(max_workers=self.workers,
+                                             mp_context=multiprocessing.get_context("spawn"))
+        return self._pool
+
+    def close(self) -> None:
+        """Stop the worker processes (a chunk still running is abandoned, not waited for)."""
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        # a process still scoring would otherwise finish its chunk after the driver has stopped
+        for proc in list(getattr(pool, "_processes", {}).values()):
+            proc.terminate()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+    def score_scene(self, run, view_cache, sink, progress: bool) -> dict:
+        """{view: cells} for the views of ``run`` the view cache lacks; stored there as they arrive."""
+        from concurrent.futures import FIRST_COMPLETED, wait
+        from concurrent.futures.process import BrokenProcessPool
+
+        todo = self.todo(run, view_cache, sink)
+        if not todo:
+            return {}
+        common = self.common(run, sink)
+        chunks = chunk_views(todo, self.chunk_size(self.chunk, len(todo), self.workers))
+        pool = self._start()
+        pending = {pool.submit(score_task, common, chunk): chunk for chunk in chunks}
+        self.sent_views += [(run.bundle.name, v) for v in todo]
+        where = f"in {self.workers} worker process{'es' if self.workers > 1 else ''}"
+        bar = TaskProgress(run.bundle.name, where, len(chunks), len(todo), self.log, progress)
+        fresh: dict = {}
+        t0 = time.perf_counter()
+        try:
+            while pending:
+                done, _ = wait(list(pending), return_when=FIRST_COMPLETED)
+                for fut in done:
+                    chunk = pending.pop(fut)
+                    try:
+                        result = fut.result()
+                    except R360Error:
+                        raise
+                    except BrokenProcessPool:
+                        raise WorkerLostError(f"a worker process died while scoring scene {run.bundle.name} views "
+                                           f"{chunk[0]}..{chunk[-1]} (killed, or out of memory); the views "
+                                           "finished before are in the view cache: run again to resume") from None
+                    self.take(run, view_cache, sink, result)
+                    fresh.update(result["cells"])
+                    bar.update(len(chunk))
+        except BaseException:
+            self.close()  # a driver stopping early leaves no worker behind
+            raise
+        finally:
+            bar.close()
+        run.timer.add("worker wait", t0)
+        return fresh
+
+    def describe(self) -> dict:
+        """What ran where (goes into the results' timing, which a comparison of runs leaves out)."""
+        return {"kind": "processes", "workers": self.workers, "tasks": self.tasks,
+                "views_sent": len(self.sent_views), "adapters": sorted(self.adapters)}
