@@ -62,7 +62,9 @@ def test_progress_prints_plain_lines_when_not_a_terminal():
     assert items == list(range(100))
     lines = out.getvalue().splitlines()
     assert len(lines) == 10 and "\r" not in out.getvalue()  # every 10%
-    assert lines[-1].startswith("scoring room: 100/100 views (100%)")
+    assert lines[-1].startswith("scoring room: 100/100 views (100%)") and "left" not in lines[-1]
+    # 10 views in 0.1 s: 90 more take about 0.9 s
+    assert lines[0] == "scoring room: 10/100 views (10%), 0.1 s, 100.00 views/s, about 1 s left"
     out = io.StringIO()
     list(progress(range(5), desc="slow", stream=out, clock=_Clock(6.0)))  # every ~10 s
     assert [line.split(":")[1].split()[0] for line in out.getvalue().splitlines()] == ["1/5", "2/5", "3/5",
@@ -71,6 +73,13 @@ def test_progress_prints_plain_lines_when_not_a_terminal():
     list(progress(range(1000), desc="slow", stream=out, clock=_Clock(0.001), every_s=10.0))
     assert len(out.getvalue().splitlines()) == 10
     assert list(progress([1, 2], desc="x", enabled=False, stream=out)) == [1, 2]
+
+
+def test_durations_read_as_a_person_says_them():
+    from r360gpu.util.progress import duration
+
+    assert [duration(s) for s in (0.4, 40, 89, 600, 5399, 5400, 12600)] == [
+        "0 s", "40 s", "89 s", "10 min", "90 min", "1.5 h", "3.5 h"]
 
 
 def test_progress_bar_on_a_terminal():

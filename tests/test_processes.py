@@ -119,3 +119,30 @@ def test_one_process_is_the_serial_run_and_auto_follows_the_cores(monkeypatch):
     assert processes_from_args(Namespace(processes="auto", adapter=None)) is None
     with pytest.raises(InputError, match="chunk size must be at least 1"):
         ProcessExecutor(2, chunk=0)
+
+
+def test_ctrl_c_stops_the_workers_without_their_tracebacks(scenes, tmp_path):
+    """Ctrl-C reaches the whole process group: the driver says it was interrupted (exit 130) and
+    stops its workers; the workers print nothing of their own."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    proc = subprocess.Popen([sys.executable, "-m", "r360gpu", "score", *map(str, scenes), "--out",
+                             str(tmp_path / "o"), "--processes", "2", "--n-boot", "200", "--n-perm", "100"],
+                            cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+    seen = []
+    for line in proc.stdout:  # plain progress lines (not a terminal)
+        seen.append(line)
+        if "in 2 worker processes" in line:
+            break
+    os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: every process of the group
+    rest, _ = proc.communicate(timeout=120)
+    out = "".join(seen) + rest
+    assert proc.returncode == 130, out
+    assert "r360gpu: interrupted" in out and "Traceback" not in out and "KeyboardInterrupt" not in out

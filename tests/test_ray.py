@@ -295,7 +295,7 @@ def test_two_nodes_started_with_ray_start(scenes, serial, tmp_path):
                               "--ray", f"127.0.0.1:{port}", "--ray-chunk", "1", *CLI_STATS],
                              env=env, capture_output=True, text=True, timeout=400)
         assert run.returncode == 0, run.stderr[-3000:]
-        assert "ray: room: task 2/2 done" in run.stdout  # plain progress lines when not on a terminal
+        assert "room on Ray: task 2/2 done" in run.stdout  # plain progress lines when not on a terminal
         doc = json.loads((out / "results.json").read_text())
         assert doc["timing"]["executor"]["nodes"] == 2  # both nodes ran tasks
         assert _comparable(doc) == _comparable(json.loads((serial[0] / "results.json").read_text()))

@@ -357,7 +357,8 @@ class TaskProgress:
     "in N processes"."""
 
     def __init__(self, scene, where, n_tasks, n_views, log, enabled):
-        self.scene, self.n, self.i, self.log, self.enabled = scene, n_tasks, 0, log, enabled
+        self.scene, self.where, self.n, self.i, self.log, self.enabled = scene, where, n_tasks, 0, log, enabled
+        self.t0 = time.perf_counter()
         self.bar = None
         if enabled and sys.stderr.isatty():
             from tqdm import tqdm
@@ -372,7 +373,11 @@ class TaskProgress:
         if self.bar is not None:
             self.bar.update(1)
         elif self.enabled:
-            self.log(f"ray: {self.scene}: task {self.i}/{self.n} done ({n_views} views)")
+            from ..util.progress import duration
+
+            spent = time.perf_counter() - self.t0
+            left = f", about {duration(spent * (self.n - self.i) / self.i)} left" if self.i < self.n else ""
+            self.log(f"{self.scene} {self.where}: task {self.i}/{self.n} done ({n_views} views){left}")
 
     def close(self):
         if self.bar is not None:

@@ -40,6 +40,14 @@ def default_workers() -> int:
     return max(1, (os.cpu_count() or 1) // 2)
 
 
+def _worker_start() -> None:
+    """In each worker: Ctrl-C (sent to the whole process group) is the driver's to handle; it
+    stops the workers itself, so that a worker does not print a traceback of its own."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 class ProcessExecutor(ChunkExecutor):
     """Scores the uncached views of each scene in ``workers`` processes (module docstring).
 
@@ -67,8 +75,8 @@ class ProcessExecutor(ChunkExecutor):
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
-            self._pool = ProcessPoolExecutor(max_workers=self.workers,
-                                             mp_context=multiprocessing.get_context("spawn"))
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_worker_start)
         return self._pool
 
     def close(self) -> None:
@@ -77,8 +85,12 @@ class ProcessExecutor(ChunkExecutor):
         if pool is None:
             return
         # a process still scoring would otherwise finish its chunk after the driver has stopped
-        for proc in list(getattr(pool, "_processes", {}).values()):
-            proc.terminate()
+        terminate = getattr(pool, "terminate_workers", None)  # Python >= 3.14
+        if terminate is not None:
+            terminate()
+        else:
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                proc.terminate()
         pool.shutdown(wait=True, cancel_futures=True)
 
     def score_scene(self, run, view_cache, sink, progress: bool) -> dict:
