@@ -62,3 +62,21 @@ def test_unreadable_files(tmp_path):
         load_mask(tmp_path / "missing.png")
     with pytest.raises(InputError, match="cannot read mask"):
         load_mask(tmp_path)
+
+
+@pytest.mark.parametrize("channels", [3, 4])
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+def test_colour_planes_any_nonzero_random(tmp_path, channels, dtype):
+    """Random colour masks: a pixel is target exactly when one of its colour channels is non-zero
+    (the alpha channel of an RGBA mask with some colour is not read); one non-zero value per pixel
+    in a random channel catches a channel left out."""
+    rng = np.random.default_rng(channels * 10 + np.dtype(dtype).itemsize)
+    img = np.zeros((37, 53, channels), dtype)
+    hit = rng.random((37, 53)) < 0.3
+    which = rng.integers(0, 3, (37, 53))
+    ys, xs = np.nonzero(hit)
+    img[ys, xs, which[ys, xs]] = rng.integers(1, np.iinfo(dtype).max, ys.size, dtype=np.int64).astype(dtype)
+    if channels == 4:
+        img[..., 3] = rng.integers(0, 2, (37, 53)) * np.iinfo(dtype).max  # alpha: not the target
+    m = load_mask(_png(tmp_path / "r.png", img))
+    assert np.array_equal(m, hit)

@@ -74,8 +74,15 @@ def _colour_mask(raw: np.ndarray, path) -> np.ndarray:
     if img.ndim != 3:
         return img != 0
     channels = img.shape[2]
-    colour = img[:, :, : channels - 1] if channels in (2, 4) else img
-    mask = np.any(colour != 0, axis=2)
+    n_colour = channels - 1 if channels in (2, 4) else channels
+    if img.dtype.kind in "ui":
+        # OR of the colour planes: a reduction over the short last axis (np.any(..., axis=2)) is ~15x slower
+        colour = img[:, :, 0].copy()
+        for c in range(1, n_colour):
+            np.bitwise_or(colour, img[:, :, c], out=colour)
+        mask = colour != 0
+    else:  # float images (TIFF): NaN and -0.0 must read as they compare
+        mask = np.any(img[:, :, :n_colour] != 0, axis=2)
     if channels in (2, 4) and not mask.any():
         alpha = img[:, :, channels - 1]
         if alpha.min() != alpha.max():
