@@ -112,15 +112,16 @@ class _Shrink:
         return self._memo.get("union", (prediction,), lambda: self.mask(prediction.union()))
 
     def masks(self, stack):
-        from ..report.contact_sheets import resize_mask
+        from ..util.resize import resize_nearest
 
         def make(x):
-            a = np.asarray(x) != 0
+            a = np.asarray(x)
             if a.ndim == 2:
                 a = a[None]
             if a.ndim != 3 or not a.shape[0]:
-                return a
-            size = self._size(a.shape[1:])
-            return np.stack([resize_mask(k, size) for k in a])
+                return a != 0
+            w, h = self._size(a.shape[1:])
+            # the whole stack at once, and nearest picks pixels, so "!= 0" after it is the same as before it
+            return resize_nearest(a, (h, w)) != 0
 
         return self._memo.get("masks", (stack,), lambda: make(stack))
