@@ -51,7 +51,8 @@ def evaluate(
     force: recompute everything (the cache under ``out`` is cleared first).
     executor: None or "serial" (views scored here, overlapped), "ray"
         (uncached views scored as Ray tasks, :mod:`.distributed`; needs the
-        ``r360gpu[ray]`` extra), or a :class:`~.distributed.RayExecutor`.
+        ``r360gpu[ray]`` extra), a :class:`~.distributed.RayExecutor`, or a
+        :class:`~.processes.ProcessExecutor` (worker processes on this machine).
     ray_address: with executor="ray": "local" (default), "auto" or a cluster address.
     kept: renders made before (:class:`~r360gpu.render.kept.KeptRenders`, as
         ``r360gpu demo`` keeps the generator's reference renders), used where
