@@ -7,7 +7,10 @@
   back as a ViewRecord (:func:`cell_from_json`), here only.  ``key`` digests
   everything that changes a per-view value (version, the bundle's
   fingerprint, scoring options, probe descriptions, structural mode, depth
-  mode, LPIPS model), so a changed input or option misses.  A view is served
+  mode, LPIPS model), so a changed input or option misses; the precomputed
+  probe files a view was scored from are not hashed but stamped (inode, size,
+  mtime, ctime) before they are read, and a cell is served only while those
+  stamps hold (:func:`r360gpu.util.filehash.input_stamp`).  A view is served
   from the cache only when every method's cell is there and, when pictures
   are asked for, every cell names a picture that exists: pictures are
   outputs of the run, so a run after ``--no-pictures`` or after a picture was
@@ -36,8 +39,9 @@ from .. import __version__
 
 CACHE_DIR = ".r360cache"
 #: What a view cell holds, in the view cache key: a cell written before a per-view value was added
-#: lacks it, so it must miss (2: geometric records count n_no_depth_in_mask).
-CELL_FORMAT = 2
+#: lacks it, so it must miss (2: geometric records count n_no_depth_in_mask; 3: cells carry the stamps of the
+#: precomputed probe files they were scored from).
+CELL_FORMAT = 3
 
 
 def digest(obj) -> str:
@@ -110,8 +114,11 @@ class ViewCache:
             return None  # a damaged cache entry is recomputed
 
     def load_view(self, methods, view: str, *, pictures: bool) -> dict | None:
-        """Every method's cell of ``view``, or None when any is missing (or its picture is)."""
-        cells = {}
+        """Every method's cell of ``view``, or None when any is missing (or its picture is, or a
+        precomputed probe file it was scored from has changed since: the cells' ``inputs``)."""
+        from ..util.filehash import changed_stamps
+
+        cells, inputs = {}, {}
         for m in methods:
             cell = self.load_cell(m, view)
             if not cell:
@@ -119,7 +126,8 @@ class ViewCache:
             if pictures and not (cell.get("picture") and (self.out / cell["picture"]).is_file()):
                 return None
             cells[m] = cell
-        return cells
+            inputs.update(cell.get("inputs") or {})
+        return None if changed_stamps(inputs) else cells
 
     def load_scored(self, methods, controls, view: str, *, pictures: bool) -> dict | None:
         """Every cell of ``view`` (the methods', whose pictures are checked, and the controls'), or None."""
@@ -131,8 +139,18 @@ class ViewCache:
 
     def store_view(self, view: str, cells: dict, changed: list) -> bool:
         """Store every cell of ``view`` unless ``changed`` names an input whose decoded bytes are not
-        those the key was computed from (:func:`changed_inputs`); then warn and store nothing.
-        True when stored."""
+        those the key was computed from (:func:`changed_inputs`), or a precomputed probe file the
+        view was scored from has another stamp now than before it was read (the cells' ``inputs``);
+        then warn and store nothing.  A probe file written within the last 2 s (its stamp proves
+        nothing yet) keeps the view out of the cache without a warning.  True when stored."""
+        from ..util.filehash import UNSETTLED, changed_stamps
+
+        inputs: dict = {}
+        for cell in cells.values():
+            inputs.update(cell.get("inputs") or {})
+        if any(s == UNSETTLED for s in inputs.values()):
+            return False
+        changed = list(changed) + changed_stamps(inputs)
         if changed:
             from ..util import warning_log
 

@@ -43,6 +43,7 @@ class ViewData:
     str_ref: dict | None = None
     sem_post: dict = field(default_factory=dict)
     str_post: dict = field(default_factory=dict)
+    inputs: dict = field(default_factory=dict)  # {path: stamp} of the probes' per-view files, before reading
 
 
 def on_host(source) -> bool:
@@ -85,10 +86,14 @@ def _check_size(view, img, what, mask):
                          f"but the target mask is {mask.shape[1]}x{mask.shape[0]} (W x H)")
 
 
-def _probe_views(view, images, rendering, method=None):
+def _ask(data: ViewData, probe, images, rendering, method=None, *prompt):
+    """``probe``'s reading of one rendering of the view; the stamps of the files it reads for it
+    (precomputed masks) go into ``data.inputs`` first."""
     from ..probes.base import ProbeView
 
-    return [ProbeView(name=view, image=images.rgb, rendering=rendering, method=method)]
+    data.inputs.update(probe.input_stamps(data.view, rendering, method))
+    return probe.predict([ProbeView(name=data.view, image=images.rgb, rendering=rendering, method=method)],
+                         *prompt)[0]
 
 
 def gather(run, data: ViewData) -> ViewData:
@@ -106,16 +111,15 @@ def gather(run, data: ViewData) -> ViewData:
     for m, img in data.posts.items():
         _check_size(view, img, f"method {m}'s", mask)
     prompt = run.bundle.prompt
-    data.sem_pre = {n: {p.name: p.predict(_probe_views(view, img, "pre"), prompt)[0] for p in run.sem}
+    data.sem_pre = {n: {p.name: _ask(data, p, img, "pre", None, prompt) for p in run.sem}
                     for n, img in data.pres.items()}
     if run.mode == "reference":
-        data.str_ref = {p.name: p.predict(_probe_views(view, data.ref, "ref"))[0] for p in run.stru}
+        data.str_ref = {p.name: _ask(data, p, data.ref, "ref") for p in run.stru}
     else:
-        data.str_pre = {n: {p.name: p.predict(_probe_views(view, img, "pre"))[0] for p in run.stru}
-                        for n, img in data.pres.items()}
+        data.str_pre = {n: {p.name: _ask(data, p, img, "pre") for p in run.stru} for n, img in data.pres.items()}
     for m, post in data.posts.items():
-        data.sem_post[m] = {p.name: p.predict(_probe_views(view, post, "post", m), prompt)[0] for p in run.sem}
-        data.str_post[m] = {p.name: p.predict(_probe_views(view, post, "post", m))[0] for p in run.stru}
+        data.sem_post[m] = {p.name: _ask(data, p, post, "post", m, prompt) for p in run.sem}
+        data.str_post[m] = {p.name: _ask(data, p, post, "post", m) for p in run.stru}
     gather_controls(run, data)
     run.timer.add("probe", t)
     return data
@@ -128,20 +132,20 @@ def gather_controls(run, data: ViewData) -> None:
     them as the renderings they are ("pre", "ref"), so precomputed probes use
     the masks given for those renderings, and a reading already taken is reused.
     """
-    view, prompt = data.view, run.bundle.prompt
+    prompt = run.bundle.prompt
     for src in run.controls.values():
         rendering, img = ("pre", data.pres["pre"]) if src == "pre" else ("ref", data.ref)
         data.posts[src] = img
         if src == "pre":
             data.sem_post[src] = data.sem_pre["pre"]
         else:
-            data.sem_post[src] = {p.name: p.predict(_probe_views(view, img, rendering), prompt)[0] for p in run.sem}
+            data.sem_post[src] = {p.name: _ask(data, p, img, rendering, None, prompt) for p in run.sem}
         if src == "pre" and run.mode == "reference_free":
             data.str_post[src] = data.str_pre["pre"]
         elif src == "reference" and run.mode == "reference":
             data.str_post[src] = data.str_ref
         else:
-            data.str_post[src] = {p.name: p.predict(_probe_views(view, img, rendering))[0] for p in run.stru}
+            data.str_post[src] = {p.name: _ask(data, p, img, rendering) for p in run.stru}
 
 
 def structural_pairs(run, data: ViewData, method: str) -> dict:
@@ -219,10 +223,12 @@ def _depth_file(spec, view: str):
 def measure(run, data: ViewData, sink) -> tuple[dict, dict]:
     """Every method's cell of the view, and its GeometricView (for the pictures).
 
-    cells: {method: {"record", "boundary", "picture"}}: the view's
+    cells: {method: {"record", "boundary", "picture"[, "inputs"]}}: the view's
     :class:`~r360gpu.metrics.record.ViewRecord` (kept as one until a cell or
-    results.json is written), its boundary table, and the path the sink will
-    write the picture to (None without pictures).
+    results.json is written), its boundary table, the path the sink will
+    write the picture to (None without pictures), and the stamps of the
+    precomputed probe files read for the view (``data.inputs``, when there are
+    any: the view cache serves the cell only while they are unchanged).
     """
     t = time.perf_counter()
     cells, geos = {}, {}
@@ -233,6 +239,9 @@ def measure(run, data: ViewData, sink) -> tuple[dict, dict]:
     controls = list(run.controls.values())
     for src, res in measure_methods(run, data, controls, boundary_sweep=False).items():  # no sweep, no picture
         cells[src] = {"record": res.record, "boundary": None, "picture": None}
+    if data.inputs:
+        for cell in cells.values():
+            cell["inputs"] = data.inputs
     run.timer.add("measure", t)
     return cells, geos
 

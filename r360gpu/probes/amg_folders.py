@@ -10,6 +10,7 @@ import numpy as np
 from r360gpu.errors import InputError
 from r360gpu.probes.base import MaskSet
 from r360gpu.probes.mask_dirs import mask_dir, read_mask_png
+from r360gpu.util.filehash import input_stamp
 
 AMG_METADATA = "metadata.csv"
 # Header of segment-anything's scripts/amg.py write_masks_to_folder (one row per mask <id>.png).
@@ -82,6 +83,15 @@ class SamAmgDir:
 
     def path_for(self, name: str) -> Path:
         return self.directory / name / AMG_METADATA
+
+    def stamps(self, name: str) -> dict:
+        """{path: :func:`~r360gpu.util.filehash.input_stamp`} of the view's folder and every file in it
+        (what :meth:`read` may read)."""
+        folder = self.directory / name
+        out = {str(folder): input_stamp(folder)}
+        if folder.is_dir():
+            out.update({str(p): input_stamp(p) for p in sorted(folder.iterdir())})
+        return out
 
     def read(self, name: str, probe: str = "") -> MaskSet | None:
         folder = self.directory / name

@@ -252,6 +252,14 @@ class Probe(ABC):
         hashes once and memoise them: ``describe()`` is called per batch."""
         return {}
 
+    def input_stamps(self, name: str, rendering: str | None, method: str | None = None) -> dict:
+        """{path: :func:`~r360gpu.util.filehash.input_stamp`} of the per-view files :meth:`predict`
+        reads for view ``name`` of ``rendering`` (precomputed masks), taken before it reads them:
+        the view cache keeps a view's result only while those files are unchanged.  Probes whose
+        output follows from the image and :meth:`describe` alone (models, built-in probes) read
+        none: {}."""
+        return {}
+
     def describe(self) -> dict:
         """{"name", "kind", "models": {file: sha256}, "params": {...}}.
 

@@ -22,6 +22,7 @@ from r360gpu.probes import rle
 from r360gpu.probes.base import SemanticPrediction
 from r360gpu.probes.mask_dirs import mask_dir
 from r360gpu.probes.prompt_rule import label_matches
+from r360gpu.util.filehash import input_stamp
 
 def _load_json(path: Path):
     try:
@@ -121,7 +122,11 @@ class Gsam2JsonDir:
     def __init__(self, directory: str | os.PathLike):
         self.directory = mask_dir(directory)
         self._files: dict[str, tuple[Path, dict]] = {}
+        # taken before reading: which file describes a view is read from the files (image_path)
+        self._dir_stamp = input_stamp(self.directory)
+        self._stamps: dict[Path, object] = {}
         for path in sorted(self.directory.glob("*.json")):
+            self._stamps[path] = input_stamp(path)
             data = _load_json(path)
             if not isinstance(data, dict):
                 raise InputError("not a Grounded-SAM-2 dump: expected a JSON object", path)
@@ -141,6 +146,13 @@ class Gsam2JsonDir:
         """The file for view ``name`` (the ``<name>.json`` it would have if missing)."""
         entry = self._files.get(name)
         return entry[0] if entry else self.directory / f"{name}.json"
+
+    def stamps(self, name: str) -> dict:
+        """{path: :func:`~r360gpu.util.filehash.input_stamp`} of what :meth:`read` uses for ``name``, as
+        it was when this reader parsed the folder: the view's file and the folder itself (a file added
+        or removed could claim the view)."""
+        path = self.path_for(name)
+        return {str(self.directory): self._dir_stamp, str(path): self._stamps.get(path)}
 
     def read(self, name: str, prompt: str, probe: str = "") -> SemanticPrediction | None:
         """Kept instances at the file's size, or None when the view has no file."""

@@ -15,6 +15,7 @@ import numpy as np
 
 from r360gpu.errors import InputError
 from r360gpu.probes.base import SemanticPrediction
+from r360gpu.util.filehash import input_stamp
 
 
 def mask_dir(directory: str | os.PathLike) -> Path:
@@ -46,6 +47,11 @@ class PngMaskDir:
 
     def path_for(self, name: str) -> Path:
         return self.directory / f"{name}.png"
+
+    def stamps(self, name: str) -> dict:
+        """{path: :func:`~r360gpu.util.filehash.input_stamp`} of what :meth:`read` reads for ``name``."""
+        path = self.path_for(name)
+        return {str(path): input_stamp(path)}
 
     def read(self, name: str, prompt: str, probe: str = "") -> SemanticPrediction | None:
         """K = 1 instance labelled ``prompt`` (score NaN: the file carries none),

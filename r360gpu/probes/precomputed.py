@@ -136,22 +136,29 @@ class _Importer:
             "paths": {r: str(s.directory) for r, s in sorted(self.sources.items())},
         }
 
+    def input_stamps(self, name: str, rendering: str | None, method: str | None = None) -> dict:
+        """The stamps of the file(s) :meth:`predict` reads for the view (:meth:`Probe.input_stamps`)."""
+        return self._source_of(name, rendering, method).stamps(name)
+
     def _source_for(self, view: ProbeView):
-        if view.rendering is None:
+        return self._source_of(view.name, view.rendering, view.method)
+
+    def _source_of(self, name: str, rendering: str | None, method: str | None):
+        if rendering is None:
             raise InputError(
-                f"view {view.name!r}: probe {self.name!r} reads precomputed masks and needs to know "
+                f"view {name!r}: probe {self.name!r} reads precomputed masks and needs to know "
                 f"which rendering ({'/'.join(RENDERINGS)}) the view is"
             )
         source = None
-        if view.rendering == "post" and view.method:
+        if rendering == "post" and method:
             # Masks imported for this method's edit, when given, win over plain "post".
-            source = self.sources.get(f"post/{view.method}")
+            source = self.sources.get(f"post/{method}")
         if source is None:
-            source = self.sources.get(view.rendering)
+            source = self.sources.get(rendering)
         if source is None:
             have = ", ".join(f"{r}={getattr(s, 'directory', s)}" for r, s in sorted(self.sources.items()))
-            raise InputError(f"probe {self.name!r} has no precomputed masks for the {view.rendering!r} rendering "
-                             f"(it has {have}); give them, e.g. {view.rendering}=DIR in the probe spec")
+            raise InputError(f"probe {self.name!r} has no precomputed masks for the {rendering!r} rendering "
+                             f"(it has {have}); give them, e.g. {rendering}=DIR in the probe spec")
         return source
 
     def _note_missing(self, view: ProbeView, source) -> None:

@@ -22,6 +22,7 @@ from r360gpu.errors import InputError
 from r360gpu.probes import rle, sam_json
 from r360gpu.probes.base import MaskSet
 from r360gpu.probes.mask_dirs import mask_dir
+from r360gpu.util.filehash import input_stamp
 
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
@@ -107,7 +108,11 @@ class SamJsonDir:
         self.directory = mask_dir(directory)
         self._merged_path = self.directory / "merged.json"
         self._merged: dict[str, list] | None = None
+        self._merged_stamp = None
+        # taken where merged.json or the per-view files are chosen: a merged.json added later changes that
+        self._dir_stamp = input_stamp(self.directory)
         if self._merged_path.is_file():
+            self._merged_stamp = input_stamp(self._merged_path)  # before reading it
             data = sam_json.load(self._merged_path)
             if not isinstance(data, dict):
                 raise InputError("merged SAM masks must map image names to record lists", self._merged_path)
@@ -125,6 +130,14 @@ class SamJsonDir:
 
     def path_for(self, name: str) -> Path:
         return self._merged_path if self._merged is not None else self.directory / f"{name}.json"
+
+    def stamps(self, name: str) -> dict:
+        """{path: :func:`~r360gpu.util.filehash.input_stamp`} of what :meth:`read` reads for ``name``, and
+        of the folder (``merged.json`` and the folder: as they were when this reader looked at them)."""
+        if self._merged is not None:
+            return {str(self.directory): self._dir_stamp, str(self._merged_path): self._merged_stamp}
+        path = self.path_for(name)
+        return {str(self.directory): self._dir_stamp, str(path): input_stamp(path)}
 
     def read(self, name: str, probe: str = "") -> MaskSet | None:
         """The view's masks at the file's size, or None when there is no entry."""

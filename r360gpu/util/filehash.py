@@ -105,6 +105,42 @@ def read_file(path: str | os.PathLike) -> bytes:
     return data
 
 
+def file_stamp(path: str | os.PathLike) -> list | None:
+    """[inode, size, mtime_ns, ctime_ns] of a file or folder, None when there is none.
+
+    For inputs that are not hashed (precomputed probe files, read in full only when a view is
+    scored): equal stamps taken before a read and later mean the bytes did not change in between,
+    since every write sets the ctime and nobody can set it back.  The device number is left out:
+    shared storage mounted on several machines gives one file several device numbers.  A stamp
+    proves that only when it is settled (:func:`stamp_settled`)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return _stamp(st)[1:]
+
+
+#: What :func:`input_stamp` gives for a file written too recently for its stamp to prove anything.
+UNSETTLED = "unsettled"
+
+
+def input_stamp(path: str | os.PathLike) -> list | None | str:
+    """:func:`file_stamp` of an input about to be read, or :data:`UNSETTLED` when its ctime is within
+    the file system clock's coarseness (``_SETTLED_NS``) of now: a second write in the same clock
+    tick could leave the same stamp (git's "racily clean" entries), so what is read from such a
+    file is not cached."""
+    stamp = file_stamp(path)
+    if stamp is not None and time.time_ns() - stamp[3] <= _SETTLED_NS:
+        return UNSETTLED
+    return stamp
+
+
+def changed_stamps(stamps: dict) -> list[str]:
+    """The paths of ``stamps`` ({path: :func:`input_stamp` taken before reading}) that are unsettled
+    or whose file's stamp is another now: what was read from them may not be what is there."""
+    return [p for p, s in stamps.items() if s == UNSETTLED or file_stamp(p) != s]
+
+
 def decoded_digest(path: str | os.PathLike) -> str | None:
     """The digest of the bytes :func:`read_file` last returned for ``path`` in this process (None: not
     read through it)."""
