@@ -1,5 +1,8 @@
 """Scoring on a Ray cluster: the views of a scene cut into tasks, one wgpu device per worker.
 
+:class:`ChunkExecutor` and :func:`score_task` are what every executor of view
+chunks shares (the worker processes of :mod:`.processes` too); the rest is Ray's.
+
 :func:`open_executor` gives the executor :func:`~.evaluate.evaluate` hands to
 :func:`~.schedule.evaluate_scene`; its :meth:`RayExecutor.score_scene`
 returns the cells of the views the view cache does not hold.  Per scene:
