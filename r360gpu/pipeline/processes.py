@@ -40,12 +40,18 @@ def default_workers() -> int:
     return max(1, (os.cpu_count() or 1) // 2)
 
 
-def _worker_start() -> None:
-    """In each worker: Ctrl-C (sent to the whole process group) is the driver's to handle; it
-    stops the workers itself, so that a worker does not print a traceback of its own."""
+def _worker_start(threads: int) -> None:
+    """In each worker, before its first task: Ctrl-C (sent to the whole process group) is the
+    driver's to handle (it stops the workers itself, so a worker prints no traceback of its own);
+    OpenCV's and a CPU Vulkan driver's thread pools get the worker's share of the cores
+    (``threads``), not every core each, unless the environment already sizes lavapipe's."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    os.environ.setdefault("LP_NUM_THREADS", str(threads))  # read when the worker opens its device
+    import cv2
+
+    cv2.setNumThreads(threads)
 
 
 class ProcessExecutor(ChunkExecutor):
@@ -75,8 +81,9 @@ class ProcessExecutor(ChunkExecutor):
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
+            threads = max(1, (os.cpu_count() or 1) // self.workers)
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                             initializer=_worker_start)
+                                             initializer=_worker_start, initargs=(threads,))
         return self._pool
 
     def close(self) -> None:
