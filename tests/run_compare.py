@@ -1,9 +1,33 @@
 """Comparing two runs' outputs: the results document without what differs between equal runs,
-and the files of an output folder (pictures compared by their pixels).  Shared by the tests of
-the executors that must give the serial run's output (Ray, worker processes)."""
+and the files of an output folder (pictures compared by their pixels); the two small scenes and
+their serial run those comparisons start from.  Shared by the tests of the executors that must
+give the serial run's output (Ray, worker processes)."""
 from __future__ import annotations
 
+import copy
 from pathlib import Path
+
+#: Statistics cut down for speed (the same in the serial run and the one compared with it).
+OPTS = dict(n_boot=200, n_perm=100)
+
+
+def two_scenes(root: Path, ctx) -> list:
+    """Bundles of the synthetic room and garden, 2 views of 96x72 each."""
+    from r360gpu.synthetic import generate_benchmark
+
+    return generate_benchmark(root, seed=0, n_views=2, width=96, height=72, scenes=("room", "garden"),
+                              detail=0.3, ctx=ctx)
+
+
+def serial_run(scenes, out: Path, ctx) -> tuple[Path, dict]:
+    """(out, results document) of the plain in-process run of ``scenes`` with :data:`OPTS`."""
+    from r360gpu.pipeline import EvaluateOptions, evaluate
+    from r360gpu.report.outputs import write_outputs
+
+    res = evaluate(scenes, out=out, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    kept = copy.deepcopy(res)  # write_outputs adds the plots' paths to the document it writes
+    write_outputs(res, out)
+    return out, kept
 
 
 def comparable(doc: dict) -> dict:

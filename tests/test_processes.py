@@ -2,39 +2,28 @@
 run's --out, and a worker that dies ends the run clearly, with the finished views kept."""
 from __future__ import annotations
 
-import copy
 import json
 
 import pytest
 
 from r360gpu.cli import main
 from r360gpu.errors import InputError
-from r360gpu.pipeline import EvaluateOptions, evaluate
 from r360gpu.pipeline.distributed import FAIL_ONCE_ENV
 from r360gpu.pipeline.processes import ProcessExecutor, default_workers
-from r360gpu.report.outputs import write_outputs
-from r360gpu.synthetic import generate_benchmark
 
-from run_compare import comparable, tree, tree_differences
+from run_compare import comparable, serial_run, tree, tree_differences, two_scenes
 
-OPTS = dict(n_boot=200, n_perm=100)
 CLI_STATS = ["--n-boot", "200", "--n-perm", "100", "--quiet"]
 
 
 @pytest.fixture(scope="module")
 def scenes(tmp_path_factory, ctx):
-    root = tmp_path_factory.mktemp("bench")
-    return generate_benchmark(root, seed=0, n_views=2, width=96, height=72, scenes=("room", "garden"),
-                              detail=0.3, ctx=ctx)
+    return two_scenes(tmp_path_factory.mktemp("bench"), ctx)
 
 
 @pytest.fixture(scope="module")
 def serial(scenes, tmp_path_factory, ctx):
-    out = tmp_path_factory.mktemp("serial")
-    res = evaluate(scenes, out=out, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
-    kept = copy.deepcopy(res)  # write_outputs adds the plots' paths to the document it writes
-    write_outputs(res, out)
-    return out, kept
+    return serial_run(scenes, tmp_path_factory.mktemp("serial"), ctx)
 
 
 def _assert_same_output(out, s_out):

@@ -5,7 +5,6 @@ its own head and worker node with ``ray start`` on this machine.
 """
 from __future__ import annotations
 
-import copy
 import json
 import os
 import secrets
@@ -22,13 +21,11 @@ import pytest
 from r360gpu.cli import main
 from r360gpu.pipeline import EvaluateOptions, evaluate
 from r360gpu.pipeline.distributed import FAIL_ONCE_ENV, RayExecutor, RayOptions, chunk_views
-from r360gpu.report.outputs import write_outputs
-from r360gpu.synthetic import generate_benchmark
 
+from run_compare import OPTS, serial_run, two_scenes
 from run_compare import comparable as _comparable, tree as _tree, tree_differences as _tree_differences
 
 ROOT = Path(__file__).resolve().parents[1]
-OPTS = dict(n_boot=200, n_perm=100)
 CLI_STATS = ["--n-boot", "200", "--n-perm", "100"]
 
 
@@ -91,18 +88,12 @@ def ray_instance(marker_dir):
 
 @pytest.fixture(scope="module")
 def scenes(tmp_path_factory, ctx):
-    root = tmp_path_factory.mktemp("bench")
-    return generate_benchmark(root, seed=0, n_views=2, width=96, height=72, scenes=("room", "garden"),
-                              detail=0.3, ctx=ctx)
+    return two_scenes(tmp_path_factory.mktemp("bench"), ctx)
 
 
 @pytest.fixture(scope="module")
 def serial(scenes, tmp_path_factory, ctx):
-    out = tmp_path_factory.mktemp("serial")
-    res = evaluate(scenes, out=out, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
-    kept = copy.deepcopy(res)  # write_outputs adds the plots' paths to the document it writes
-    write_outputs(res, out)
-    return out, kept
+    return serial_run(scenes, tmp_path_factory.mktemp("serial"), ctx)
 
 
 def test_two_scenes_on_ray_equal_the_serial_run(scenes, serial, ray_instance, tmp_path, capsys):
