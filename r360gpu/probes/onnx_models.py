@@ -567,8 +567,9 @@ class SamModels:
         rewritten = hoist_prompt_invariant(model, ("point_coords", "point_labels"), same_rows)
         if rewritten is None:
             return False
+        data = rewritten.SerializeToString()
         try:
-            session = dec.open_session(rewritten.SerializeToString())
+            session = dec.open_session(data)
         except Exception:  # noqa: BLE001 - onnxruntime raises several unrelated types
             return False
         wanted = self._decoder_outputs()
@@ -578,7 +579,7 @@ class SamModels:
             lambda f: dec.session.run(wanted, f), lambda f: session.run(wanted, f), checks
         ):
             return False
-        dec.session = session
+        dec.session, dec.model_bytes = session, data
         return True
 
     def _check_feeds(self, rng, b: int) -> dict | None:
