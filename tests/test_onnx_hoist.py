@@ -22,14 +22,16 @@ BATCHES = (1, 2, 7, 64)
 RNG = np.random.default_rng(7)
 
 
-def _session(model):
+def _session(model, optimize=True):
     options = ort.SessionOptions()
     options.log_severity_level = 3
+    if not optimize:
+        options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_DISABLE_ALL
     return ort.InferenceSession(model.SerializeToString(), options, providers=["CPUExecutionProvider"])
 
 
-def _runner(model, outputs):
-    session = _session(model)
+def _runner(model, outputs, optimize=True):
+    session = _session(model, optimize)
     return lambda feeds: session.run(outputs, feeds)
 
 
@@ -178,6 +180,54 @@ def test_check_rejects_a_batch_shaped_tensor_that_is_not_a_repeat(tmp_path):
     assert not outputs_identical(before, after, feeds)
 
 
+def _axis1_repeat_graph(tmp_path):
+    """The image tiled along axis 1 (its prompt axis is not axis 0), then moved to axis 0 and added
+    to the prompts (hoistable); the Shape of the tiled tensor also sizes a reshape of the prompts."""
+    nodes = [
+        helper.make_node("Shape", ["point_coords"], ["b"], start=0, end=1),
+        helper.make_node("Concat", ["one1", "b", "one1"], ["reps"], axis=0),
+        helper.make_node("Tile", ["image", "reps"], ["t"]),  # (1, B, 8)
+        helper.make_node("Shape", ["t"], ["t_shape"]),
+        helper.make_node("Gather", ["t_shape", "one1"], ["nb"], axis=0),
+        helper.make_node("Concat", ["nb", "one1", "eight"], ["r_shape"], axis=0),
+        helper.make_node("Reshape", ["t", "r_shape"], ["r"]),  # (B, 1, 8)
+        helper.make_node("MatMul", ["point_coords", "W"], ["p"]),  # (B, 8)
+        helper.make_node("Unsqueeze", ["p", "one1"], ["p3"]),
+        helper.make_node("Add", ["r", "p3"], ["y"]),
+        helper.make_node("Concat", ["nb", "eight"], ["flat"], axis=0),
+        helper.make_node("Reshape", ["y", "flat"], ["z"]),
+    ]
+    inits = [const("one1", [1], np.int64), const("eight", [8], np.int64), const("W", RNG.standard_normal((2, 8)))]
+    path = save_model(
+        tmp_path / "axis1.onnx",
+        nodes,
+        [value_info("image", F, [1, 1, 8]), value_info("point_coords", F, ["B", 2])],
+        [value_info("z", F, ["B", 8])],
+        inits,
+    )
+    model = onnx.load(str(path))
+    model.graph.value_info.append(value_info("t", F, [1, "B", 8]))  # as exporters record it
+    return model
+
+
+def test_shapes_from_twins_refused_when_the_prompt_axis_is_not_leading(tmp_path):
+    model = _axis1_repeat_graph(tmp_path)
+    feeds = [
+        {"image": RNG.standard_normal((1, 1, 8)).astype(np.float32),
+         "point_coords": RNG.standard_normal((b, 2)).astype(np.float32)}
+        for b in BATCHES
+    ]
+    # onnxruntime's graph optimisations may derive the size from the recorded shape of "t" instead
+    # of computing it: without them the graphs compute what they say.
+    before = _runner(model, ["z"], optimize=False)
+    with_shapes = hoist_prompt_invariant(model, ["point_coords"])
+    assert not outputs_identical(before, _runner(with_shapes, ["z"], optimize=False), feeds)
+    keeping = hoist_prompt_invariant(model, ["point_coords"], shapes_from_twins=False)
+    assert {n.output[0]: n for n in keeping.graph.node}["y"].input[0] == "r__batch1"
+    assert outputs_identical(before, _runner(keeping, ["z"], optimize=False), feeds)
+    assert outputs_identical(_runner(model, ["z"]), _runner(keeping, ["z"]), feeds)
+
+
 def test_outputs_identical_compares_bits():
     a = np.array([0.0, np.nan], np.float32)
     assert outputs_identical(lambda f: [a], lambda f: [a.copy()], [{}])
@@ -265,7 +315,8 @@ def test_sam_models_use_the_rewrite_only_when_checked(tmp_path, monkeypatch):
     dec = _sam_decoder_with_repeat(tmp_path / "dec.onnx")
     hoisted, plain = SamModels(enc, dec), SamModels(enc, dec, hoist=False)
     assert plain.batched and hoisted.hoisted and not plain.hoisted
-    emb = SamEmbedding({"image_embeddings": RNG.standard_normal((1, 256, 64, 64)).astype(np.float32)}, (480, 640), (768, 1024))
+    features = {"image_embeddings": RNG.standard_normal((1, 256, 64, 64)).astype(np.float32)}
+    emb = SamEmbedding(features, (480, 640), (768, 1024))
     for b in BATCHES:
         points = RNG.uniform(0, 480, (b, 2))
         a, c = plain.predict_points(emb, points), hoisted.predict_points(emb, points)

@@ -118,26 +118,32 @@ def hoist_prompt_invariant(
     producer = {o: n for n in model.graph.node for o in n.output}  # the nodes as they were
 
     def twin(name: str) -> str:
-        if name in twins:
-            return twins[name]
-        if name in per_prompt or name in same_rows:
-            twins[name] = name + _TWIN_SUFFIX
-            clones.append(_first_row_node(onnx, name, twins[name], g))
-        elif name not in varying and name not in batch_shaped:
-            twins[name] = name  # invariant: the same tensor for any number of prompts
-        else:
-            node = producer[name]
-            clone = onnx.NodeProto()
-            clone.CopyFrom(node)
-            clone.name = (node.name or node.output[0]) + _TWIN_SUFFIX
-            del clone.input[:]
-            clone.input.extend(twin(i) if i else "" for i in node.input)
-            del clone.output[:]
-            clone.output.extend(o + _TWIN_SUFFIX if o else "" for o in node.output)
-            for o in node.output:
-                if o:
-                    twins[o] = o + _TWIN_SUFFIX
-            clones.append(clone)
+        """The batch-1 twin of ``name``, cloning its producers as needed (depth-first, no recursion)."""
+        stack = [name]
+        while stack:
+            top = stack[-1]
+            if top in twins:
+                stack.pop()
+            elif top in per_prompt or top in same_rows:
+                twins[top] = top + _TWIN_SUFFIX
+                clones.append(_first_row_node(onnx, top, twins[top], g))
+            elif top not in varying and top not in batch_shaped:
+                twins[top] = top  # invariant: the same tensor for any number of prompts
+            else:
+                node = producer[top]
+                missing = [i for i in node.input if i and i not in twins]
+                if missing:
+                    stack.extend(missing)
+                    continue
+                clone = onnx.NodeProto()
+                clone.CopyFrom(node)
+                clone.name = (node.name or node.output[0]) + _TWIN_SUFFIX
+                del clone.input[:]
+                clone.input.extend(twins[i] if i else "" for i in node.input)
+                del clone.output[:]
+                clone.output.extend(o + _TWIN_SUFFIX if o else "" for o in node.output)
+                twins.update({o: o + _TWIN_SUFFIX for o in node.output if o})
+                clones.append(clone)
         return twins[name]
 
     for k, j in rewired:
