@@ -30,19 +30,21 @@ twin to the same operands it read before, so every element of its output is
 the same arithmetic on the same numbers (a MatMul's right operand only when it
 keeps a batch axis besides the prompt axis, such as attention heads: with the
 prompt axis alone onnxruntime may multiply every prompt's rows as one matrix,
-with other roundings: the tests' graph shows it); the nodes that only fed the
+a product with other roundings); the nodes that only fed the
 re-pointed edges are then dropped (their work ran once per prompt, the twin's
 runs once per batch).
 
 Why exact, and what is checked: broadcasting hands each output element the
-same operand values as the repeated tensor did, and onnxruntime's CPU kernels
-compute an output row from that row's operands alone (MatMul accumulates over
-the inner axis in an order that does not depend on the number of rows: the
-tests compare bit patterns at 1, 2, 7 and 64 prompts).  What the graph alone
-cannot show is that a batch-shaped tensor really is B copies of its first row
-(a ``Range`` over B is batch-shaped and is not); the caller therefore runs the
-original and the rewritten graph on the same inputs at two batch sizes before
-using the rewrite (:func:`outputs_identical`, called by
+same operand values as the repeated tensor did, and the element is then the
+same arithmetic provided the kernel computes it the same way for a broadcast
+operand as for a repeated one: onnxruntime's CPU kernels do for elementwise
+operators and for MatMul whose broadcast operand keeps another batch axis
+(tests/test_onnx_hoist.py compares bit patterns at 1, 2, 7 and 64 prompts;
+bench/bench_decoder.py on the real SAM and SAM 2.1 exports).  What the graph
+alone cannot show is that a batch-shaped tensor really is B copies of its
+first row (a ``Range`` over B is batch-shaped and is not).  The caller
+therefore runs the original and the rewritten graph on the same inputs at two
+batch sizes before using the rewrite (:func:`outputs_identical`, called by
 ``SamModels`` when it opens a batched decoder) and keeps the original graph
 unless every output it reads is bit-identical.
 """
