@@ -10,7 +10,10 @@ same 640 x 480 image and the same parameters it times, per image:
 * r360gpu before: the path of r360gpu before this bench (the batch-1 export,
   one decoder run per prompt computing every decoder output);
 * r360gpu after: the batched export, the decoder cut to the outputs the
-  generator reads, ``points_per_batch`` prompts per run;
+  generator reads and its prompt-independent work run once per batch
+  (``SamModels``), ``points_per_batch`` prompts per run;
+* r360gpu unhoisted (only when asked for in ``--runs``): "after" without the
+  second rewrite (``SamModels(..., hoist=False)``);
 
 each with its image encoder run from scratch.
 
@@ -120,10 +123,10 @@ class BeforeDecoder:
         return self.model.run(feeds, None)
 
 
-def load_models(enc: Path, dec: Path, before: bool):
+def load_models(enc: Path, dec: Path, before: bool, hoist: bool = True):
     from r360gpu.probes.onnx_models import SamModels
 
-    models = SamModels(enc, dec)
+    models = SamModels(enc, dec, hoist=hoist)
     if before:
         models.decoder = BeforeDecoder(dec)
     return models
@@ -222,6 +225,7 @@ def main() -> int:
     image = scene(rng, width, height)
     t0 = time.perf_counter()
     official, pairs, algorithm, params, label = build_model(args, image)
+    pairs["unhoisted"] = pairs["after"]
     params = dataclasses.replace(params, points_per_batch=args.points_per_batch)
     print(f"# SAM automatic masks on CPU: official (torch {torch.__version__}, {tv}) vs r360gpu (onnxruntime)")
     print(f"machine: {os.cpu_count()} CPU cores; {load()}; exports ready in {time.perf_counter() - t0:.0f} s")
@@ -239,7 +243,7 @@ def main() -> int:
             r, wall, cpu = timed(lambda: generate_masks(algorithm, image, params))
             m = r.masks
         elif run in pairs:
-            models = load_models(*pairs[run], before=run == "before")
+            models = load_models(*pairs[run], before=run == "before", hoist=run != "unhoisted")
             r, wall, cpu = timed(lambda: generate_masks(models, image, params))
             m = r.masks
         else:

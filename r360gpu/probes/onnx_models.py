@@ -34,7 +34,9 @@ shapes; anything else is an InputError listing what was found):
   bench/parity_sam.py's ``export_onnx(batched_decoder=True)``: the automatic
   mask generator then decodes ``points_per_batch`` prompts per run).  With
   the ``onnx`` package installed the decoder's ``masks`` branch is cut from
-  the graph when ``low_res_masks`` exists (:func:`pruned_model_bytes`).
+  the graph when ``low_res_masks`` exists (:func:`pruned_model_bytes`), and a
+  batched decoder's prompt-independent work runs once per run
+  (:class:`SamModels`, :mod:`r360gpu.probes.onnx_hoist`).
 
 ``sam2`` -- SAM 2 / 2.1 (samexporter ``export_sam2.py``, the
 ONNX-SAM2-Segment-Anything notebook):
@@ -323,14 +325,11 @@ class OnnxModel:
         if not self.path.is_file():
             raise InputError(f"{role} model file does not exist", self.path)
         providers = providers_for(device)
-        ort = _ort()
-        options = ort.SessionOptions()
-        options.log_severity_level = 3
-        source = str(self.path)
-        if self.outputs_read is not None:
-            source = pruned_model_bytes(self.path, self.outputs_read) or source
+        self._providers = providers
+        #: The serialised graph the session runs when it is not the file's (a pruned copy), else None.
+        self.model_bytes = None if self.outputs_read is None else pruned_model_bytes(self.path, self.outputs_read)
         try:
-            self.session = ort.InferenceSession(source, sess_options=options, providers=providers)
+            self.session = self.open_session(self.model_bytes or str(self.path))
         except Exception as exc:  # noqa: BLE001 - onnxruntime raises several unrelated types
             raise InputError(f"cannot load the {role} as an ONNX model ({_first_line(exc)})", self.path) from None
         active = self.session.get_providers()
@@ -345,6 +344,14 @@ class OnnxModel:
         self.outputs = {o.name: TensorInfo(o.name, tuple(o.shape), o.type) for o in self.session.get_outputs()}
         self._digests: dict[str, str] | None = None
 
+    def open_session(self, source: str | bytes):
+        """An onnxruntime session on ``source`` (a path or a serialised model) with this model's
+        providers and options."""
+        ort = _ort()
+        options = ort.SessionOptions()
+        options.log_severity_level = 3
+        return ort.InferenceSession(source, sess_options=options, providers=self._providers)
+
     def __reduce__(self):
         # A session cannot be pickled: another process (a Ray worker) opens the
         # same file again, so every node must see the model at this path.
@@ -356,6 +363,11 @@ class OnnxModel:
         outs = ", ".join(str(t) for t in self.outputs.values())
         return f"inputs: {ins}; outputs: {outs}"
 
+    def cast(self, name: str, value) -> np.ndarray:
+        """``value`` as a contiguous array of the element type the model declares for input ``name``."""
+        dtype = _NP_TYPES.get(self.inputs[name].type)
+        return np.ascontiguousarray(value if dtype is None else np.asarray(value).astype(dtype, copy=False))
+
     def run(self, feeds: dict[str, np.ndarray], outputs: list[str] | None = None) -> dict[str, np.ndarray]:
         """Run the model; returns output name -> array.
 
@@ -363,11 +375,7 @@ class OnnxModel:
         inside onnxruntime (e.g. a shape the model does not accept) raises
         InputError naming the model file.
         """
-        cast = {}
-        for name, value in feeds.items():
-            info = self.inputs[name]
-            dtype = _NP_TYPES.get(info.type)
-            cast[name] = np.ascontiguousarray(value if dtype is None else np.asarray(value).astype(dtype, copy=False))
+        cast = {name: self.cast(name, value) for name, value in feeds.items()}
         names = list(self.outputs) if outputs is None else outputs
         try:
             values = self.session.run(names, cast)
@@ -505,10 +513,24 @@ class SamModels:
     Attributes after loading: ``variant`` ("sam" or "sam2"),
     ``encoder_layout`` ("nchw": we preprocess; "hwc": preprocessing inside
     the encoder), ``input_size`` (H, W) of the model frame, ``batched``
-    (whether the decoder takes several prompts per run).
+    (whether the decoder takes several prompts per run), ``hoisted``
+    (whether the decoder session runs the graph rewritten by
+    :func:`r360gpu.probes.onnx_hoist.hoist_prompt_invariant`).
+
+    The decoder session runs a rewrite of the file's graph, with the same
+    outputs bit for bit: the ``masks`` branch cut when ``low_res_masks``
+    exists (:func:`pruned_model_bytes`), and, for a decoder that takes a batch
+    of prompts, the work that does not depend on the prompts (the first
+    attention layer's projections of the repeated image embedding) done once
+    per run instead of once per prompt.  The second is used only when the
+    original and the rewritten graph give bit-identical outputs on random
+    inputs of 1 and 3 prompts, checked when the models are opened
+    (``hoist=False`` skips it).  Both need the ``onnx`` package.
     """
 
-    def __init__(self, encoder: str | os.PathLike, decoder: str | os.PathLike, device: str = "cpu"):
+    def __init__(
+        self, encoder: str | os.PathLike, decoder: str | os.PathLike, device: str = "cpu", hoist: bool = True
+    ):
         self.encoder = OnnxModel(encoder, device, "SAM image encoder")
         # A SAM decoder's 'masks' output (every mask upsampled to the image, about half of a
         # one-point decoder run) is never read when it has 'low_res_masks': cut it out of the graph.
@@ -516,6 +538,70 @@ class SamModels:
         self.decoder = OnnxModel(decoder, device, "SAM prompt decoder", outputs_read=reads)
         self.device = device
         self._detect()
+        self.hoisted = hoist and self.batched and self._hoist()
+
+    def __reduce__(self):
+        # Another process (a Ray worker) opens the files again and redoes the checks.
+        return (SamModels, (self.encoder.path, self.decoder.path, self.device, self.hoisted))
+
+    def _hoist(self) -> bool:
+        """Swap the decoder's session for one on the graph whose prompt-independent work runs once
+        per run; True when done (the rewrite exists and its outputs are bit-identical to the
+        original's at 1 and 3 prompts on random inputs), False when the original stays."""
+        try:
+            import onnx
+
+            from r360gpu.probes.onnx_hoist import hoist_prompt_invariant, outputs_identical
+        except ImportError:
+            return False
+        dec = self.decoder
+        try:
+            if dec.model_bytes is not None:
+                model = onnx.load_from_string(dec.model_bytes)
+            else:
+                model = onnx.load(str(dec.path), load_external_data=False)
+        except Exception:  # noqa: BLE001 - the session already opened it; nothing to rewrite
+            return False
+        if any(t.data_location == onnx.TensorProto.EXTERNAL for t in model.graph.initializer):
+            return False
+        rng = np.random.default_rng(0)
+        checks = [self._check_feeds(rng, b) for b in (1, 3)]
+        if checks[0] is None:
+            return False
+        wanted = self._decoder_outputs()
+        # mask_input is fed zeros, the same in every row, when it takes one row per prompt.
+        same_rows = ("mask_input",) if self._mask_input_batched else ()
+        # Shapes from the batch-1 twins save the repeats themselves; when the check refuses
+        # that, the rewrite that keeps the repeats for their Shape readers may still pass.
+        for shapes_from_twins in (True, False):
+            rewritten = hoist_prompt_invariant(model, ("point_coords", "point_labels"), same_rows, shapes_from_twins)
+            if rewritten is None:
+                return False
+            data = rewritten.SerializeToString()
+            try:
+                session = dec.open_session(data)
+            except Exception:  # noqa: BLE001 - onnxruntime raises several unrelated types
+                continue
+            if outputs_identical(lambda f: dec.session.run(wanted, f), lambda f: session.run(wanted, f), checks):
+                dec.session, dec.model_bytes = session, data
+                return True
+        return False
+
+    def _check_feeds(self, rng, b: int) -> dict | None:
+        """Decoder feeds for ``b`` random point prompts on a random embedding, as :meth:`_decode`
+        builds them; None when the decoder leaves a feature's size open."""
+        features = {}
+        for name in _SAM2_FEATURES if self.variant == "sam2" else ("image_embeddings",):
+            info = self.decoder.inputs[name]
+            shape = [info.fixed(axis) for axis in range(len(info.shape))]
+            if None in shape:
+                return None
+            features[name] = rng.standard_normal(shape).astype(np.float32)
+        h, w = self.input_size
+        embedding = SamEmbedding(features, (h, w), (h, w))
+        points = rng.uniform(0, 1, (b, 2)) * np.array([w, h])
+        coords, labels = self._point_prompts(embedding, points)
+        return {k: self.decoder.cast(k, v) for k, v in self._feeds(embedding, coords, labels).items()}
 
     # -- signature detection -------------------------------------------------
     def _reject(self, model: OnnxModel, why: str) -> NoReturn:
@@ -650,6 +736,10 @@ class SamModels:
 
     def predict_points(self, embedding: SamEmbedding, points_xy: np.ndarray) -> Decoded:
         """One positive point prompt per row of ``points_xy`` (B, 2) (image pixels)."""
+        return self._decode(embedding, *self._point_prompts(embedding, points_xy))
+
+    def _point_prompts(self, embedding: SamEmbedding, points_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(point_coords, point_labels) of one positive point per row of ``points_xy``."""
         pts = np.asarray(points_xy, np.float64).reshape(-1, 2)
         coords = self.to_model_coords(embedding, pts)[:, None, :]
         labels = np.ones((len(pts), 1), np.float32)
@@ -658,7 +748,7 @@ class SamModels:
             # SamOnnxModel leaves that to the caller.  SAM2 exports append it themselves.
             coords = np.concatenate([coords, np.zeros((len(pts), 1, 2), np.float32)], axis=1)
             labels = np.concatenate([labels, -np.ones((len(pts), 1), np.float32)], axis=1)
-        return self._decode(embedding, coords, labels)
+        return coords, labels
 
     def predict_boxes(self, embedding: SamEmbedding, boxes_xyxy: np.ndarray) -> Decoded:
         """One box prompt per row of ``boxes_xyxy`` (B, 4) (image pixels): the two
@@ -689,7 +779,8 @@ class SamModels:
             np.concatenate([p.logits for p in parts]), np.concatenate([p.iou for p in parts]), parts[0].low_res
         )
 
-    def _decode_batch(self, embedding: SamEmbedding, coords: np.ndarray, labels: np.ndarray) -> Decoded:
+    def _feeds(self, embedding: SamEmbedding, coords: np.ndarray, labels: np.ndarray) -> dict:
+        """Decoder inputs for the prompts (B, N, 2) / (B, N) on ``embedding``."""
         b = coords.shape[0]
         h, w = embedding.image_size
         feeds = dict(embedding.features)
@@ -701,11 +792,18 @@ class SamModels:
         feeds["has_mask_input"] = np.zeros(1, np.float32)
         if "orig_im_size" in self.decoder.inputs:
             feeds["orig_im_size"] = np.array([h, w])
+        return feeds
+
+    def _decoder_outputs(self) -> list[str]:
+        """The decoder outputs :meth:`_decode` reads."""
         if self.variant == "sam" and "low_res_masks" in self.decoder.outputs:
-            wanted = ["iou_predictions", "low_res_masks"]
-        else:
-            wanted = ["masks", "iou_predictions"]
-        out = self.decoder.run(feeds, wanted)
+            return ["iou_predictions", "low_res_masks"]
+        return ["masks", "iou_predictions"]
+
+    def _decode_batch(self, embedding: SamEmbedding, coords: np.ndarray, labels: np.ndarray) -> Decoded:
+        b = coords.shape[0]
+        h, w = embedding.image_size
+        out = self.decoder.run(self._feeds(embedding, coords, labels), self._decoder_outputs())
         iou = np.asarray(out["iou_predictions"], np.float32)
         low = out.get("low_res_masks")
         if low is not None:
