@@ -5,7 +5,7 @@
   boundary table and the path of the view's picture.  A cell in memory holds
   the ViewRecord itself: it is written as a dict (:func:`cell_json`) and read
   back as a ViewRecord (:func:`cell_from_json`), here only.  ``key`` digests
-  everything that changes a per-view value (version, the bundle's
+  everything that changes a per-view value (version and code digest, the bundle's
   fingerprint, scoring options, probe descriptions, structural mode, depth
   mode, LPIPS model), so a changed input or option misses; the precomputed
   probe files a view was scored from are not hashed but stamped (inode, size,
@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..util import code_id
 
 CACHE_DIR = ".r360cache"
 #: What a view cell holds, in the view cache key: a cell written before a per-view value was added
@@ -46,6 +47,11 @@ CELL_FORMAT = 3
 
 def digest(obj) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def _by_code(key: str) -> str:
+    """``key`` made specific to the code running (:func:`r360gpu.util.code_id.code_digest`)."""
+    return digest({"key": key, "code": code_id.code_digest()})
 
 
 class RunCache:
@@ -77,7 +83,7 @@ class RunCache:
         if self.root is None:
             return None
         try:
-            return json.loads((self.root / kind / f"{key}.json").read_text(encoding="utf-8"))
+            return json.loads((self.root / kind / f"{_by_code(key)}.json").read_text(encoding="utf-8"))
         except (OSError, ValueError):
             return None
 
@@ -85,12 +91,13 @@ class RunCache:
         if self.root is not None:
             from ..util.atomic import write_json
 
-            write_json(self.root / kind / f"{key}.json", probes_desc)
+            write_json(self.root / kind / f"{_by_code(key)}.json", probes_desc)
 
     def views(self, scene: str, key_parts: dict) -> "ViewCache | None":
         if self.root is None:
             return None
-        return ViewCache(self.root / "views" / digest({"version": __version__, "cells": CELL_FORMAT, **key_parts})
+        return ViewCache(self.root / "views" / digest({"version": __version__, "code": code_id.code_digest(),
+                                                       "cells": CELL_FORMAT, **key_parts})
                          / scene, self.out)
 
 

@@ -14,7 +14,7 @@ returns the cells of the views the view cache does not hold.  Per scene:
   views, one Ray task each: (scene bundle, options, the fitted probe objects,
   the chunk).  Views already cached are not sent;
 * a task (:func:`score_task`) checks that its node runs the driver's
-  r360gpu version, opens its own GPU context, rebuilds the SceneRun without
+  r360gpu version and code (:func:`r360gpu.util.code_id.version_id`), opens its own GPU context, rebuilds the SceneRun without
   fitting and without any cache (the driver's ``--out`` need not be shared),
   reads the bundle's files by their absolute paths (every node must see the
   same paths: shared storage), runs the probes there (their model files too
@@ -207,10 +207,10 @@ class ChunkExecutor:
 
     def common(self, run, sink) -> dict:
         """What every task of ``run``'s scene needs besides its views."""
-        from .. import __version__
+        from ..util.code_id import version_id
 
         _check_sendable(run.bundle)
-        return {"version": __version__, "bundle": run.bundle, "opts": run.opts, "adapter": self.adapter,
+        return {"version": version_id(), "bundle": run.bundle, "opts": run.opts, "adapter": self.adapter,
                 "sem": _fitted_probes(run.sem), "stru": _fitted_probes(run.stru), "pictures": sink.enabled,
                 "probes_desc": run.probes_desc}
 
@@ -392,14 +392,14 @@ def score_task(common: dict, views: list) -> dict:
     (module docstring); common: :meth:`ChunkExecutor.common`."""
     import platform
 
-    from .. import __version__
     from ..gpu import get_context
+    from ..util.code_id import version_id
     from .run import Timer
 
     _fail_once_hook()
     node = platform.node()
-    if common["version"] != __version__:
-        raise InputError(f"node {node} runs r360gpu {__version__} but the driver runs {common['version']}; "
+    if common["version"] != version_id():  # the release and a digest of the code under it
+        raise InputError(f"node {node} runs r360gpu {version_id()} but the driver runs {common['version']}; "
                          "install the same version on every node")
     ctx = get_context(common["adapter"])
     timer = Timer()

@@ -28,7 +28,10 @@ written stay in the view cache.
 from __future__ import annotations
 
 import os
+import signal
+import threading
 import time
+from contextlib import contextmanager
 
 from ..errors import InputError, R360Error, WorkerLostError
 from .distributed import ChunkExecutor, TaskProgress, chunk_views, score_task
@@ -40,14 +43,29 @@ def default_workers() -> int:
     return max(1, (os.cpu_count() or 1) // 2)
 
 
+@contextmanager
+def _interrupts_ignored():
+    """Ctrl-C ignored in this process while it starts worker processes (they start in ``submit``):
+    a process started with SIGINT ignored keeps it ignored through its interpreter's start-up
+    (Python installs its own handler only over the default one), so a Ctrl-C then does not end
+    a worker with a traceback; :func:`_worker_start` keeps it ignored.  The window is the few
+    milliseconds of the starts; a Ctrl-C outside it reaches the driver, which stops the workers."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 def _worker_start(threads: int) -> None:
     """In each worker, before its first task: Ctrl-C (sent to the whole process group) is the
     driver's to handle (it stops the workers itself, so a worker prints no traceback of its own);
     OpenCV's and a CPU Vulkan driver's thread pools get the worker's share of the cores
     (``threads``), not every core each, unless the environment already sizes lavapipe's."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # already so when the driver started it (_interrupts_ignored)
     os.environ.setdefault("LP_NUM_THREADS", str(threads))  # read when the worker opens its device
     import cv2
 
@@ -110,8 +128,9 @@ class ProcessExecutor(ChunkExecutor):
             return {}
         common = self.common(run, sink)
         chunks = chunk_views(todo, self.chunk_size(self.chunk, len(todo), self.workers))
-        pool = self._start()
-        pending = {pool.submit(score_task, common, chunk): chunk for chunk in chunks}
+        with _interrupts_ignored():
+            pool = self._start()
+            pending = {pool.submit(score_task, common, chunk): chunk for chunk in chunks}
         self.sent_views += [(run.bundle.name, v) for v in todo]
         where = f"in {self.workers} worker process{'es' if self.workers > 1 else ''}"
         bar = TaskProgress(run.bundle.name, where, len(chunks), len(todo), self.log, progress)

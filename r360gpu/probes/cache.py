@@ -1,8 +1,10 @@
 """On-disk cache of probe outputs, so re-scoring never re-runs a probe on an unchanged image.
 
 Key: SHA-256 of the canonical JSON of
-``{"format", "image": <image content hash>, "probe": <name>,
-"config": <probe.describe()>, "prompt": <prompt or null>}``.  The image content
+``{"format", "code": <r360gpu's code digest>, "image": <image content hash>, "probe": <name>,
+"config": <probe.describe()>, "prompt": <prompt or null>}``.  The code digest
+(:func:`r360gpu.util.code_id.code_digest`) makes an output computed by other
+r360gpu code (a pulled checkout, a local edit) a miss.  The image content
 hash covers the decoded pixels (dtype, shape and bytes), so the same
 rendering hits whether it came from a file or from the renderer; the
 configuration is the probe's full ``describe()`` (name, model file hashes,
@@ -29,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from r360gpu.errors import InputError, R360Warning
+from r360gpu.util import code_id
 from r360gpu.probes.base import (
     MaskSet,
     Probe,
@@ -106,6 +109,7 @@ def cache_key(image: np.ndarray, probe_name: str, config: Mapping, prompt: str |
     """
     payload = {
         "format": CACHE_FORMAT,
+        "code": code_id.code_digest(),  # the probe's code, not only its configuration, makes its output
         "image": image_digest(image),
         "probe": probe_name,
         "config": config,

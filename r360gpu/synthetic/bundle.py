@@ -351,7 +351,10 @@ def generate_benchmark(out_dir: str | os.PathLike, *, seed: int = 0, n_views: in
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder", out)
-    requests = {name: {"r360gpu_version": __version__, "scene": name, "seed": int(seed), "n_views": int(n_views),
+    from ..util.code_id import version_id
+
+    # the code that generates and renders a scene is part of what it was made with
+    requests = {name: {"r360gpu_version": version_id(), "scene": name, "seed": int(seed), "n_views": int(n_views),
                        "width": int(width), "height": int(height), "detail": float(detail),
                        "methods": list(METHODS) if methods is None else list(methods),
                        "camera_format": camera_format}

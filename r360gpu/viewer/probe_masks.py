@@ -5,7 +5,8 @@ probe saw, the probe's ``describe()`` and, for semantic probes, the prompt.
 The viewer re-creates the image the evaluation gave the probes (the source's
 ``images(view, camera).rgb``: same renderer, same camera, same options) and
 the probe descriptions listed in results.json, so a hit returns the masks
-the scores were computed from; nothing is ever computed here.
+the scores were computed from (the key holds the code digest too: under other
+r360gpu code every lookup misses); nothing is ever computed here.
 """
 from __future__ import annotations
 
