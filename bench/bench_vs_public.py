@@ -34,13 +34,15 @@ Every timed process reads its bytecode from ``__pycache__``, compiled beforehand
 the public checkout (``common.bytecode_env``), as for any user after a first run.
 Prints the machine's load average before, during and after, each run's time, and a table: the
 floor, both r360gpu times with their ratio to the floor (issue 27's goals: <= 1.5x without
-pictures, <= 2.5x with), and the public scripts' time with its ratio to r360gpu's default run.
+pictures, <= 2.5x with), and the public scripts' time with its ratio to r360gpu's default run; then the CPU-seconds of the floor and of both r360gpu runs, and
+the least wall time that CPU would allow on the machine's cores, as a multiple of the floor.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -160,11 +162,19 @@ for f in [f for f in files if f.suffix == ".json"][k::n]:
 """
 
 
-def input_floor(folder: Path, env, processes: int) -> float:
+def _children_cpu() -> float:
+    """User + system seconds of this process's finished children so far."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def input_floor(folder: Path, env, processes: int) -> tuple[float, float]:
     """Wall seconds from launching ``processes`` fresh Python processes at once (one per core) to the
     last one's exit; process k of n imports numpy and OpenCV, decodes every n-th PNG of the folder from
     the k-th with ``cv2.imread(path, cv2.IMREAD_UNCHANGED)`` and reads every n-th JSON file's bytes once:
-    the least any Python evaluator of the folder does (start, decode what it scores, see every byte)."""
+    the least any Python evaluator of the folder does (start, decode what it scores, see every byte).
+    Returns (wall s, CPU s of all the processes)."""
+    cpu = _children_cpu()
     t = time.perf_counter()
     procs = [subprocess.Popen([sys.executable, "-c", _FLOOR_CODE, str(folder), str(k), str(processes)], env=env,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE) for k in range(processes)]
@@ -173,16 +183,18 @@ def input_floor(folder: Path, env, processes: int) -> float:
     for p, (_, err) in zip(procs, outs):
         if p.returncode != 0:
             sys.exit(f"input floor process failed ({p.returncode}): {err.decode()[-2000:]}")
-    return wall
+    return wall, _children_cpu() - cpu
 
 
-def timed(cmd, env=None, cwd=None) -> tuple[float, str]:
+def timed(cmd, env=None, cwd=None) -> tuple[float, str, float]:
+    """(wall s, stdout, CPU s of the process and its children) of one run of ``cmd``."""
+    cpu = _children_cpu()
     t = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=cwd)
     dt = time.perf_counter() - t
     if p.returncode != 0:
         sys.exit(f"failed ({p.returncode}): {' '.join(map(str, cmd))}\n{p.stdout[-2000:]}\n{p.stderr[-4000:]}")
-    return dt, p.stdout
+    return dt, p.stdout, _children_cpu() - cpu
 
 
 def _listing(folder: Path) -> list:
@@ -226,6 +238,7 @@ def main() -> int:
                "PYTHONPATH": f"{args.r360_root.resolve()}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
         listing = _listing(scene)
         times: dict[str, list[float]] = {"floor": [], "no-pictures": [], "default": [], "public": []}
+        cpus: dict[str, list[float]] = {"floor": [], "no-pictures": [], "default": []}
 
         def r360(name: str, k: int, extra: list[str]) -> None:
             out = tmp / f"run{k}" / name
@@ -236,12 +249,13 @@ def main() -> int:
                    *args.r360_args.split()]
             # run from the timed tree: `python -m` puts the working directory first on sys.path,
             # ahead of PYTHONPATH, so from another checkout it would import that one
-            dt, _ = timed(cmd, env, cwd=args.r360_root.resolve())
+            dt, _, cpu = timed(cmd, env, cwd=args.r360_root.resolve())
             times[name].append(dt)
+            cpus[name].append(cpu)
             res = json.loads((out / "results.json").read_text())
             ax = next(iter(res["scenes"].values()))["methods"]["after"]["axes"]
             scored = res["timing"]["total_s"]  # opening the scene to its last view's plots
-            print(f"  r360gpu {name}: {dt:.2f} s (views scored in {scored:.2f} s; start-up, outputs and exit "
+            print(f"  r360gpu {name}: {dt:.2f} s, {cpu:.2f} CPU-s (views scored in {scored:.2f} s; start-up, outputs and exit "
                   f"{dt - scored:.2f} s); s_sem {ax['s_sem']:.3f} s_geo {ax['s_geo']:.3f} s_str {ax['s_str']:.3f}; "
                   f"thread-seconds per stage {res['timing']['stages_s']}")
 
@@ -249,14 +263,16 @@ def main() -> int:
             copy = tmp / f"run{k}" / "peer"  # the public scripts write into the scene folder
             shutil.rmtree(copy, ignore_errors=True)
             shutil.copytree(scene, copy)
-            dt, out = timed([sys.executable, str(HERE / "run_public.py"), str(public), str(copy)], env)
+            dt, out, _ = timed([sys.executable, str(HERE / "run_public.py"), str(public), str(copy)], env)
             times["public"].append(dt)
             shutil.rmtree(copy, ignore_errors=True)
             print(f"  public scripts: {dt:.2f} s; axes {out.strip().splitlines()[-1]}")
 
         def floor(k: int) -> None:
-            times["floor"].append(input_floor(scene, env, cores))
-            print(f"  input floor: {times['floor'][-1]:.2f} s")
+            wall, cpu = input_floor(scene, env, cores)
+            times["floor"].append(wall)
+            cpus["floor"].append(cpu)
+            print(f"  input floor: {wall:.2f} s, {cpu:.2f} CPU-s")
 
         steps = [floor, lambda k: r360("no-pictures", k, ["--no-pictures"]), lambda k: r360("default", k, []), peer]
         for k in range(args.repeat):
@@ -280,6 +296,15 @@ def main() -> int:
         print(f"| {args.views} views {args.width}x{args.height} | {fl:.2f} s | {med['no-pictures']:.2f} s | "
               f"{med['no-pictures'] / fl:.2f}x | {med['default']:.2f} s | {med['default'] / fl:.2f}x | "
               f"{med['public']:.2f} s | {med['public'] / med['default']:.2f}x |")
+        cpu = {name: float(np.median(v)) for name, v in cpus.items()}
+        print()
+        print(f"CPU-seconds (medians; the floor's {cores} processes summed), and the least wall time that CPU "
+              f"allows on {cores} cores, as a multiple of the floor:")
+        print("| workload | floor | r360gpu --no-pictures | least wall / floor | r360gpu default | least wall / floor |")
+        print("|---|---|---|---|---|---|")
+        print(f"| {args.views} views {args.width}x{args.height} | {fl:.2f} s, {cpu['floor']:.2f} CPU-s | "
+              f"{cpu['no-pictures']:.2f} CPU-s | {cpu['no-pictures'] / cores / fl:.2f}x | "
+              f"{cpu['default']:.2f} CPU-s | {cpu['default'] / cores / fl:.2f}x |")
     finally:
         if args.keep is None:
             shutil.rmtree(tmp, ignore_errors=True)

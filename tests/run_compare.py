@@ -7,6 +7,8 @@ from __future__ import annotations
 import copy
 from pathlib import Path
 
+import pytest
+
 #: Statistics cut down for speed (the same in the serial run and the one compared with it).
 OPTS = dict(n_boot=200, n_perm=100)
 
@@ -69,3 +71,15 @@ def tree_differences(a: dict, b: dict) -> list[str]:
         out.append(f"{k}: {len(a[k])} vs {len(b[k])} bytes; {ys.size} pixels differ (at most by {d.max()}), {where} "
                    f"of {ia.shape[1]}x{ia.shape[0]}")
     return out
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory, ctx):
+    """:func:`two_scenes`, once per test module that imports this fixture."""
+    return two_scenes(tmp_path_factory.mktemp("bench"), ctx)
+
+
+@pytest.fixture(scope="module")
+def serial(scenes, tmp_path_factory, ctx):
+    """:func:`serial_run` of :func:`scenes`, once per test module that imports this fixture."""
+    return serial_run(scenes, tmp_path_factory.mktemp("serial"), ctx)

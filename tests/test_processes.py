@@ -11,19 +11,9 @@ from r360gpu.errors import InputError
 from r360gpu.pipeline.distributed import FAIL_ONCE_ENV
 from r360gpu.pipeline.processes import ProcessExecutor, default_workers
 
-from run_compare import comparable, serial_run, tree, tree_differences, two_scenes
+from run_compare import comparable, scenes, serial, tree, tree_differences  # noqa: F401 (scenes, serial: module fixtures)
 
 CLI_STATS = ["--n-boot", "200", "--n-perm", "100", "--quiet"]
-
-
-@pytest.fixture(scope="module")
-def scenes(tmp_path_factory, ctx):
-    return two_scenes(tmp_path_factory.mktemp("bench"), ctx)
-
-
-@pytest.fixture(scope="module")
-def serial(scenes, tmp_path_factory, ctx):
-    return serial_run(scenes, tmp_path_factory.mktemp("serial"), ctx)
 
 
 def _assert_same_output(out, s_out):

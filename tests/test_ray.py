@@ -22,7 +22,7 @@ from r360gpu.cli import main
 from r360gpu.pipeline import EvaluateOptions, evaluate
 from r360gpu.pipeline.distributed import FAIL_ONCE_ENV, RayExecutor, RayOptions, chunk_views
 
-from run_compare import OPTS, serial_run, two_scenes
+from run_compare import OPTS, scenes, serial  # noqa: F401 (module fixtures)
 from run_compare import comparable as _comparable, tree as _tree, tree_differences as _tree_differences
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -84,16 +84,6 @@ def ray_instance(marker_dir):
              runtime_env={"env_vars": {FAIL_ONCE_ENV: str(marker_dir / "fail-once")}})
     yield ray
     ray.shutdown()
-
-
-@pytest.fixture(scope="module")
-def scenes(tmp_path_factory, ctx):
-    return two_scenes(tmp_path_factory.mktemp("bench"), ctx)
-
-
-@pytest.fixture(scope="module")
-def serial(scenes, tmp_path_factory, ctx):
-    return serial_run(scenes, tmp_path_factory.mktemp("serial"), ctx)
 
 
 def test_two_scenes_on_ray_equal_the_serial_run(scenes, serial, ray_instance, tmp_path, capsys):

@@ -76,7 +76,7 @@ def _colour_mask(raw: np.ndarray, path) -> np.ndarray:
     channels = img.shape[2]
     n_colour = channels - 1 if channels in (2, 4) else channels
     if img.dtype.kind in "ui":
-        # OR of the colour planes: a reduction over the short last axis (np.any(..., axis=2)) is ~15x slower
+        # OR of the colour planes: whole-plane passes, where np.any(..., axis=2) reduces 3-4 values per pixel
         colour = img[:, :, 0].copy()
         for c in range(1, n_colour):
             np.bitwise_or(colour, img[:, :, c], out=colour)
