@@ -19,6 +19,7 @@ arguments so the chunking paths can be tested on small inputs.
 from __future__ import annotations
 
 import math
+import struct
 import threading
 from collections import OrderedDict
 from contextlib import contextmanager
@@ -75,6 +76,29 @@ class BufferRange:
     buffer: Any
     offset: int
     size: int
+
+
+_F32 = struct.Struct("<f")
+_U32 = struct.Struct("<I")
+
+
+def uniform_words(values: Sequence) -> np.ndarray:
+    """32-bit scalars as the u32 words of a uniform buffer (padded with zeros to a multiple of 4
+    words, at least 4): floats as float32 (rounded to nearest), ints as u32 (negative ones
+    two's complement).  Packed with ``struct``, not numpy scalars: this runs for every
+    recorded pass, and numpy's per-scalar conversions cost several times as much."""
+    out = bytearray()
+    for v in values:
+        if isinstance(v, (float, np.floating)):
+            try:
+                out += _F32.pack(v)
+            except OverflowError:  # beyond float32's range: infinity, as numpy rounds it
+                out += np.float32(v).tobytes()
+        else:
+            i = int(v)
+            out += _U32.pack(i & 0xFFFFFFFF if i < 0 else i)
+    out += bytes(4 * (max(4, -(-len(values) // 4) * 4) - len(values)))
+    return np.frombuffer(bytes(out), dtype=np.uint32)
 
 
 class GpuContext:
@@ -289,12 +313,7 @@ class GpuContext:
         buffer was most of the host's cost of recording a dispatch.  Under
         :meth:`recording` the frame cache's buffers serve instead.
         """
-        words = np.zeros(max(4, int(math.ceil(len(values) / 4) * 4)), dtype=np.uint32)
-        for i, v in enumerate(values):
-            if isinstance(v, (float, np.floating)):
-                words[i] = np.float32(v).view(np.uint32)
-            else:
-                words[i] = np.int64(v).astype(np.uint32) if int(v) < 0 else np.uint32(int(v))
+        words = uniform_words(values)
         frame = getattr(self._frame, "cache", None)
         if frame is not None:
             return frame.uniform(words, lambda: self.buffer(words, usage=UNIFORM | COPY_DST, label=label), self.write)
