@@ -75,11 +75,11 @@ def sort_rate(ctx, keys: np.ndarray, bits: int, variant: str, reps: int) -> dict
     kb, vb = ctx.buffer(keys), ctx.buffer(vals)
     scratch = Scratch(ctx)
     walls, device = [], None
-    for rep in range(reps + 1):  # the first: pipelines and scratch buffers
+    for rep in range(reps + 2):  # the first: pipelines and scratch buffers; the last: device time
         ctx.write(kb, keys)
         ctx.write(vb, vals)
         ctx.read(kb, np.uint32, 1)
-        profiled = rep == reps and ctx.profile_begin()
+        profiled = rep == reps + 1 and ctx.profile_begin()
         t = time.perf_counter()
         enc = ctx.encoder()
         ks, _ = radix_sort(ctx, enc, kb, vb, n, bits, scratch, "bench", variant=variant)
@@ -87,7 +87,7 @@ def sort_rate(ctx, keys: np.ndarray, bits: int, variant: str, reps: int) -> dict
         ctx.read(ks, np.uint32, 1)
         if profiled:
             device = sum(secs for _, secs in ctx.profile_end().values())
-        elif rep:
+        elif 0 < rep <= reps:
             walls.append(time.perf_counter() - t)
     got = ctx.read(ks, np.uint32, n)
     mask = np.uint32((1 << sorted_bits(bits)) - 1) if sorted_bits(bits) < 32 else np.uint32(0xFFFFFFFF)

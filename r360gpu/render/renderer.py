@@ -17,9 +17,9 @@ that order, and the tile sort is a stable radix sort of the K keys by the tile
 id's ``ceil(log2(tiles))`` bits alone, so each tile's list is front to back
 with ties in index order: the oracle's order (tests/test_render_recording.py).
 One sort of 32-bit keys packing tile id and quantised depth (VkSplat, luma.gl)
-would sort the K keys by 32 bits instead of N by 32 and K by the tile bits,
-with K several times N (6.4M keys for 1M Gaussians at 1080p), and would blend
-Gaussians whose depths share a bucket in index order
+would sort the K keys by 32 bits instead of N by 32 and K by the tile bits:
+less work only where K < 2N (K is 6.4N for 1M Gaussians at 1080p), and
+Gaussians whose depths share a bucket would blend in index order
 (bench/bench_render_sort.py times both).
 
 Host recording is done once per frame shape, not per frame: wgpu cannot
