@@ -18,9 +18,9 @@ id's ``ceil(log2(tiles))`` bits alone, so each tile's list is front to back
 with ties in index order: the oracle's order (tests/test_render_recording.py).
 One sort of 32-bit keys packing tile id and quantised depth (VkSplat, luma.gl)
 would sort the K keys by 32 bits instead of N by 32 and K by the tile bits:
-less work only where K < 2N (K is 6.4N for 1M Gaussians at 1080p), and
-Gaussians whose depths share a bucket would blend in index order
-(bench/bench_render_sort.py times both).
+less work only where K < 2N up to 65,536 tiles (K is 6.4N for 1M Gaussians
+at 1080p), and Gaussians whose depths share a bucket would blend in index
+order (bench/bench_render_sort.py times both).
 
 Host recording is done once per frame shape, not per frame: wgpu cannot
 replay a command buffer, but a frame records its passes with the bind groups
