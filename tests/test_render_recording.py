@@ -173,3 +173,19 @@ def test_no_and_one_gaussian(ctx, n):
         assert renderer.stats.keys >= 1
     else:
         assert np.all(got.alpha == 0)
+
+
+def test_device_interleave_inside_cached_frames(ctx, monkeypatch):
+    """The numpy read-back's device interleave (GPU adapters' path) recorded inside cached frames:
+    the same planes as the host interleave, frame after frame and after a camera move."""
+    g = random_gaussians(400, sh_degree=1, seed=12)
+    cams = [camera(67, 45, z=3.0), camera(67, 45, z=3.0), look_at([1.0, 0.3, -2.5], [0, 0, 0], 67, 45, 50.0)]
+    got = {}
+    for where in ("gpu", "cpu"):
+        monkeypatch.setenv("R360GPU_RENDER_INTERLEAVE", where)
+        renderer = Renderer(g, ctx=ctx)
+        got[where] = [renderer.render(cam) for cam in cams]
+        renderer.release()
+    for a, b in zip(got["gpu"], got["cpu"]):
+        assert_same(a, b)
+    assert_same(got["gpu"][0], got["gpu"][1])
