@@ -25,7 +25,8 @@ Aggregation (``eq:rqs``, Supp. A.4)
     :data:`AXES`: the three axes, in the order RQS, ranks and tables use; RQS is their
     geometric mean, the cube root of their product.  The reliability statistics use
     :data:`N_BOOT` paired bootstrap resamples, :data:`N_PERM` permutations and a
-    :data:`CI_LEVEL` confidence interval; the boundary sweep erodes and dilates the target
+    :data:`CI_LEVEL` confidence interval, stated only from :data:`MIN_SCENES_TO_RANK` scenes
+    on; the boundary sweep erodes and dilates the target
     by :data:`BOUNDARY_PX` pixels.
 
 Schemas
@@ -60,6 +61,12 @@ AXES: tuple[str, str, str] = ("s_sem", "s_geo", "s_str")
 N_BOOT: int = 20000
 N_PERM: int = 5000
 CI_LEVEL: float = 0.95
+#: Fewest scenes for which r360gpu states how sure a ranking is (the interval and P(beats best));
+#: r360gpu's rule, not the paper's.  S scenes give only C(2S-1, S) distinct paired resamples: 3 for 2
+#: scenes, 35 for 4, 126 for 5.  Below 5 the 2.5% tails of a 95% interval are one or two distinct
+#: resamples (the interval is the scenes' own extremes) and P(beats best) moves in steps of 1/35 or
+#: coarser, so the numbers would look more certain than the scenes allow.
+MIN_SCENES_TO_RANK: int = 5
 
 #: Boundary sensitivity: erode and dilate the target mask by these radii (pixels).
 BOUNDARY_PX: tuple[int, ...] = (5, 10, 15)
@@ -70,6 +77,6 @@ VIEW_RECORD_SCHEMA: str = "r360gpu.view_record/1"
 
 __all__ = [
     "AXES", "BOUNDARY_PX", "CI_LEVEL", "GHT_BINS", "GHT_KAPPA", "GHT_NU", "GHT_OMEGA", "GHT_TAU",
-    "N_BOOT", "N_PERM", "RESULTS_SCHEMA", "RETAIN_IOU", "STRUCTURAL_MODES",
+    "MIN_SCENES_TO_RANK", "N_BOOT", "N_PERM", "RESULTS_SCHEMA", "RETAIN_IOU", "STRUCTURAL_MODES",
     "VIEW_RECORD_SCHEMA", "XI_DEFAULT", "XI_PUBLIC", "XI_SWEEP",
 ]

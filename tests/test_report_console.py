@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from r360gpu.report.findings import expectation_checks
-from r360gpu.report.outputs import expectation_lines, no_depth_lines, summary_lines
+from r360gpu.report.outputs import expectation_lines, no_depth_lines, ranking_certainty_lines, summary_lines
 from tests.report_fake import VIEWS, add_expected, fake_results, no_depth
 
 
@@ -48,3 +48,28 @@ def test_see_through_holes_on_the_console():
             for rec in entry["views"]:
                 rec["geometric"]["n_no_depth_in_mask"] = 0
     assert no_depth_lines(results) == []
+
+
+def test_ranking_certainty_on_the_console():
+    """Enough scenes: per method the mean RQS, its bootstrap interval and P(beats best), as report.html."""
+    from tests.report_fake import add_ranked_reliability
+
+    results = add_ranked_reliability(fake_results(pictures=False))
+    agg = results["aggregate"]
+    lines = ranking_certainty_lines(results)
+    assert lines[0] == "how sure is the ranking (scene-macro mean RQS, paired scene bootstrap):"
+    assert lines[1].split() == ["method", "mean", "95%", "CI", f"P(beats", f"{agg['reliability_best']})"]
+    for m, line in zip(agg["reliability"], lines[2:]):
+        r = agg["reliability"][m]
+        p = "-" if r["p_beats_best"] is None else f"{r['p_beats_best']:.3f}"
+        assert line.split() == [m, f"{r['mean']:.3f}", f"[{r['ci_low']:.3f},", f"{r['ci_high']:.3f}]", p]
+    assert "\n".join(lines) in "\n".join(summary_lines(results))
+
+
+def test_too_few_scenes_on_the_console():
+    """The fake's two scenes: one plain sentence, no interval and no probability."""
+    results = fake_results(pictures=False)
+    assert ranking_certainty_lines(results) == [
+        "how sure is the ranking: too few scenes to rank with confidence (2 scenes; at least 5 needed)"]
+    text = "\n".join(summary_lines(results))
+    assert "too few scenes to rank with confidence" in text and "P(beats" not in text

@@ -89,6 +89,7 @@ def summary_lines(results: dict) -> list[str]:
         if flagged:
             where = "; ".join(f"{a} in {', '.join(s)}" for a, s in results["validity"].items() if s)
             lines.append(f"  ! axis not 'ok' (weak or blind probe) in some scene: {where}")
+    lines += ranking_certainty_lines(results)
     lines += control_lines(results)
     from .pruned_table import pruned_lines
 
@@ -107,6 +108,29 @@ def summary_lines(results: dict) -> list[str]:
                      f"per stage, summed over threads (stages overlap): {stages}")
     for note in results.get("notes", []):
         lines.append(f"note: {note}")
+    return lines
+
+
+def ranking_certainty_lines(results: dict) -> list[str]:
+    """How sure the ranking is, as report.html's first screen says it: per method the mean RQS over
+    scenes, its bootstrap interval and P(beats best); with too few scenes, the sentence saying so."""
+    agg = results.get("aggregate") or {}
+    rel = agg.get("reliability")
+    if not rel:
+        why = (agg.get("notes") or {}).get("reliability")
+        return [f"how sure is the ranking: {why}"] if why else []
+    best = agg.get("reliability_best", "best")
+    level = (agg.get("settings") or {}).get("ci_level")
+    ci = f"{level:.0%} CI" if isinstance(level, (int, float)) else "CI"
+    lines = ["how sure is the ranking (scene-macro mean RQS, paired scene bootstrap):",
+             f"  {'method':<18}{'mean':>8}  {ci:<18}P(beats {best})"]
+
+    def f(x):
+        return f"{x:.3f}" if isinstance(x, (int, float)) else "-"
+
+    for m, r in rel.items():
+        interval = f"[{f(r.get('ci_low'))}, {f(r.get('ci_high'))}]"
+        lines.append(f"  {m:<18}{f(r.get('mean')):>8}  {interval:<18}{f(r.get('p_beats_best'))}")
     return lines
 
 

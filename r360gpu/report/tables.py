@@ -237,9 +237,9 @@ def reliability_table(result: dict) -> Table:
         title="Reliability of the ranking across scenes (scene-macro mean RQS).",
         header=header,
         rows=rows,
-        notes=("sd over scenes with ddof=1; 95% CI = mean +- 1.96 sd / sqrt(scenes).",
-               f"P(beats {best}): paired scene-level bootstrap"
-               + (f" ({n_boot} resamples)." if n_boot else ".")),
+        notes=("sd over scenes with ddof=1; 95% CI: percentile interval of the paired scene-level bootstrap "
+               "(the paper prints mean +- 1.96 sd / sqrt(scenes)).",
+               f"P(beats {best}): the same bootstrap" + (f" ({n_boot} resamples)." if n_boot else ".")),
     )
 
 
