@@ -63,9 +63,10 @@ N_PERM: int = 5000
 CI_LEVEL: float = 0.95
 #: Fewest scenes for which r360gpu states how sure a ranking is (the interval and P(beats best));
 #: r360gpu's rule, not the paper's.  S scenes give only C(2S-1, S) distinct paired resamples: 3 for 2
-#: scenes, 35 for 4, 126 for 5.  Below 5 the 2.5% tails of a 95% interval are one or two distinct
-#: resamples (the interval is the scenes' own extremes) and P(beats best) moves in steps of 1/35 or
-#: coarser, so the numbers would look more certain than the scenes allow.
+#: scenes, 35 for 4, 126 for 5 (the first count past 100).  With 2 or 3 scenes the 95% interval is
+#: exactly the scenes' range (all S draws of the lowest scene have probability S^-S >= 1/27 > 2.5%),
+#: and with 4 it rests on a handful of resamples: the numbers would restate the scenes while looking
+#: like a statement about the methods.
 MIN_SCENES_TO_RANK: int = 5
 
 #: Boundary sensitivity: erode and dilate the target mask by these radii (pixels).
