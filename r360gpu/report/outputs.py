@@ -91,8 +91,11 @@ def summary_lines(results: dict) -> list[str]:
             lines.append(f"  ! axis not 'ok' (weak or blind probe) in some scene: {where}")
     lines += ranking_certainty_lines(results)
     lines += control_lines(results)
+    from .orbit_table import orbit_lines
     from .pruned_table import pruned_lines
 
+    lines += target_lines(results)
+    lines += orbit_lines(results)  # score --orbit N: each method from all around the target, never ranked
     lines += pruned_lines(results)  # score --prune-residuals: the unranked what-ifs beside their methods
     lines += expectation_lines(results)
     lines += no_depth_lines(results)
@@ -108,6 +111,25 @@ def summary_lines(results: dict) -> list[str]:
                      f"per stage, summed over threads (stages overlap): {stages}")
     for note in results.get("notes", []):
         lines.append(f"note: {note}")
+    return lines
+
+
+def target_lines(results: dict) -> list[str]:
+    """Per scene with a lifted ``[target]``: how many of pre's Gaussians it is and what it came from
+    (its masks' views, its indices or its box), and for how many views its masks were rendered."""
+    lines = []
+    for scene, s in results.get("scenes", {}).items():
+        t = s.get("target")
+        if not t:
+            continue
+        of = f" of {t['of']}" if t.get("of") is not None else ""
+        source = {"indices": "its indices", "box": "its box"}.get(t.get("source"), "its masks")
+        if t.get("lifted_from") and t.get("source") == "masks":
+            source = f"the masks of views {', '.join(t['lifted_from'])}"
+        n_rendered = len(t.get("rendered") or [])
+        n_views = n_rendered + len(t.get("given") or [])
+        lines.append(f"{scene}: [target] lifted onto {t.get('gaussians')}{of} Gaussians of pre (from {source}); "
+                     f"masks rendered for {n_rendered} of {n_views} views")
     return lines
 
 
