@@ -63,8 +63,8 @@ def why_fewer(asked: int, n: int, n_residual: int) -> str | None:
     if min(asked, n_residual, n) == asked:
         return None
     if n_residual < min(asked, n):
-        return (f"only {n_residual} Gaussians have a residual above 0 (the others are never blended inside "
-                f"the target of a flagged view, in front of the surface behind it)")
+        return (f"only {n_residual} Gaussians have a residual above 0 "
+                f"(the rest add nothing inside the target of a flagged view)")
     return f"the method has only {n} Gaussians"
 
 

@@ -92,4 +92,5 @@ def orbit_lines(results: dict) -> list[str]:
                 lines.append(f"  {s} / {m}: {vals}")
             else:
                 lines.append(f"  {s} / {m}: {orbit.get('no_orbit', {}).get(m) or orbit.get('note') or 'no orbit'}")
-    return ["orbit around the target (capture -> orbit; a separate scene entry, never ranked):"] + lines if lines else []
+    head = "orbit around the target (capture -> orbit; a separate scene entry, never ranked):"
+    return [head] + lines if lines else []

@@ -279,7 +279,7 @@ def build_tables(result: dict) -> tuple[list[Table], list[str]]:
         result: the dict from :func:`r360gpu.aggregate.aggregate_tables`.
 
     Returns:
-        (tables in display order, notes such as "reliability omitted: ...").
+        (tables in display order, notes such as "too few scenes to rank with confidence (...)").
     """
     builders: list[tuple[str | None, Callable[[dict], Table]]] = [
         (None, rqs_table), (None, overall_table), (None, scene_macro_table), (None, rank_table),
