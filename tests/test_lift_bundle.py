@@ -104,6 +104,7 @@ def test_scoring_records_given_and_rendered_views(bench, tmp_path, ctx):
     from r360gpu.report.outputs import summary_lines
 
     assert rec["of"] == load_gaussians(bundle.pre.path).n and 0 < rec["gaussians"] < rec["of"]
+    print("target record:", {k: rec[k] for k in ("source", "gaussians", "of")}, len(rec["given"]), len(rec["rendered"]))
     assert (f"room: [target] lifted onto {rec['gaussians']} of {rec['of']} Gaussians of pre (from the masks of views "
             f"{', '.join(sorted(given))}); masks rendered for {len(rec['rendered'])} of {ARGS['n_views']} views"
             in summary_lines(res))
