@@ -20,7 +20,7 @@ Reproduces tab:supp_reliability from the per-scene RQS table tab:supp_rqs:
   greater than that of the best method (highest mean RQS).
 
 The interval and the probability come from the same resamples, so one seed
-fixes both.  Below :data:`r360gpu.protocol.MIN_SCENES_TO_RANK` scenes the
+fixes both.  Below `r360gpu.protocol.MIN_SCENES_TO_RANK` scenes the
 tables leave both out (``aggregate_tables``); this function computes them for
 any S >= 2.
 """

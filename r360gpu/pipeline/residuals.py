@@ -51,8 +51,8 @@ def asked_count(q, n: int) -> int:
 
 
 def prune_count(q, n: int) -> int:
-    """Gaussians removed from a method of ``n``: :func:`asked_count`, at most n (and never more than
-    have a residual, :func:`pruned_bundle`)."""
+    """Gaussians removed from a method of ``n``: `asked_count`, at most n (and never more than
+    have a residual, `pruned_bundle`)."""
     return max(1, min(int(n), asked_count(q, n)))
 
 

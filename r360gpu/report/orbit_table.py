@@ -74,7 +74,7 @@ def orbit_table(results: dict) -> Table | None:
 
 def orbit_lines(results: dict) -> list[str]:
     """Console lines: per scene how many orbit poses were scored (and why the others were dropped),
-    then per method the axes at the capture views and from the orbit, as in :func:`orbit_table`."""
+    then per method the axes at the capture views and from the orbit, as in `orbit_table`."""
     lines = []
     for s, entry in results.get("scenes", {}).items():
         orbit = entry.get("orbit")
