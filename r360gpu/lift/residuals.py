@@ -40,10 +40,10 @@ FLAG_BELOW = 0.5
 
 
 def flagged_views(records, xis=(0.3,)) -> list[str]:
-    """Views (names) of a method's per-view records (:class:`~r360gpu.metrics.record.ViewRecord`
+    """Views (names) of a method's per-view records (`ViewRecord`
     or their dicts) where some axis flags evidence: the semantic probe fires in M on I_post
     (s_sem), the depth in M stays pre's (acc_depth), or the structure differs (s_str), each below
-    :data:`FLAG_BELOW` on that view alone."""
+    `FLAG_BELOW` on that view alone."""
     from ..aggregate.results import method_axes
     from ..metrics.record import ViewRecord
 
@@ -65,7 +65,7 @@ BEHIND_ALPHA = 0.5
 
 
 def depth_behind(pre, target, cameras, *, ctx=None, options=None) -> list:
-    """[(H, W) float32] per camera: :func:`surface_depth` of ``pre`` (Gaussians) without ``target``
+    """[(H, W) float32] per camera: `surface_depth` of ``pre`` (Gaussians) without ``target``
     ((N,) bool), what pre has behind the object."""
     return surface_depth(pre.subset(~np.asarray(target, bool)), cameras, ctx=ctx, options=options)
 
@@ -74,7 +74,7 @@ def surface_depth(gaussians, cameras, *, ctx=None, options=None) -> list:
     """[(H, W) float32] per camera: the median depth of ``gaussians`` (a scene without the object: pre
     without the target, or the reference).
 
-    Where that covers less than :data:`BEHIND_ALPHA` (a hole: nothing there, or background the masks
+    Where that covers less than `BEHIND_ALPHA` (a hole: nothing there, or background the masks
     lifted with the object because every view saw it only through M), the depth of the nearest pixel
     that has a surface, as a completion continues its surroundings; +inf when no pixel has one.
     """
@@ -99,7 +99,7 @@ def surface_depth(gaussians, cameras, *, ctx=None, options=None) -> list:
 
 
 def in_front(gaussians, camera, behind: np.ndarray) -> np.ndarray:
-    """(N,) bool: each Gaussian's centre depth plus :data:`GATE_SIGMAS` standard deviations along the
+    """(N,) bool: each Gaussian's centre depth plus `GATE_SIGMAS` standard deviations along the
     ray from ``camera`` is nearer than ``behind`` (H, W) at its centre's pixel; True where the centre
     falls outside the image or behind the camera (no surface to compare with)."""
     from ..io.rotation import quat_to_rotmat

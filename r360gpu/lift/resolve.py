@@ -64,7 +64,8 @@ def resolve_target(bundle, pre, *, ctx=None, warn=None):
     """(bundle with a mask for every view, record) for a bundle with ``[target]``.
 
     pre: the opened pre source (a :class:`~r360gpu.render.sources.SceneSource`).  record:
-    {"source", "gaussians", "given", "rendered", "lifted_from"} for results.json.
+    {"source", "gaussians", "of", "given", "rendered", "lifted_from"} for results.json ("gaussians" of
+    pre's "of" Gaussians are the target).
     """
     if getattr(pre, "gaussians", None) is None:
         raise InputError(f"scene {bundle.name!r}: [target] needs pre as a splat scene")
@@ -79,7 +80,7 @@ def resolve_target(bundle, pre, *, ctx=None, warn=None):
                 masks[v] = r.mask(bundle.cameras[v])
         finally:
             r.release()
-    record = {"source": lifted.source, "gaussians": int(lifted.target.sum()),
+    record = {"source": lifted.source, "gaussians": int(lifted.target.sum()), "of": int(pre.gaussians.n),
               "given": sorted(v for v in bundle.views if v in given), "rendered": todo,
               "lifted_from": list(lifted.views)}
     return replace(bundle, masks=masks), record

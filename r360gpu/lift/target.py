@@ -96,13 +96,13 @@ def lift_target(scene, cameras, masks, *, ctx=None, options=None, min_share: flo
                 min_weight: float = MIN_WEIGHT) -> LiftedTarget:
     """Lift target masks of some views to pre's Gaussians (see the module docstring).
 
-    scene: :class:`~r360gpu.io.gaussians.Gaussians` (N Gaussians).
-    cameras: sequence of :class:`~r360gpu.io.camera.Camera`.
+    scene: `Gaussians` (N Gaussians).
+    cameras: sequence of `Camera`.
     masks: one per camera: (H, W) bool or float32 in [0, 1] at the camera's
         size, or a wgpu buffer of H x W float32 (row-major) on ``ctx``'s device.
-    options: :class:`~r360gpu.render.conventions.RenderOptions` the scene is
+    options: `RenderOptions` the scene is
         rendered with (the weights are the renderer's own).
-    Returns a :class:`LiftedTarget` with w_in, w_out (N,) float64.
+    Returns a `LiftedTarget` with w_in, w_out (N,) float64.
     """
     from .device import MaskLifter
 

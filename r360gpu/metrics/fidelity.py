@@ -1,5 +1,5 @@
 """Pixel fidelity of I_post against I_ref: PSNR, SSIM, LPIPS (diagnostics only;
-never in RQS or ranks; PROTOCOL.md "Pixel fidelity vs I_ref").
+never in RQS or ranks; the paper's "Pixel fidelity vs I_ref").
 
 Images are (H, W, 3) or (H, W) RGB / gray, either uint8 (0..255, divided by
 255) or float in [0, 1]; values outside [0, 1] or non-finite values are an

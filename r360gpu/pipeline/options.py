@@ -15,15 +15,15 @@ class EvaluateOptions:
     xis: acc_seg thresholds reported (0.3 is s_sem).
     compat: None/False (paper mode), "public" (True means it) or
         "public-default": score as the public scripts do (see
-        :mod:`r360gpu.aggregate.compat`).
-    ght: GHT parameters (a :class:`~r360gpu.metrics.geometric.GhtParams`; a
+        `r360gpu.aggregate.compat`).
+    ght: GHT parameters (a `GhtParams`; a
         dict with its fields is accepted and converted).
     reference_free: True forces s_str = 1 - sim(pre, post) even with a
         reference; None follows each bundle's option.
     depth: "expected" or "median" depth; None follows each bundle.
     views: glob patterns selecting views by name, case-sensitive
-        (:func:`r360gpu.bundle.views.matching`; None: the bundle's views);
-        applied once per scene, where it is loaded (:func:`~.evaluate.evaluate`).
+        (`r360gpu.bundle.views.matching`; None: the bundle's views);
+        applied once per scene, where it is loaded (`evaluate`).
     boundary: run the mask-boundary sweep (E15..D15).
     lpips_model: path of an LPIPS ONNX model (None: LPIPS not computed).
     pictures: write a contact sheet per (method, view) and plots.

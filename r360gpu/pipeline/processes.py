@@ -76,9 +76,9 @@ class ProcessExecutor(ChunkExecutor):
     """Scores the uncached views of each scene in ``workers`` processes (module docstring).
 
     chunk: views per task (None: ceil(views / (2 x workers)), at most 16);
-    adapter, on_task: as :class:`~.distributed.ChunkExecutor`.  The pool is
+    adapter, on_task: as `ChunkExecutor`.  The pool is
     started on the first scene with views to score and kept for the next
-    scenes; :meth:`close` stops it.
+    scenes; `close` stops it.
     """
 
     kind = "worker-process"
