@@ -33,7 +33,7 @@ import shutil
 import subprocess
 from dataclasses import dataclass
 
-from .adapter import gpu_adapters
+from .adapter import ENV_VAR, gpu_adapters
 
 __all__ = ["CudaGpu", "Placement", "given_gpu", "match_adapter", "nvidia_gpus", "worker_adapter", "worker_slots"]
 
@@ -86,6 +86,11 @@ def _norm_bus(text):
         return int(domain, 16), int(parts[-2], 16), int(parts[-1], 16), int(fn, 16)
     except (ValueError, IndexError):
         return None
+
+
+def _follows(choice: str | None) -> bool:
+    """Whether an adapter choice (else R360GPU_ADAPTER) lets a worker take the GPU it was given."""
+    return (choice or os.environ.get(ENV_VAR) or "").strip().lower() in FOLLOWS_GIVEN
 
 
 def _reported(info, keys) -> str | None:
@@ -160,10 +165,10 @@ def match_adapter(given: str, adapters: list, cuda: tuple = ()) -> Placement:
 
 
 def worker_adapter(choice: str | None, ray_ids=None, adapters=None, cuda=None) -> Placement | None:
-    """The Placement for this worker process when it was given a GPU and ``choice`` lets it
-    follow (:data:`FOLLOWS_GIVEN`), else None.  adapters, cuda: wgpu's and nvidia-smi's lists
+    """The Placement for this worker process when it was given a GPU and ``choice`` (else
+    R360GPU_ADAPTER) lets it follow (:data:`FOLLOWS_GIVEN`), else None.  adapters, cuda: wgpu's and nvidia-smi's lists
     (None: asked for here)."""
-    if (choice or "").strip().lower() not in FOLLOWS_GIVEN:
+    if not _follows(choice):
         return None
     given = given_gpu(ray_ids=ray_ids)
     if given is None:
@@ -179,7 +184,7 @@ def worker_slots(choice: str | None, environ=None, adapters=None) -> list[str]:
     """The GPUs ``--processes`` workers take round-robin (worker k: entry k mod len): the entries of
     ``CUDA_VISIBLE_DEVICES`` when set, else one per GPU adapter when there are two or more; [] when
     there is nothing to spread over or ``choice`` names an adapter."""
-    if (choice or "").strip().lower() not in FOLLOWS_GIVEN:
+    if not _follows(choice):
         return []
     env = os.environ if environ is None else environ
     visible = [t.strip() for t in str(env.get("CUDA_VISIBLE_DEVICES", "")).split(",") if t.strip()]

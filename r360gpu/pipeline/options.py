@@ -113,6 +113,8 @@ class EvaluateOptions:
         d = asdict(self)  # the GhtParams becomes {"nu", "tau", "kappa", "omega"}
         for k in ("pictures", "n_boot", "n_perm", "seed", "controls", "orbit", "residuals", "prune_residuals"):
             d.pop(k)
+        if not self.lpips_model:
+            d.pop("probe_device")  # then it changes no per-view value (the probes' providers are in their keys)
         d["xis"] = [float(x) for x in self.xis]
         d["views"] = None if self.views is None else list(self.views)
         return d
