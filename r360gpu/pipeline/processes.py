@@ -103,7 +103,6 @@ class ProcessExecutor(ChunkExecutor):
         super().__init__(adapter=adapter, log=log, on_task=on_task)
         self.workers = workers
         self.chunk = chunk
-        self.slots: list = []  # the GPUs the workers take round-robin (set when the pool starts)
         self._pool = None
 
     def _start(self):
@@ -115,9 +114,9 @@ class ProcessExecutor(ChunkExecutor):
 
             threads = max(1, (os.cpu_count() or 1) // self.workers)
             spawn = multiprocessing.get_context("spawn")
-            self.slots = worker_slots(self.adapter)
+            slots = worker_slots(self.adapter)  # the GPUs the workers take round-robin
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=spawn, initializer=_worker_start,
-                                             initargs=(threads, self.slots, spawn.Value("i", 0)))
+                                             initargs=(threads, slots, spawn.Value("i", 0)))
         return self._pool
 
     def close(self) -> None:
