@@ -245,3 +245,16 @@ def test_the_webgpu_plugin_is_registered_and_added_through_the_session_options(m
     assert s.get_providers()[0] == WEBGPU
     assert calls == [("register", "webgpu", FakePlugin.get_library_path()), ("add", [WEBGPU], {}),
                      ("session", None)]
+
+
+def test_evaluate_options_check_the_probe_device(monkeypatch):
+    from r360gpu.pipeline import EvaluateOptions
+
+    with pytest.raises(InputError, match="unknown device 'tpu'"):
+        EvaluateOptions(probe_device="tpu")
+    _fake(monkeypatch, [])
+    with pytest.raises(InputError, match="gpu-cuda"):  # LPIPS would run on it: refused when the options are built
+        EvaluateOptions(lpips_model="lpips.onnx", probe_device="cuda")
+    assert "probe_device" not in EvaluateOptions(probe_device="cpu").scoring_key()  # changes no value without LPIPS
+    with_lpips = EvaluateOptions(lpips_model="lpips.onnx", probe_device="cpu").scoring_key()
+    assert with_lpips["probe_device"] == "cpu"
