@@ -5,6 +5,7 @@ machine has none; the WebGPU provider refuses lavapipe)."""
 from __future__ import annotations
 
 import argparse
+import json
 import types
 
 import numpy as np
@@ -258,3 +259,25 @@ def test_evaluate_options_check_the_probe_device(monkeypatch):
     assert "probe_device" not in EvaluateOptions(probe_device="cpu").scoring_key()  # changes no value without LPIPS
     with_lpips = EvaluateOptions(lpips_model="lpips.onnx", probe_device="cpu").scoring_key()
     assert with_lpips["probe_device"] == "cpu"
+
+
+def test_a_run_records_the_fallback_and_the_provider_that_ran(tmp_path, sam_pair, capsys, monkeypatch):
+    """score --probe-device cuda on a build whose CUDA provider cannot start: the run goes on, on the CPU
+    provider, and says so on stderr and in results.json; the probe's description names the CPU."""
+    from badinput_cases import renders_bundle
+
+    _fake(monkeypatch, [CUDA])
+    enc, dec = sam_pair
+    out = tmp_path / "out"
+    rc = cli.main(["score", str(renders_bundle(tmp_path / "b")), "--out", str(out), "--probe-device", "cuda",
+                   "--structural-probe", f"sam:encoder={enc},decoder={dec},points_per_side=4", "--no-pictures",
+                   "--no-boundary", "--no-controls", "--n-boot", "50", "--n-perm", "50", "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    assert "could not start CUDAExecutionProvider" in err
+    doc = json.loads((out / "results.json").read_text())
+    assert any("could not start CUDAExecutionProvider" in w["message"] and "running on CPUExecutionProvider"
+               in w["message"] for w in doc["warnings"]), doc["warnings"]
+    (scene,) = doc["scenes"].values()
+    (probe,) = scene["probes"]["structural"]
+    assert probe["params"]["provider"] == CPU
