@@ -63,7 +63,8 @@ def add_scoring_options(p) -> None:
     g.add_argument("--n-perm", type=int, default=N_PERM, help=f"permutations (default {N_PERM})")
     g.add_argument("--seed", type=int, default=0, help="seed of bootstrap and permutations (default 0)")
     g = p.add_argument_group("run")
-    g.add_argument("--adapter", default=None, help="GPU adapter: auto, gpu, cpu, or part of its name")
+    g.add_argument("--adapter", default=None,
+                   help="GPU adapter: auto, gpu, gpu:N (the N-th GPU), cpu, or part of its name")
     g.add_argument("--force", action="store_true", help="recompute everything (ignore cached per-view results)")
     g.add_argument("--quiet", action="store_true", help="no progress bars")
 
