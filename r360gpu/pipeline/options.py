@@ -26,6 +26,11 @@ class EvaluateOptions:
         applied once per scene, where it is loaded (`evaluate`).
     boundary: run the mask-boundary sweep (E15..D15).
     lpips_model: path of an LPIPS ONNX model (None: LPIPS not computed).
+    probe_device: the onnxruntime execution provider of LPIPS (and, on the
+        command line, of the learned probes): "auto" (default: a GPU provider
+        for the renderer's GPU when onnxruntime has one, else the CPU),
+        "cpu", "cuda", "tensorrt", "webgpu", "directml", "coreml"
+        (:mod:`r360gpu.probes.providers`).
     pictures: write a contact sheet per (method, view) and plots.
     fit_views: views of the pre rendering a fitted probe learns from.
     controls: also score the controls of each scene (the unedited pre
@@ -42,6 +47,7 @@ class EvaluateOptions:
     views: tuple | None = None
     boundary: bool = True
     lpips_model: str | None = None
+    probe_device: str = "auto"
     pictures: bool = True
     fit_views: int = 8
     controls: bool = True
@@ -81,6 +87,11 @@ class EvaluateOptions:
                                  ("fit_views", self.fit_views, 1), ("seed (--seed)", self.seed, 0)):
             if isinstance(value, bool) or not isinstance(value, Integral) or value < low:
                 raise InputError(f"{flag} must be an integer >= {low}, got {value!r}")
+        from ..probes.providers import choose, plan
+
+        choose(self.probe_device)  # an unknown name
+        if self.lpips_model and self.probe_device != "auto":
+            plan(self.probe_device)  # a provider asked for by name that onnxruntime lacks
         from .residuals import check_prune
 
         check_prune(self.prune_residuals)
@@ -102,6 +113,8 @@ class EvaluateOptions:
         d = asdict(self)  # the GhtParams becomes {"nu", "tau", "kappa", "omega"}
         for k in ("pictures", "n_boot", "n_perm", "seed", "controls", "orbit", "residuals", "prune_residuals"):
             d.pop(k)
+        if not self.lpips_model:
+            d.pop("probe_device")  # then it changes no per-view value (the probes' providers are in their keys)
         d["xis"] = [float(x) for x in self.xis]
         d["views"] = None if self.views is None else list(self.views)
         return d

@@ -92,6 +92,7 @@ class SceneRun:
         from ..bundle import is_from_objects
         from ..bundle.views import require_target
         from ..metrics.fidelity import LpipsModel
+        from ..probes.providers import choose
         from .cache import fingerprint
 
         self.bundle, self.opts, self.ctx = bundle, opts, ctx
@@ -122,7 +123,8 @@ class SceneRun:
         # the driver checks that pre's cameras see its splats (workers score what the driver accepted)
         self.frame_check = self.check_frames(cache) if fit else {}
         self._open_probes(sem_probes, str_probes, cache, fit)
-        self.lpips = LpipsModel(opts.lpips_model) if opts.lpips_model and self.reference is not None else None
+        self.lpips = (LpipsModel(opts.lpips_model, choose(opts.probe_device, ctx.adapter_info))
+                      if opts.lpips_model and self.reference is not None else None)
 
     def _open_sources(self) -> None:
         """The pre sources, the reference, the methods and the controls, opened (timed as "load")."""
