@@ -124,18 +124,26 @@ def lift_target(scene, cameras, masks, *, ctx=None, options=None, min_share: flo
 
 
 def target_from_indices(n: int, indices, *, where: str = "indices") -> LiftedTarget:
-    """The target given as Gaussian indices (int array, any order, duplicates allowed) or an (n,) bool mask."""
-    idx = np.asarray(indices)
+    """The target given as Gaussian indices (int array, any order, duplicates allowed) or an (n,) bool mask.
+
+    Refused (InputError naming ``where``): anything but a flat array of whole numbers or booleans
+    (:func:`r360gpu.io.indices.index_array`), indices outside 0..n-1, an n-long array of 0s and 1s
+    (a boolean mask saved as integers: read as indices it would select Gaussians 0 and 1), and a
+    target of no Gaussian.
+    """
+    from ..io.indices import index_array
+
+    idx = index_array(indices, where)
     sel = np.zeros(int(n), bool)
     if idx.dtype == bool:
         if idx.shape != (n,):
             raise InputError(f"{where}: a boolean target needs one entry per Gaussian ({n}), got shape {idx.shape}")
         sel[:] = idx
     else:
-        if idx.size and not np.issubdtype(idx.dtype, np.integer):
-            if not np.all(np.isfinite(idx)) or np.any(idx != np.round(idx)):
-                raise InputError(f"{where}: target indices must be whole numbers")
-        idx = idx.astype(np.int64).reshape(-1)
+        if n > 2 and idx.shape == (n,) and np.isin(idx, (0, 1)).all():
+            raise InputError(f"{where}: {n} entries, each 0 or 1: a mask over pre's {n} Gaussians saved as "
+                             f"integers (as indices it selects Gaussians 0 and 1 only); save it as booleans "
+                             f"(mask.astype(bool))")
         bad = idx[(idx < 0) | (idx >= n)]
         if bad.size:
             raise InputError(f"{where}: {bad.size} target indices outside 0..{n - 1} (e.g. {int(bad[0])}); "
@@ -144,6 +152,20 @@ def target_from_indices(n: int, indices, *, where: str = "indices") -> LiftedTar
     if not sel.any():
         raise InputError(f"{where}: the target has no Gaussians")
     return LiftedTarget(sel, "indices")
+
+
+def check_extent(lifted: LiftedTarget, where: str) -> LiftedTarget:
+    """``lifted`` unless it holds no Gaussian or every one of pre's (a box in other units, masks
+    that cover every view): InputError naming ``where``."""
+    k, n = int(lifted.target.sum()), lifted.n
+    if k == 0:
+        raise InputError(f"{where}: the target ({lifted.source}) holds no Gaussian of pre")
+    if k == n and n > 1:
+        hint = {"box": "is the box in the scene's units?", "masks": "do the masks cover every pixel?",
+                "indices": "are these the object's indices?"}[lifted.source]
+        raise InputError(f"{where}: the target ({lifted.source}) is every one of pre's {n} Gaussians, so "
+                         f"nothing would be left; {hint}")
+    return lifted
 
 
 def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None) -> LiftedTarget:
@@ -177,10 +199,10 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None) ->
     raise InputError(f"{path}: target indices must be a .npy or .ply file")
 
 
-def target_from_box(means: np.ndarray, box: Box) -> LiftedTarget:
-    """The Gaussians whose centre (means (N, 3)) is inside ``box``."""
+def target_from_box(means: np.ndarray, box: Box, *, where: str | None = None) -> LiftedTarget:
+    """The Gaussians whose centre (means (N, 3)) is inside ``box`` (``where``: the file that gave it)."""
     sel = box.contains(means)
     if not sel.any():
         raise InputError(f"no Gaussian centre lies in the target box (centre {box.centre.tolist()}, "
-                         f"half-size {box.half.tolist()})")
+                         f"half-size {box.half.tolist()}); is the box in the scene's units?", where)
     return LiftedTarget(sel, "box")
