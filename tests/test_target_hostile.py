@@ -157,3 +157,59 @@ def test_scene_from_objects_refuses_values_numpy_cannot_take(bench, case):
     with pytest.raises(InputError) as e:
         r360gpu.scene_from_objects("room", "sofa", {}, pre, {"clean": pre}, cameras=b.cameras, target=target)
     assert text in str(e.value) and "\n" not in str(e.value)
+
+
+# --- options: each bad value refused when EvaluateOptions is built, and by the CLI (exit 2, one line)
+
+OPTION_CASES = [  # (EvaluateOptions keyword, bad value, CLI arguments or None, text of the error)
+    ("orbit", -2, ["--orbit", "-2"], "orbit (--orbit)"),
+    ("orbit", 2.5, ["--orbit", "2.5"], "orbit"),
+    ("orbit", "4", None, "orbit (--orbit)"),
+    ("orbit", True, None, "orbit (--orbit)"),
+    ("residuals", "yes", None, "residuals (--residuals)"),
+    ("prune_residuals", 0, ["--prune-residuals", "0"], "prune_residuals (--prune-residuals)"),
+    ("prune_residuals", 1.5, ["--prune-residuals", "1.5"], "prune_residuals (--prune-residuals)"),
+    ("prune_residuals", "10", ["--prune-residuals", "ten"], "prune"),
+    ("boundary", 1, None, "boundary"),
+    ("pictures", None, None, "pictures"),
+    ("controls", "no", None, "controls"),
+    ("antialiased", 0, None, "antialiased"),
+    ("reference_free", "yes", None, "reference_free"),
+    ("lpips_model", 3, None, "lpips_model"),
+    ("ght", {"nu": -1.0}, None, "ght.nu"),
+    ("ght", {"omega": 2.0}, None, "ght.omega"),
+    ("ght", {"mu": 1.0}, None, "unknown parameter"),
+    ("ght", "default", None, "ght must be"),
+    ("xis", (0.3, 1.5), ["--xi", "0.3,1.5"], "xi"),
+    ("n_boot", 0, ["--n-boot", "0"], "n_boot"),
+    ("seed", -1, ["--seed", "-1"], "seed"),
+    ("depth", "mean", None, "depth"),
+]
+
+
+@pytest.mark.parametrize("key, value, argv, text", OPTION_CASES)
+def test_every_option_is_checked_when_built_and_by_the_cli(bench, tmp_path, capsys, key, value, argv, text):
+    from r360gpu.pipeline import EvaluateOptions
+
+    with pytest.raises(InputError, match=text.replace("(", r"\(").replace(")", r"\)")) as e:
+        EvaluateOptions(**{key: value})
+    assert "\n" not in str(e.value)
+    if argv is None:
+        return
+    out = tmp_path / "out"
+    try:
+        rc = cli.main(["score", str(bench), "--out", str(out), "--no-pictures", *argv])
+    except SystemExit as exit_:  # argparse refuses what its own type cannot read: usage and one error line
+        rc = exit_.code
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith(("r360gpu: error", "usage"))
+           or "error:" in ln]
+    assert rc == 2 and not out.exists()
+    assert sum("error" in ln for ln in err) == 1, err
+
+
+@pytest.mark.parametrize("workers", [0, -3, 2.5, "4", True])
+def test_process_counts_are_checked_by_one_function(workers):
+    from r360gpu.pipeline.processes import ProcessExecutor
+
+    with pytest.raises(InputError, match="--processes must be at least 1"):
+        ProcessExecutor(workers)
