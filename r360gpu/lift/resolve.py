@@ -67,10 +67,11 @@ def lifted_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
     where = _where(bundle)
     given = _given_masks(bundle, warn)
     if spec.indices is not None:
+        rows = dict(rows=gaussians.file_rows, warn=warn)  # the user's indices are rows of pre's file
         if isinstance(spec.indices, np.ndarray):
-            lifted = target_from_indices(gaussians.n, spec.indices, where="target indices")
+            lifted = target_from_indices(gaussians.n_file, spec.indices, where="target indices", **rows)
         else:
-            lifted = load_indices(spec.indices, gaussians.n, prop=spec.prop)
+            lifted = load_indices(spec.indices, gaussians.n_file, prop=spec.prop, **rows)
         return check_extent(lifted, str(spec.indices) if isinstance(spec.indices, Path) else where), given
     if spec.box is not None:
         return check_extent(target_from_box(gaussians.means, spec.box, where=where), f"{where}: [target].box"), given

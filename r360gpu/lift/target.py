@@ -123,8 +123,12 @@ def lift_target(scene, cameras, masks, *, ctx=None, options=None, min_share: flo
                         tuple(getattr(c, "name", "") for c in cameras))
 
 
-def target_from_indices(n: int, indices, *, where: str = "indices") -> LiftedTarget:
+def target_from_indices(n: int, indices, *, where: str = "indices", rows=None, warn=None) -> LiftedTarget:
     """The target given as Gaussian indices (int array, any order, duplicates allowed) or an (n,) bool mask.
+
+    n: the rows of pre's file the indices refer to; rows: None, or the (M,) file row of each loaded
+    Gaussian when the loader dropped invalid rows (:attr:`r360gpu.io.Gaussians.rows`): the result is
+    over the M loaded Gaussians, and target rows that were dropped are warned about (``warn``).
 
     Refused (InputError naming ``where``): anything but a flat array of whole numbers or booleans
     (:func:`r360gpu.io.indices.index_array`), indices outside 0..n-1, an n-long array of 0s and 1s
@@ -151,6 +155,12 @@ def target_from_indices(n: int, indices, *, where: str = "indices") -> LiftedTar
         sel[idx] = True
     if not sel.any():
         raise InputError(f"{where}: the target has no Gaussians")
+    if rows is not None:
+        file_sel, sel = sel, sel[np.asarray(rows)]
+        lost = int(file_sel.sum() - sel.sum())
+        if lost and warn is not None:
+            warn(f"{where}: {lost} of the {int(file_sel.sum())} target rows are Gaussians pre's loader dropped "
+                 f"(invalid values); the target is the other {int(sel.sum())}")
     return LiftedTarget(sel, "indices")
 
 
@@ -168,10 +178,11 @@ def check_extent(lifted: LiftedTarget, where: str) -> LiftedTarget:
     return lifted
 
 
-def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None) -> LiftedTarget:
+def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None, rows=None,
+                 warn=None) -> LiftedTarget:
     """Target indices from a file: ``.npy`` (indices, or (n,) bool) or ``.ply`` (vertex
     property ``prop``, default the first of "target", "label", "is_target", non-zero = target;
-    the PLY must have one vertex per pre Gaussian)."""
+    the PLY must have one vertex per row of pre's file).  n, rows, warn: as :func:`target_from_indices`."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: target indices file does not exist")
@@ -180,7 +191,7 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None) ->
             arr = np.load(path, allow_pickle=False)
         except (ValueError, OSError) as e:
             raise InputError(f"{path}: not a readable .npy array ({e})") from None
-        return target_from_indices(n, arr, where=str(path))
+        return target_from_indices(n, arr, where=str(path), rows=rows, warn=warn)
     if path.suffix.lower() == ".ply":
         from ..io.ply import read_ply
 
@@ -194,8 +205,8 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None) ->
             raise InputError(f"{path}: no target property ({prop or 'target, label or is_target'}) among "
                              f"{', '.join(names)}")
         if len(vert) != n:
-            raise InputError(f"{path}: {len(vert)} vertices, pre has {n} Gaussians")
-        return target_from_indices(n, np.asarray(vert[choice[0]]) != 0, where=str(path))
+            raise InputError(f"{path}: {len(vert)} vertices, pre's file has {n} Gaussians")
+        return target_from_indices(n, np.asarray(vert[choice[0]]) != 0, where=str(path), rows=rows, warn=warn)
     raise InputError(f"{path}: target indices must be a .npy or .ply file")
 
 

@@ -105,10 +105,12 @@ def scene_residuals(bundle, scene_res: dict, out, *, ctx=None, xis=(0.3,), warn=
         g, options = _gaussians(spec)
         r = residuals(g, cams, masks, flagged, behind=behind, ctx=ctx, options=options)
         values[m] = r
-        entry[m] = {"flagged_views": flagged, "top": top_residuals(r, TOP).tolist(),
+        # rows of the method's file as written (the loader may have dropped invalid ones)
+        entry[m] = {"flagged_views": flagged, "top": g.rows[top_residuals(r, TOP)].tolist(),
                     "max": float(r.max()) if len(r) else 0.0, "gate": gate}
         if out is not None:
-            write_residual_ply(Path(out) / "residuals" / bundle.name / f"{m}.ply", g, r)
+            write_residual_ply(Path(out) / "residuals" / bundle.name / f"{m}.ply", g, r,
+                               source=getattr(spec, "path", None))
             entry[m]["file"] = str(Path("residuals") / bundle.name / f"{m}.ply")
     return dict(sorted(entry.items(), key=lambda kv: list(bundle.methods).index(kv[0]))), values
 
