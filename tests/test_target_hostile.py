@@ -213,3 +213,37 @@ def test_process_counts_are_checked_by_one_function(workers):
 
     with pytest.raises(InputError, match="--processes must be at least 1"):
         ProcessExecutor(workers)
+
+
+# --- names: a method may not take the name of another method's derived output
+
+@pytest.mark.parametrize("names, refused", [
+    (("clean", "clean+pruned"), True),
+    (("clean", "CLEAN+Pruned"), True),      # equal ignoring case: the same file on macOS and Windows
+    (("clean+pruned",), False),             # no method 'clean': its own what-if is clean+pruned+pruned
+    (("clean", "clean+pruned2"), False),
+])
+def test_a_method_named_like_anothers_pruned_what_if_is_refused(bench, tmp_path, capsys, names, refused):
+    import r360gpu
+
+    b = tmp_path / "b"
+    shutil.copytree(bench, b)
+    text = (b / "scene.toml").read_text()
+    for name in names:
+        if name != "clean":
+            text += f'\n[methods."{name}"]\nscene = "methods/clean.ply"\n'
+    if "clean" not in names:
+        text = text.replace("[methods.clean]", "[methods.other]").replace("[expected.clean]", "[expected.other]")
+    (b / "scene.toml").write_text(text)
+    rc = cli.main(["check", str(b)])
+    out = capsys.readouterr().out
+    assert rc == (2 if refused else 0), out
+    assert ("pruned what-if" in out) == refused
+    pre = load_gaussians(load_bundle(bench).pre.path)
+    call = lambda: r360gpu.scene_from_objects("room", "sofa", {}, pre, {n: pre for n in names},  # noqa: E731
+                                              cameras=load_bundle(bench).cameras, target={"indices": [0, 1, 2]})
+    if refused:
+        with pytest.raises(InputError, match="pruned what-if"):
+            call()
+    else:
+        call()

@@ -22,13 +22,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bundle.names import DERIVED_SUFFIXES
 from ..errors import InputError
 from .orbit import _gaussians, _is_scene
 
 #: Indices of the highest residuals recorded per method.
 TOP = 100
-#: The what-if entry of method M is named M + PRUNED.
-PRUNED = "+pruned"
+#: The what-if entry of method M is named M + PRUNED (a name no method may take: bundle.names).
+PRUNED = DERIVED_SUFFIXES[0]
 #: The what-if of a method none of whose Gaussians has a residual (no view flags evidence).
 NOTHING_TO_PRUNE = "not scored: no Gaussian has a residual (no view flags evidence)"
 
