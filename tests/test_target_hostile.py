@@ -133,6 +133,19 @@ def test_one_full_mask_among_others_is_warned(bench, tmp_path, capsys):
     assert f"given/{full}.png: the target mask is target at every pixel" in out.out + out.err
 
 
+def test_a_target_of_most_of_the_scene_is_warned_and_recorded(bench, tmp_path, capsys):
+    import json
+
+    b = _npy(lambda n: np.arange(int(0.8 * n)))(bench, tmp_path / "b")
+    assert cli.main(["check", str(b)]) == 0
+    out = capsys.readouterr()
+    assert "target.npy: the target (indices) is" in out.out + out.err and "most of the scene" in out.out + out.err
+    assert cli.main(["score", str(b), "--out", str(tmp_path / "out"), "--no-pictures", "--no-controls",
+                     "--no-boundary", "--n-boot", "10", "--n-perm", "10", "--quiet"]) == 0
+    warned = json.loads((tmp_path / "out" / "results.json").read_text())["warnings"]
+    assert any("most of the scene" in json.dumps(w) and "target.npy" in json.dumps(w) for w in warned), warned
+
+
 OBJECT_CASES = {
     "indices a string": ({"indices": "12"}, "got a str"),
     "indices a set": ({"indices": {1, 2}}, "got a set"),

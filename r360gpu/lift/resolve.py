@@ -72,9 +72,10 @@ def lifted_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
             lifted = target_from_indices(gaussians.n_file, spec.indices, where="target indices", **rows)
         else:
             lifted = load_indices(spec.indices, gaussians.n_file, prop=spec.prop, **rows)
-        return check_extent(lifted, str(spec.indices) if isinstance(spec.indices, Path) else where), given
+        return check_extent(lifted, str(spec.indices) if isinstance(spec.indices, Path) else where, warn), given
     if spec.box is not None:
-        return check_extent(target_from_box(gaussians.means, spec.box, where=where), f"{where}: [target].box"), given
+        return (check_extent(target_from_box(gaussians.means, spec.box, where=where), f"{where}: [target].box", warn),
+                given)
     views = [v for v in sorted(given) if given[v].any()]
     if not views:
         raise InputError(f"no given target mask shows the target (scene {bundle.name!r}); nothing to lift", where)
@@ -83,7 +84,7 @@ def lifted_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
              f"give masks of at least {MIN_LIFT_VIEWS} views")
     lifted = lift_target(gaussians, [bundle.cameras[v] for v in views], [given[v] for v in views], ctx=ctx,
                          options=options)
-    return check_extent(lifted, f"{where}: [target].masks"), given
+    return check_extent(lifted, f"{where}: [target].masks", warn), given
 
 
 def check_target(bundle, *, ctx=None, warn=None):
@@ -148,4 +149,5 @@ def scene_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
             masks.append(m)
     if not cams:
         raise InputError(f"scene {bundle.name!r}: no view with a camera shows the target; cannot lift it")
-    return check_extent(lift_target(gaussians, cams, masks, ctx=ctx, options=options), f"{_where(bundle)}: masks")
+    return check_extent(lift_target(gaussians, cams, masks, ctx=ctx, options=options), f"{_where(bundle)}: masks",
+                        warn)

@@ -34,6 +34,8 @@ from ..io.box import Box
 MIN_SHARE = 0.5
 #: ...and its summed weight over all given pixels is at least this (units: one fully opaque pixel).
 MIN_WEIGHT = 0.05
+#: A target of more than this share of pre's Gaussians is warned about (a box in other units, say).
+MAX_TARGET_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -164,9 +166,11 @@ def target_from_indices(n: int, indices, *, where: str = "indices", rows=None, w
     return LiftedTarget(sel, "indices")
 
 
-def check_extent(lifted: LiftedTarget, where: str) -> LiftedTarget:
+def check_extent(lifted: LiftedTarget, where: str, warn=None) -> LiftedTarget:
     """``lifted`` unless it holds no Gaussian or every one of pre's (a box in other units, masks
-    that cover every view): InputError naming ``where``."""
+    that cover every view): InputError naming ``where``.  More than :data:`MAX_TARGET_SHARE` of
+    pre's Gaussians is doubtful (an object to remove is rarely most of a scene) and is warned
+    about (``warn``)."""
     k, n = int(lifted.target.sum()), lifted.n
     if k == 0:
         raise InputError(f"{where}: the target ({lifted.source}) holds no Gaussian of pre")
@@ -175,6 +179,9 @@ def check_extent(lifted: LiftedTarget, where: str) -> LiftedTarget:
                 "indices": "are these the object's indices?"}[lifted.source]
         raise InputError(f"{where}: the target ({lifted.source}) is every one of pre's {n} Gaussians, so "
                          f"nothing would be left; {hint}")
+    if k > MAX_TARGET_SHARE * n and warn is not None:
+        warn(f"{where}: the target ({lifted.source}) is {k} of pre's {n} Gaussians ({100 * k / n:.0f}%), most of "
+             f"the scene; is that the object to remove?")
     return lifted
 
 
