@@ -145,7 +145,7 @@ def processes_from_args(args):
     value = getattr(args, "processes", None)
     if value is None:
         return None
-    from ..pipeline.processes import ProcessExecutor, default_workers
+    from ..pipeline.processes import ProcessExecutor, check_workers, default_workers
 
     if value == "auto":
         workers = default_workers()
@@ -154,8 +154,7 @@ def processes_from_args(args):
             workers = int(value)
         except ValueError:
             raise InputError(f"--processes takes a number of worker processes or 'auto', got {value!r}") from None
-        if workers < 1:
-            raise InputError(f"--processes must be at least 1, got {workers}")
+        check_workers(workers)
     return ProcessExecutor(workers, adapter=args.adapter) if workers > 1 else None
 
 
@@ -207,7 +206,7 @@ def options_from_args(args):
         n_perm=args.n_perm,
         seed=args.seed,
         antialiased=getattr(args, "antialiased", False),
-        orbit=_orbit_count(getattr(args, "orbit", 0)),
+        orbit=getattr(args, "orbit", 0),
         residuals=getattr(args, "residuals", False) or getattr(args, "prune_residuals", None) is not None,
         prune_residuals=getattr(args, "prune_residuals", None),
     )
@@ -225,14 +224,6 @@ def _prune_amount(text: str):
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a count (integer >= 1) or a fraction in (0, 1), got {text!r}")
-
-
-def _orbit_count(n: int) -> int:
-    from ..errors import InputError
-
-    if n < 0:
-        raise InputError(f"--orbit needs a number of cameras >= 0, got {n}")
-    return n
 
 
 def probe_from_spec(spec: str, axis: str, device: str = "cpu"):

@@ -64,8 +64,14 @@ class EvaluateOptions:
     def __post_init__(self):
         from ..metrics.compat import check_compat
 
+        from ..errors import InputError
+
         self.compat = check_compat(self.compat)
         if isinstance(self.ght, dict):
+            unknown = sorted(set(self.ght) - set(GhtParams().as_dict()))
+            if unknown:
+                raise InputError(f"ght: unknown parameter(s) {', '.join(map(str, unknown))} "
+                                 f"(known: {', '.join(GhtParams().as_dict())})")
             self.ght = GhtParams(**self.ght)
         self._check()
 
@@ -73,6 +79,7 @@ class EvaluateOptions:
         """InputError for an option no run can use: the checks of the CLI flags and of the library,
         made when the options are built, before any view is scored."""
         import math
+        import os
         from numbers import Integral, Real
 
         from ..errors import InputError
@@ -87,6 +94,28 @@ class EvaluateOptions:
                                  ("fit_views", self.fit_views, 1), ("seed (--seed)", self.seed, 0)):
             if isinstance(value, bool) or not isinstance(value, Integral) or value < low:
                 raise InputError(f"{flag} must be an integer >= {low}, got {value!r}")
+        if isinstance(self.orbit, bool) or not isinstance(self.orbit, Integral) or self.orbit < 0:
+            raise InputError(f"orbit (--orbit) must be a whole number of cameras >= 0, got {self.orbit!r}")
+        for flag, value in (("boundary (--no-boundary)", self.boundary), ("pictures (--no-pictures)", self.pictures),
+                            ("controls (--no-controls)", self.controls), ("antialiased (--antialiased)",
+                                                                         self.antialiased),
+                            ("residuals (--residuals)", self.residuals)):
+            if not isinstance(value, bool):
+                raise InputError(f"{flag} must be True or False, got {value!r}")
+        if self.reference_free is not None and not isinstance(self.reference_free, bool):
+            raise InputError(f"reference_free (--reference-free) must be None, True or False, "
+                             f"got {self.reference_free!r}")
+        if self.lpips_model is not None and not (isinstance(self.lpips_model, (str, os.PathLike))
+                                                 and str(self.lpips_model).strip()):
+            raise InputError(f"lpips_model (--lpips) must be the path of an ONNX model, got {self.lpips_model!r}")
+        ght = self.ght
+        if not isinstance(ght, GhtParams):
+            raise InputError(f"ght must be a GhtParams or a dict of its fields, got {type(ght).__name__}")
+        for name, value in ght.as_dict().items():
+            if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value) or value < 0:
+                raise InputError(f"ght.{name} must be a finite number >= 0, got {value!r}")
+        if ght.omega > 1:
+            raise InputError(f"ght.omega must lie in [0, 1], got {ght.omega!r}")
         from ..probes.providers import choose, plan
 
         choose(self.probe_device)  # an unknown name

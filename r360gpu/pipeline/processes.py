@@ -83,6 +83,15 @@ def _worker_start(threads: int, slots: list, counter) -> None:
     cv2.setNumThreads(threads)
 
 
+def check_workers(workers) -> int:
+    """``workers`` unless it is not a whole number >= 1 (InputError): the one check of ``--processes``
+    and of :class:`ProcessExecutor`."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(f"--processes must be at least 1, got {workers!r} (a whole number of worker "
+                         f"processes, or 'auto')")
+    return workers
+
+
 class ProcessExecutor(ChunkExecutor):
     """Scores the uncached views of each scene in ``workers`` processes (module docstring).
 
@@ -96,10 +105,9 @@ class ProcessExecutor(ChunkExecutor):
 
     def __init__(self, workers: int, *, chunk: int | None = None, adapter: str | None = None, log=print,
                  on_task=None):
-        if not isinstance(workers, int) or workers < 1:
-            raise InputError(f"--processes must be at least 1, got {workers!r}")
-        if chunk is not None and chunk < 1:
-            raise InputError(f"the chunk size must be at least 1, got {chunk}")
+        check_workers(workers)
+        if chunk is not None and (isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1):
+            raise InputError(f"the chunk size must be at least 1, got {chunk!r} (a whole number of views)")
         super().__init__(adapter=adapter, log=log, on_task=on_task)
         self.workers = workers
         self.chunk = chunk

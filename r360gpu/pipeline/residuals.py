@@ -22,13 +22,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bundle.names import DERIVED_SUFFIXES
 from ..errors import InputError
 from .orbit import _gaussians, _is_scene
 
 #: Indices of the highest residuals recorded per method.
 TOP = 100
-#: The what-if entry of method M is named M + PRUNED.
-PRUNED = "+pruned"
+#: The what-if entry of method M is named M + PRUNED (a name no method may take: bundle.names).
+PRUNED = DERIVED_SUFFIXES[0]
 #: The what-if of a method none of whose Gaussians has a residual (no view flags evidence).
 NOTHING_TO_PRUNE = "not scored: no Gaussian has a residual (no view flags evidence)"
 
@@ -122,10 +123,12 @@ def scene_residuals(bundle, scene_res: dict, out, *, ctx=None, xis=(0.3,), warn=
         g, options = _gaussians(spec)
         r = residuals(g, cams, masks, flagged, behind=behind, ctx=ctx, options=options)
         values[m] = r
-        entry[m] = {"flagged_views": flagged, "top": top_residuals(r, TOP).tolist(),
+        # rows of the method's file as written (the loader may have dropped invalid ones)
+        entry[m] = {"flagged_views": flagged, "top": g.rows[top_residuals(r, TOP)].tolist(),
                     "max": float(r.max()) if len(r) else 0.0, "gate": gate}
         if out is not None:
-            write_residual_ply(Path(out) / "residuals" / bundle.name / f"{m}.ply", g, r)
+            write_residual_ply(Path(out) / "residuals" / bundle.name / f"{m}.ply", g, r,
+                               source=getattr(spec, "path", None))
             entry[m]["file"] = str(Path("residuals") / bundle.name / f"{m}.ply")
     return dict(sorted(entry.items(), key=lambda kv: list(bundle.methods).index(kv[0]))), values
 
