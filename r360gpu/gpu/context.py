@@ -501,7 +501,7 @@ _contexts_lock = threading.Lock()
 
 
 def get_context(adapter: str | None = None, device=None) -> GpuContext:
-    """The shared context for ``adapter`` (see :mod:`r360gpu.gpu.adapter`), or
+    """The shared context for ``adapter`` (see `r360gpu.gpu.adapter`), or
     a context around the caller's ``device``.  Contexts are created once per
     adapter choice and reused."""
     if device is not None:

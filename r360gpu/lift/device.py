@@ -32,11 +32,11 @@ CONSTANTS = {"ALPHA_MAX": ALPHA_MAX, "ALPHA_MIN": ALPHA_MIN, "T_MIN": T_MIN}
 class MaskLifter(Renderer):
     """Accumulates, per Gaussian, its compositing weight inside and outside target masks.
 
-    Parameters as :class:`~r360gpu.render.Renderer` (``background`` is
-    irrelevant: weights do not depend on it).  Call :meth:`add_view` per
-    (camera, mask), then :meth:`weights`.  ``acc`` is the device buffer of
+    Parameters as `Renderer` (``background`` is
+    irrelevant: weights do not depend on it).  Call `add_view` per
+    (camera, mask), then `weights`.  ``acc`` is the device buffer of
     N x 4 u32: (in low, in high, out low, out high) words of the 64-bit
-    fixed-point sums (:data:`SCALE` units per unit weight).
+    fixed-point sums (`SCALE` units per unit weight).
     """
 
     def __init__(self, scene, **kwargs):

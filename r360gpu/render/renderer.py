@@ -436,13 +436,13 @@ def _available_memory() -> int | None:
 def render(scene, camera, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0), output: str = "numpy",
            near: float = NEAR_PLANE, antialiased: bool = False, no_coverage_alpha: float = NO_COVERAGE_ALPHA,
            principal_point: str = "camera"):
-    """Render one view of ``scene`` (a :class:`~r360gpu.io.gaussians.Gaussians`).
+    """Render one view of ``scene`` (a `Gaussians`).
 
-    camera: a :class:`~r360gpu.io.camera.Camera` (world-to-camera R, t; fx, fy,
-    cx, cy; width, height).  output: "numpy" -> :class:`Render`; "device" ->
-    :class:`DeviceRender` (buffers stay on ``ctx``'s device).  near,
+    camera: a `Camera` (world-to-camera R, t; fx, fy,
+    cx, cy; width, height).  output: "numpy" -> `Render`; "device" ->
+    `DeviceRender` (buffers stay on ``ctx``'s device).  near,
     antialiased, no_coverage_alpha, principal_point: the conventions of
-    :class:`~r360gpu.render.conventions.RenderOptions`.
+    `RenderOptions`.
     """
     if output not in ("numpy", "device"):
         raise InputError(f"output must be 'numpy' or 'device', got {output!r}")
