@@ -311,7 +311,7 @@ class GpuContext:
         one buffer (the last ``_UNIFORMS_KEPT`` distinct ones are kept): the
         renderer's dispatches of one view repeat in the next, and creating a
         buffer was most of the host's cost of recording a dispatch.  Under
-        :meth:`recording` the frame cache's buffers serve instead.
+        `recording` the frame cache's buffers serve instead.
         """
         words = uniform_words(values)
         frame = getattr(self._frame, "cache", None)
@@ -381,7 +381,7 @@ class GpuContext:
 
         Each resource is a buffer (bound whole), a :class:`BufferRange`, or
         ``None`` for a binding the entry point does not use.  Under
-        :meth:`recording` an equal bind group of the frame before is reused.
+        `recording` an equal bind group of the frame before is reused.
         """
         frame = getattr(self._frame, "cache", None)
         if frame is not None:
@@ -406,7 +406,7 @@ class GpuContext:
         buffer, up to one storage binding.
 
         For data whose length changes from frame to frame in a buffer that does not (the
-        renderer's key lists): the binding, and so a kept bind group (:meth:`recording`),
+        renderer's key lists): the binding, and so a kept bind group (`recording`),
         stays the same.  Only for kernels that bound their loops by a count they are
         given, never by the binding's length (``arrayLength``).
         """
@@ -415,8 +415,8 @@ class GpuContext:
 
     @contextmanager
     def recording(self, cache):
-        """Record with ``cache`` (a :class:`~r360gpu.gpu.recording.FrameCache`) on this thread:
-        :meth:`uniform` and :meth:`bind_group` reuse what the frame before created."""
+        """Record with ``cache`` (a `FrameCache` of `r360gpu.gpu.recording`) on this thread:
+        `uniform` and `bind_group` reuse what the frame before created."""
         before = getattr(self._frame, "cache", None)
         self._frame.cache = cache
         try:

@@ -3,7 +3,7 @@
 wgpu cannot replay a recorded command buffer, so a renderer records every
 frame's passes again; what it need not do again is create their bind groups
 and uniform buffers, which was most of the host's cost of recording a pass.
-While a :class:`FrameCache` is active on a thread (:meth:`GpuContext.recording`):
+While a `FrameCache` is active on a thread (`GpuContext.recording`):
 
 * the ``i``-th uniform a frame asks for is the cache's ``i``-th uniform buffer,
   rewritten in place (a queue write, ordered after every earlier submission)

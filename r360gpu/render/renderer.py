@@ -24,7 +24,7 @@ order (bench/bench_render_sort.py times both).
 
 Host recording is done once per frame shape, not per frame: wgpu cannot
 replay a command buffer, but a frame records its passes with the bind groups
-and uniform buffers of the frame before (:class:`r360gpu.gpu.recording.FrameCache`;
+and uniform buffers of the frame before (`r360gpu.gpu.recording.FrameCache`;
 uniforms rewritten in place where the camera or a key count changed them),
 on the same scratch buffers and pipelines, so a frame of the same shape creates
 no device objects.
