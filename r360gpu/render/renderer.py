@@ -135,6 +135,10 @@ class Renderer:
         ``options`` gives them as one object (keywords given override it)
     timed : wait after every stage and record its wall time in :attr:`stats`
     count_work : read back the rasteriser's work counters into :attr:`stats`
+
+    ``frames`` is the `FrameCache` (`r360gpu.gpu.recording`) every view is recorded
+    with; its ``counts`` say how many bind groups and uniform buffers were created
+    and reused.
     """
 
     def __init__(self, scene, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0),
