@@ -10,6 +10,12 @@ runs out is stopped and marked so; the next one still runs):
    oracle (pass / fail);
 2. the renderer at 1M Gaussians, 1920x1080 (bench/bench_render.py): frames/s,
    goal >= 100;
+2b. the WGSL radix sort alone (bench/bench_render_sort.py ``--no-frames``): 1M
+   (u32, u32) pairs by 32 bits in keys/s of wall and of device time, beside
+   wgpu_sort's published 1M pairs in 317 us (RTX A5000), and the renderer's
+   two exact sorts of a 1M-Gaussian 1080p frame against one packed-key sort;
+2c. the renderer's host recording per frame (bench/bench_render.py
+   ``--host-recording``): main-thread CPU ms per device frame outside the waits;
 3. ``r360gpu score`` against the public Remove360 scripts
    (bench/bench_vs_public.py, 20 views of 1200x1000): both times and the
    ratio; needs ``--public`` (a checkout of simonakocour/anything_left, or
@@ -110,6 +116,10 @@ def last(pattern: str, text: str):
     return found[-1] if found else None
 
 
+#: wgpu_sort's published figure (issue 37): 1M (key, value) pairs sorted in this many microseconds on an RTX A5000.
+WGPU_SORT_1M_US = 317
+
+
 def describe(step: Step, small: bool, renders: int) -> None:
     """Fill the table's figure and goal columns from what the step printed."""
     out = step.output
@@ -124,6 +134,17 @@ def describe(step: Step, small: bool, renders: int) -> None:
         step.goal = ">= 100 frames/s at 1M, 1080p" + (" (not this size)" if small else "")
         if fps and not small:
             step.goal += " MET" if float(fps) >= 100 else " NOT MET"
+    elif step.name == "render sort":
+        rates = re.findall(r"^ *(serial|blocks) +(\S+) pairs +\d+ +32 +[\d.]+ +([\d.]+) +(\S+) +(\S+) +True$", out, re.M)
+        packed = dict(re.findall(r"^  (serial|blocks): the renderer's exact sorts .*? ms \(([\d.]+)x\)", out, re.M))
+        step.figure = "; ".join(
+            f"{v}: {n} pairs {wall} Mkeys/s wall" + (f", {dev} Mkeys/s device" if dev != "-" else "")
+            + (f" (packed-key sort of the frame's keys {packed[v]}x the exact pair's time)" if v in packed else "")
+            for v, n, wall, _, dev in rates)
+        step.goal = f"wgpu_sort: 1M pairs in {WGPU_SORT_1M_US} us on an RTX A5000 ({1e6 / WGPU_SORT_1M_US:.0f} Mkeys/s)"
+    elif step.name == "render recording":
+        host = last(r"(?m)^ *\d+ +ours +([\d.]+) +([\d.]+)", out)
+        step.figure = f"{host[0]} ms host recording per frame ({host[1]} passes)" if host else ""
     elif step.name == "vs public":
         row = last(r"\| \d+ views [^|]+\| ([\d.]+) s \| ([\d.]+) s \| ([\d.]+)x \| ([\d.]+) s \| ([\d.]+)x "
                    r"\| ([\d.]+) s \| ([\d.]+)x", out)
@@ -227,6 +248,13 @@ def build_steps(args, work: Path) -> list[Step]:
     steps = [Step("doctor", [py, "-m", "r360gpu", "doctor", *adapter], 0.15)]
     steps.append(Step("render", [py, str(HERE / "bench_render.py"), "--sizes", str(renders), "--repeat", "3",
                                  "--no-oracle"] + (["--size", "480x270"] if small else []), 0.2))
+    frame = ["480", "270"] if small else ["1920", "1080"]
+    steps.append(Step("render sort", [py, str(HERE / "bench_render_sort.py"), "--no-frames", "--sizes", str(renders),
+                                      "--width", frame[0], "--height", frame[1], "--sort-reps", "3",
+                                      "--pairs", "100000" if small else "1000000"], 0.05))
+    steps.append(Step("render recording", [py, str(HERE / "bench_render.py"), "--host-recording", "--sizes",
+                                           str(renders), "--size", "x".join(frame), "--rounds", "1",
+                                           "--repeat", "5" if small else "20"], 0.05))
     if args.public is None:
         steps.append(Step("vs public", None, 0.3, "no --public checkout given"))
     else:

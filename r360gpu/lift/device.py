@@ -79,8 +79,9 @@ class MaskLifter(Renderer):
                                  f"a {width}x{height} float32 mask needs {width * height * 4}")
             buf = mask
         self._mask = BufferRange(buf, 0, max(4, width * height * 4))
-        prep, t0 = self._prepare(cam, whole=True)
-        self._render_rows(prep, cam, (0, tile_grid(width, height)[1]), buf, width * height, t0)
+        with self._frame():
+            prep, t0 = self._prepare(cam, whole=True)
+            self._render_rows(prep, cam, (0, tile_grid(width, height)[1]), buf, width * height, t0)
         self.views += 1
 
     def _record_tiles(self, enc, lists: TileLists, cam: dict, band: Band, work) -> None:
@@ -90,7 +91,7 @@ class MaskLifter(Renderer):
                          scale=SCALE)
         per_gaussian = max(16, n * 16)
         ctx.dispatch(enc, ctx.pipeline("lift_accumulate", "main", CONSTANTS),
-                     [params, lists.ranges, BufferRange(lists.vals, 0, max(4, lists.num_keys * 4)),
+                     [params, lists.ranges, ctx.span(lists.vals, 0, max(4, lists.num_keys * 4)),
                       BufferRange(proj.pos_op, 0, per_gaussian), BufferRange(proj.conic, 0, per_gaussian),
                       self._mask, BufferRange(self.acc, 0, per_gaussian)],
                      ctx.grid(window.end - window.begin))
