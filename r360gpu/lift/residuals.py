@@ -164,7 +164,7 @@ def write_residual_ply(path: str | os.PathLike, gaussians, residual: np.ndarray,
 
     The vertices are the rows of the method's file: ``source`` (its path), when it is an INRIA PLY,
     is copied vertex for vertex with every property it has (a ``my_label`` stays); otherwise the
-    Gaussians' own properties.  A row the loader dropped (invalid values, :attr:`Gaussians.rows`)
+    Gaussians' own properties.  A row the loader dropped (invalid values, `Gaussians.rows`)
     keeps its place with residual NaN (and, when not copied, NaN properties).
     """
     from numpy.lib import recfunctions

@@ -129,11 +129,11 @@ def target_from_indices(n: int, indices, *, where: str = "indices", rows=None, w
     """The target given as Gaussian indices (int array, any order, duplicates allowed) or an (n,) bool mask.
 
     n: the rows of pre's file the indices refer to; rows: None, or the (M,) file row of each loaded
-    Gaussian when the loader dropped invalid rows (:attr:`r360gpu.io.Gaussians.rows`): the result is
+    Gaussian when the loader dropped invalid rows (`r360gpu.io.Gaussians.rows`): the result is
     over the M loaded Gaussians, and target rows that were dropped are warned about (``warn``).
 
     Refused (InputError naming ``where``): anything but a flat array of whole numbers or booleans
-    (:func:`r360gpu.io.indices.index_array`), indices outside 0..n-1, an n-long array of 0s and 1s
+    (`r360gpu.io.indices.index_array`), indices outside 0..n-1, an n-long array of 0s and 1s
     (a boolean mask saved as integers: read as indices it would select Gaussians 0 and 1), and a
     target of no Gaussian.
     """
@@ -189,7 +189,7 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None, ro
                  warn=None) -> LiftedTarget:
     """Target indices from a file: ``.npy`` (indices, or (n,) bool) or ``.ply`` (vertex
     property ``prop``, default the first of "target", "label", "is_target", non-zero = target;
-    the PLY must have one vertex per row of pre's file).  n, rows, warn: as :func:`target_from_indices`."""
+    the PLY must have one vertex per row of pre's file).  n, rows, warn: as `target_from_indices`."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: target indices file does not exist")

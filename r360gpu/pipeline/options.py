@@ -30,7 +30,7 @@ class EvaluateOptions:
         command line, of the learned probes): "auto" (default: a GPU provider
         for the renderer's GPU when onnxruntime has one, else the CPU),
         "cpu", "cuda", "tensorrt", "webgpu", "directml", "coreml"
-        (:mod:`r360gpu.probes.providers`).
+        (`r360gpu.probes.providers`).
     pictures: write a contact sheet per (method, view) and plots.
     fit_views: views of the pre rendering a fitted probe learns from.
     controls: also score the controls of each scene (the unedited pre
