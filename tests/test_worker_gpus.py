@@ -5,7 +5,6 @@ GPU here); the --processes plumbing runs for real on lavapipe."""
 from __future__ import annotations
 
 import json
-import multiprocessing
 import types
 
 import cv2
@@ -106,22 +105,32 @@ def test_worker_slots():
 
 
 @pytest.mark.parametrize("workers,gpus", [(2, 2), (3, 4), (4, 2), (5, 3)])
-def test_processes_workers_spread_round_robin_and_never_share_while_gpus_last(monkeypatch, workers, gpus):
+def test_processes_workers_spread_round_robin_and_never_share_while_gpus_last(monkeypatch, tmp_path, workers,
+                                                                               gpus):
     """The k-th worker to start takes slot k mod K: no GPU has two workers while workers <= GPUs,
     and none has more than ceil(workers / K)."""
     listed = [fake(f"NVIDIA H100 #{i}") for i in range(gpus)]
     slots = worker_slots(None, {}, listed)
-    counter = multiprocessing.get_context("spawn").Value("i", 0)
+    claims = tmp_path / "claims"
+    claims.mkdir()
     monkeypatch.setattr(processes.signal, "signal", lambda *a: None)  # the test process keeps its Ctrl-C
     monkeypatch.setenv("LP_NUM_THREADS", "1")
     placed = []
     for _ in range(workers):
-        processes._worker_start(cv2.getNumThreads(), slots, counter)
+        processes._worker_start(cv2.getNumThreads(), slots, str(claims))
         placed.append(worker_adapter(None, adapters=listed, cuda=()).choice)
     per_gpu = {c: placed.count(c) for c in set(placed)}
     if workers <= gpus:
         assert len(set(placed)) == workers
     assert max(per_gpu.values()) == -(-workers // gpus) and len(per_gpu) == min(workers, gpus)
+
+
+def test_worker_slot_claims_are_distinct_and_a_removed_folder_is_no_error(tmp_path):
+    """Claims are taken in order, each once; after the driver has removed the folder (it stopped) a
+    starting worker takes slot 0 instead of failing."""
+    assert [processes._claim(str(tmp_path)) for _ in range(4)] == [0, 1, 2, 3]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["0", "1", "2", "3"]
+    assert processes._claim(str(tmp_path / "gone")) == 0 and processes._claim(None) == 0
 
 
 def test_processes_record_the_gpu_each_worker_was_given(scenes, tmp_path, monkeypatch, capsys):  # noqa: F811

@@ -31,7 +31,9 @@ written stay in the view cache.
 from __future__ import annotations
 
 import os
+import shutil
 import signal
+import tempfile
 import threading
 import time
 from contextlib import contextmanager
@@ -63,24 +65,40 @@ def _interrupts_ignored():
         signal.signal(signal.SIGINT, old)
 
 
-def _worker_start(threads: int, slots: list, counter) -> None:
+def _worker_start(threads: int, slots: list, claims: str | None) -> None:
     """In each worker, before its first task: Ctrl-C (sent to the whole process group) is the
     driver's to handle (it stops the workers itself, so a worker prints no traceback of its own);
     OpenCV's and a CPU Vulkan driver's thread pools get the worker's share of the cores
     (``threads``), not every core each, unless the environment already sizes lavapipe's.  With
-    GPUs to spread over (``slots``, :func:`~r360gpu.gpu.assign.worker_slots`), the k-th worker to
-    start (``counter``, shared) takes slot k mod len(slots) as its CUDA_VISIBLE_DEVICES, which its
-    tasks map to a wgpu adapter (:func:`~r360gpu.gpu.assign.worker_adapter`) and CUDA honours."""
+    GPUs to spread over (``slots``, `r360gpu.gpu.assign.worker_slots`), the k-th worker to
+    start (its claim in the folder ``claims``, `_claim`) takes slot k mod len(slots) as its
+    CUDA_VISIBLE_DEVICES, which its tasks map to a wgpu adapter
+    (`r360gpu.gpu.assign.worker_adapter`) and CUDA honours."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # already so when the driver started it (_interrupts_ignored)
     if slots:
-        with counter.get_lock():
-            k = counter.value
-            counter.value += 1
-        os.environ["CUDA_VISIBLE_DEVICES"] = slots[k % len(slots)]
+        os.environ["CUDA_VISIBLE_DEVICES"] = slots[_claim(claims) % len(slots)]
     os.environ.setdefault("LP_NUM_THREADS", str(threads))  # read when the worker opens its device
     import cv2
 
     cv2.setNumThreads(threads)
+
+
+def _claim(claims: str | None) -> int:
+    """The least k whose file ``k`` this worker created first in the folder ``claims`` (O_EXCL makes
+    the claim atomic across processes).  A file, not a shared counter: a counter's lock is a named
+    semaphore that the driver unlinks when it exits, so a worker still starting after a Ctrl-C
+    would end in a traceback while reading its arguments, before any code of ours could catch it.
+    A folder already removed (the driver has stopped) gives 0: the worker is about to be stopped."""
+    k = 0
+    while claims is not None:
+        try:
+            os.close(os.open(os.path.join(claims, str(k)), os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+            return k
+        except FileExistsError:
+            k += 1
+        except OSError:
+            return 0
+    return k
 
 
 def check_workers(workers) -> int:
@@ -112,6 +130,7 @@ class ProcessExecutor(ChunkExecutor):
         self.workers = workers
         self.chunk = chunk
         self._pool = None
+        self._claims = None  # the folder in which starting workers claim their GPU slots
 
     def _start(self):
         if self._pool is None:
@@ -123,8 +142,9 @@ class ProcessExecutor(ChunkExecutor):
             threads = max(1, (os.cpu_count() or 1) // self.workers)
             spawn = multiprocessing.get_context("spawn")
             slots = worker_slots(self.adapter)  # the GPUs the workers take round-robin
+            self._claims = tempfile.mkdtemp(prefix="r360-worker-slots-") if slots else None
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=spawn, initializer=_worker_start,
-                                             initargs=(threads, slots, spawn.Value("i", 0)))
+                                             initargs=(threads, slots, self._claims))
         return self._pool
 
     def close(self) -> None:
@@ -140,6 +160,9 @@ class ProcessExecutor(ChunkExecutor):
             for proc in list((getattr(pool, "_processes", None) or {}).values()):
                 proc.terminate()
         pool.shutdown(wait=True, cancel_futures=True)
+        if self._claims is not None:
+            shutil.rmtree(self._claims, ignore_errors=True)
+            self._claims = None
 
     def score_scene(self, run, view_cache, sink, progress: bool) -> dict:
         """{view: cells} for the views of ``run`` the view cache lacks; stored there as they arrive."""
