@@ -12,6 +12,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import InputError
+from ..render.sources import frame_of
 from .masks import TargetMaskRenderer
 from .target import lift_target, load_indices, target_from_box, target_from_indices
 
@@ -37,8 +38,9 @@ def _given_masks(bundle) -> dict:
     return out
 
 
-def lifted_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
-    """(LiftedTarget, given masks {view: (H, W) bool}) for ``bundle.target`` over pre's ``gaussians``."""
+def lifted_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn=None):
+    """(LiftedTarget, given masks {view: (H, W) bool}) for ``bundle.target`` over pre's ``gaussians``
+    (in ``frame``, :class:`~r360gpu.io.frames.Frame`; None: the cameras')."""
     spec = bundle.target
     given = _given_masks(bundle)
     if spec.indices is not None:
@@ -54,7 +56,7 @@ def lifted_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
         warn(f"target lifted from {len(views)} view's mask only ({views[0]}): depth is ambiguous; "
              f"give masks of at least {MIN_LIFT_VIEWS} views")
     lifted = lift_target(gaussians, [bundle.cameras[v] for v in views], [given[v] for v in views], ctx=ctx,
-                         options=options)
+                         options=options, frame=frame)
     if not lifted.target.any():
         raise InputError(f"scene {bundle.name!r}: the target masks lift to no Gaussian of pre")
     return lifted, given
@@ -69,11 +71,12 @@ def resolve_target(bundle, pre, *, ctx=None, warn=None):
     if getattr(pre, "gaussians", None) is None:
         raise InputError(f"scene {bundle.name!r}: [target] needs pre as a splat scene")
     options = getattr(pre, "render_options", None)
-    lifted, given = lifted_target(bundle, pre.gaussians, ctx=ctx, options=options, warn=warn)
+    frame = frame_of(pre)
+    lifted, given = lifted_target(bundle, pre.gaussians, ctx=ctx, options=options, frame=frame, warn=warn)
     masks = {v: given[v] for v in bundle.views if v in given}
     todo = [v for v in bundle.views if v not in given]
     if todo:
-        r = TargetMaskRenderer(pre.gaussians, lifted.target, ctx=ctx, options=options)
+        r = TargetMaskRenderer(pre.gaussians, lifted.target, ctx=ctx, options=options, frame=frame)
         try:
             for v in todo:
                 masks[v] = r.mask(bundle.cameras[v])
@@ -85,11 +88,11 @@ def resolve_target(bundle, pre, *, ctx=None, warn=None):
     return replace(bundle, masks=masks), record
 
 
-def scene_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
+def scene_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn=None):
     """The LiftedTarget of any bundle with cameras: its ``[target]``, else its views' masks lifted
-    (views with a camera and a non-empty mask)."""
+    (views with a camera and a non-empty mask) to ``gaussians`` in ``frame`` (None: the cameras')."""
     if getattr(bundle, "target", None) is not None:
-        return lifted_target(bundle, gaussians, ctx=ctx, options=options, warn=warn)[0]
+        return lifted_target(bundle, gaussians, ctx=ctx, options=options, frame=frame, warn=warn)[0]
     from ..io import load_mask
 
     cams, masks = [], []
@@ -104,7 +107,7 @@ def scene_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
             masks.append(m)
     if not cams:
         raise InputError(f"scene {bundle.name!r}: no view with a camera shows the target; cannot lift it")
-    lifted = lift_target(gaussians, cams, masks, ctx=ctx, options=options)
+    lifted = lift_target(gaussians, cams, masks, ctx=ctx, options=options, frame=frame)
     if not lifted.target.any():
         raise InputError(f"scene {bundle.name!r}: the target masks lift to no Gaussian of pre")
     return lifted
