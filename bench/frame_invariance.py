@@ -6,7 +6,8 @@ frame declared (issue 35): they must be equal.
 Writes two bundles (``room`` as generated, ``room_framed`` moved by a random similarity, scale
 log-uniform in [0.1, 10], declared by a ``dataparser_transforms.json`` named by scene.toml's
 ``frame``), then per bundle: a ``[target]`` of the masks of 4 views lifted over pre (Gaussians lifted,
-of them the target's, rendered target masks), ``score --orbit N --residuals --prune-residuals
+of them the target's, rendered target masks) and one of the target's indices (masks rendered at every
+view), ``score --orbit N --residuals --prune-residuals
 (floater count)`` (capture axes, orbit poses kept and their axes, residual maximum and top
 indices, pruned axes), and the viewer's live acc_depth at the first evaluation view.  Prints
 one line per output, framed vs unframed.  ``--bundles DIR`` reuses bundles made before (e.g. to
@@ -38,17 +39,21 @@ def make_bundles(folder: Path, args) -> None:
     print(f"frame: scale {frame.scale:.4g}, translation {np.round(frame.translation, 3).tolist()}")
 
 
-def with_target(bundle_dir: Path, out: Path) -> Path:
-    """A copy whose scene.toml has no masks but a [target] of LIFT_VIEWS views' masks."""
+def with_target(bundle_dir: Path, out: Path, indices=None) -> Path:
+    """A copy whose scene.toml has no masks but a [target]: LIFT_VIEWS views' masks, or ``indices``."""
     from r360gpu.io import load_mask
 
     shutil.copytree(bundle_dir, out)
+    text = (out / "scene.toml").read_text().replace('masks = "masks"\n', "")
+    if indices is not None:
+        np.save(out / "target.npy", indices)
+        (out / "scene.toml").write_text(text + '\n[target]\nindices = "target.npy"\n')
+        return out
     views = sorted(p.stem for p in (out / "masks").glob("*.png"))
     shown = [v for v in views if load_mask(out / "masks" / f"{v}.png").any()]
     (out / "given").mkdir()
     for i in np.linspace(0, len(shown) - 1, LIFT_VIEWS).round().astype(int):
         shutil.copy(out / "masks" / f"{shown[i]}.png", out / "given" / f"{shown[i]}.png")
-    text = (out / "scene.toml").read_text().replace('masks = "masks"\n', "")
     (out / "scene.toml").write_text(text + '\n[target]\nmasks = "given"\n')
     return out
 
@@ -85,6 +90,14 @@ def outputs(bundle_dir: Path, work: Path, args, ctx) -> dict:
         out["lifted"] = (len(idx), int(np.count_nonzero((idx >= n_bg) & (idx < n_pre))))
         out["lifted_indices"] = idx
         out["target_masks"] = {v: resolved.masks[v] for v in record["rendered"]}
+    finally:
+        pre.release()
+    ib = load_bundle(with_target(bundle_dir, work / "indices", np.arange(n_bg, n_pre)))
+    pre = open_source(ib.pre, ctx=ctx)
+    try:
+        out["indices_masks"] = resolve_target(ib, pre, ctx=ctx)[0].masks
+    except Exception as e:
+        out["indices_masks"] = f"error: {e}"
     finally:
         pre.release()
     bundle = load_bundle(bundle_dir)
@@ -169,6 +182,12 @@ def main() -> int:
         diff = sum(int(np.count_nonzero(plain["target_masks"][v] != framed["target_masks"].get(v, ~plain["target_masks"][v])))
                    for v in plain["target_masks"])
         print(f"{'target mask pixels':<22} differing: {diff} over {len(plain['target_masks'])} rendered views")
+    a, b = plain["indices_masks"], framed["indices_masks"]
+    if isinstance(a, dict) and isinstance(b, dict):
+        diff = sum(int(np.count_nonzero(a[v] != b[v])) for v in a)
+        print(f"{'indices target masks':<22} differing pixels: {diff} over {len(a)} views")
+    else:
+        print(f"{'indices target masks':<22} {str(a)[:38]:<40} {str(b)[:200]}")
     print(f"{'orbit poses kept':<22} {str(plain['orbit_kept']):<40} {framed['orbit_kept']}")
     for key in ("axes", "orbit_axes", "pruned_axes", "residual_max"):
         print(f"{key:<22} max |framed - unframed| over every number = {max_diff(plain[key], framed[key]):.3g}")

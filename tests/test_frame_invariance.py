@@ -175,3 +175,34 @@ def test_moved_gaussians_and_in_frame_see_the_same_image(ctx):
     finally:
         a.release()
         b.release()
+
+
+def test_the_viewers_target_is_placed_in_the_cameras_world(ctx):
+    """The viewer's target estimate over a moved pre: the same Gaussians, its centre (what "focus on
+    the target" points at) in the cameras' world, and the same mask off the evaluation views."""
+    from r360gpu.lift import TargetMaskRenderer
+    from r360gpu.synthetic import target_masks
+    from r360gpu.viewer.target import estimate_target
+
+    scene = make_scene("room", n_views=4, width=96, height=72, detail=0.25)
+    masks = target_masks(scene, ctx=ctx)
+    cams = list(scene.cameras)
+    frame = random_similarity(np.random.default_rng(11))
+    moved = moved_gaussians(scene.pre, frame)
+    plain = estimate_target(scene.pre, cams, [masks[c.name] for c in cams], ctx=ctx)
+    framed = estimate_target(moved, cams, [masks[c.name] for c in cams], ctx=ctx, frame=frame)
+    assert np.array_equal(plain.indices, framed.indices) and len(plain.indices)
+    np.testing.assert_allclose(framed.centre, plain.centre, atol=1e-5)
+    assert framed.radius == pytest.approx(plain.radius, rel=1e-5)
+    c0 = cams[0]
+    c2w = np.eye(4)
+    c2w[:3, :3], c2w[:3, 3] = c0.R.T, c0.center + 0.2 * c0.R[0]  # off the evaluation views: 0.2 m to the right
+    off = type(c0).from_camera_to_world(c2w, c0.fx, c0.fy, c0.cx, c0.cy, c0.width, c0.height, "off")
+    a = TargetMaskRenderer(scene.pre, plain.mask, ctx=ctx)
+    b = TargetMaskRenderer(moved, framed.mask, ctx=ctx, frame=frame)
+    try:
+        for cam in (off, *cams[1:]):
+            assert np.count_nonzero(a.mask(cam) != b.mask(cam)) <= 2
+    finally:
+        a.release()
+        b.release()
