@@ -179,8 +179,8 @@ def main() -> int:
     if "lifted_indices" in plain and "lifted_indices" in framed:
         print(f"{'lifted set equal':<22} {np.array_equal(plain['lifted_indices'], framed['lifted_indices'])}")
     if "target_masks" in plain and "target_masks" in framed:
-        diff = sum(int(np.count_nonzero(plain["target_masks"][v] != framed["target_masks"].get(v, ~plain["target_masks"][v])))
-                   for v in plain["target_masks"])
+        a, b = plain["target_masks"], framed["target_masks"]
+        diff = sum(int(np.count_nonzero(a[v] != b.get(v, ~a[v]))) for v in a)
         print(f"{'target mask pixels':<22} differing: {diff} over {len(plain['target_masks'])} rendered views")
     a, b = plain["indices_masks"], framed["indices_masks"]
     if isinstance(a, dict) and isinstance(b, dict):

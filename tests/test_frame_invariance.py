@@ -4,10 +4,11 @@ declared (issue 35): a property test over seeded random similarities (rotation, 
 The synthetic room (clean and floaters, 5 views at 160x120) is scored once as generated and once per
 draw with every splat file moved by the similarity and a ``dataparser_transforms.json`` named by
 scene.toml's ``frame`` (:func:`r360gpu.synthetic.frames.moved_bundle`).  Compared: the lifted
-``[target]`` (identical set), the target masks rendered at the other views (identical pixels), the
-orbit (identical poses kept, camera poses within 1e-6), every Gaussian's residual (within 1e-3;
-identical top ranking; the residual PLY in the method file's own coordinates), the axes of the capture views, the orbit and the pruned what-ifs, and the viewer's live
-acc_depth at an evaluation view.
+``[target]`` (identical set), the target masks rendered at the other views and those of a
+``[target]`` of indices at every view (identical pixels), the orbit (identical poses kept, camera
+poses within 1e-6), every Gaussian's residual (within 1e-3; identical top ranking; the residual PLY
+in the method file's own coordinates), the axes of the capture views, the orbit and the pruned
+what-ifs, and the viewer's live acc_depth at an evaluation view.
 
 s_sem and s_geo agree to 1e-6; the other numbers of the axes entries (s_str, RQS, PSNR, ...) to
 :data:`AXES_TOL`: the moved PLY holds float32 coordinates of the moved centres, so the renderer rounds
@@ -42,9 +43,14 @@ AXES_TOL = 0.05
 LIFT_VIEWS = 3
 
 
-def _with_target(src, dst):
-    """A copy whose scene.toml has no masks but a [target] lifted from LIFT_VIEWS views' masks."""
+def _with_target(src, dst, indices=None):
+    """A copy whose scene.toml has no masks but a [target]: LIFT_VIEWS views' masks, or ``indices``."""
     shutil.copytree(src, dst)
+    if indices is not None:
+        np.save(dst / "target.npy", indices)
+        text = (dst / "scene.toml").read_text().replace('masks = "masks"\n', "")
+        (dst / "scene.toml").write_text(text + '\n[target]\nindices = "target.npy"\n')
+        return dst
     shown = [p.stem for p in sorted((dst / "masks").glob("*.png")) if load_mask(p).any()]
     (dst / "given").mkdir()
     for i in np.linspace(0, len(shown) - 1, LIFT_VIEWS).round().astype(int):
@@ -54,7 +60,7 @@ def _with_target(src, dst):
     return dst
 
 
-def _outputs(folder, work, ctx, n_floaters) -> dict:
+def _outputs(folder, work, ctx, n_floaters, target) -> dict:
     from r360gpu.viewer.layers import build_layers
     from r360gpu.viewer.live import live_axis
 
@@ -66,6 +72,12 @@ def _outputs(folder, work, ctx, n_floaters) -> dict:
     finally:
         pre.release()
     assert record["gaussians"] == len(lifted.indices)
+    ib = load_bundle(_with_target(folder, work / "indices", target))
+    pre = open_source(ib.pre, ctx=ctx)
+    try:
+        by_indices = resolve_target(ib, pre, ctx=ctx)[0].masks
+    finally:
+        pre.release()
     bundle = load_bundle(folder)
     orbit, info = orbit_bundle(bundle, ORBIT, ctx=ctx)
     opts = EvaluateOptions(n_boot=50, n_perm=20, pictures=False, boundary=False, controls=False, orbit=ORBIT,
@@ -80,7 +92,7 @@ def _outputs(folder, work, ctx, n_floaters) -> dict:
     finally:
         for layer in layers.values():
             layer.release()
-    return {"lifted": lifted.indices, "rendered": record["rendered"], "masks": resolved.masks,
+    return {"lifted": lifted.indices, "rendered": record["rendered"], "masks": resolved.masks, "by_indices": by_indices,
             "orbit": [(c.name, c.R, c.t) for c in orbit.cameras.values()], "dropped": info["dropped"],
             "axes": {m: e["axes"] for m, e in res["methods"].items()},
             "orbit_axes": {m: e["axes"] for m, e in res["orbit"]["methods"].items()},
@@ -123,19 +135,22 @@ def room(tmp_path_factory, ctx):
     scene = make_scene("room", n_views=ARGS["n_views"], width=ARGS["width"], height=ARGS["height"],
                        detail=ARGS["detail"])
     n_floaters = load_gaussians(load_bundle(folder).methods["floaters"].path).n - scene.background.n
-    return root, folder, n_floaters, _outputs(folder, root / "plain", ctx, n_floaters)
+    target = np.arange(scene.background.n, scene.pre.n)
+    return root, folder, (n_floaters, target), _outputs(folder, root / "plain", ctx, n_floaters, target)
 
 
 @pytest.mark.parametrize("draw", range(len(DRAWS)))
 def test_every_3d_output_is_unchanged_in_another_frame(room, ctx, draw):
-    root, folder, n_floaters, plain = room
+    root, folder, (n_floaters, target), plain = room
     frame = random_similarity(np.random.default_rng(100 + draw), scale=DRAWS[draw])
     moved = moved_bundle(folder, root / f"framed{draw}", frame)
-    out = _outputs(moved, root / f"out{draw}", ctx, n_floaters)
+    out = _outputs(moved, root / f"out{draw}", ctx, n_floaters, target)
     assert np.array_equal(out["lifted"], plain["lifted"]) and len(plain["lifted"])
     assert out["rendered"] == plain["rendered"] and plain["rendered"]
     differing = {v: int(np.count_nonzero(out["masks"][v] != plain["masks"][v])) for v in plain["rendered"]}
     assert not any(differing.values()), differing
+    assert sorted(out["by_indices"]) == sorted(plain["by_indices"]) == sorted(load_bundle(folder).views)
+    assert all(np.array_equal(out["by_indices"][v], m) for v, m in plain["by_indices"].items())
     assert [c[0] for c in out["orbit"]] == [c[0] for c in plain["orbit"]] and out["dropped"] == plain["dropped"]
     pose = max(max(np.abs(a[1] - b[1]).max(), np.abs(a[2] - b[2]).max()) for a, b in zip(out["orbit"], plain["orbit"]))
     assert pose < 1e-6
@@ -147,8 +162,9 @@ def test_every_3d_output_is_unchanged_in_another_frame(room, ctx, draw):
     assert out["live"] == pytest.approx(plain["live"], abs=1e-6)
     diffs = {k: _axes_diff(out[k], plain[k]) for k in ("axes", "orbit_axes", "pruned_axes")}
     exact = max(abs(out[k][m][axis] - a[axis]) for k in diffs for m, a in plain[k].items() for axis in EXACT)
-    print(f"draw {draw}: scale {frame.scale:.3g}; lifted {len(out['lifted'])} identical; {len(differing)} target masks "
-          f"identical; {len(out['orbit'])} orbit poses kept, pose diff {pose:.2g}; residuals max diff {res_diff:.2g}; "
+    print(f"draw {draw}: scale {frame.scale:.3g}; lifted {len(out['lifted'])} identical; {len(differing)} lifted "
+          f"and {len(out['by_indices'])} indices target masks identical; {len(out['orbit'])} orbit poses kept, "
+          f"pose diff {pose:.2g}; residuals max diff {res_diff:.2g}; "
           f"live acc_depth diff {abs(out['live'] - plain['live']):.2g}; {', '.join(EXACT)} diff {exact:.2g}; "
           "largest other axes diffs " + ", ".join(f"{k} {v[0]:.2g} ({v[1]})" for k, v in diffs.items()))
     assert exact <= 1e-6

@@ -41,8 +41,8 @@ bundle gives depth in the units of the bundle's cameras, whatever frame each
 was trained in, and depth comparisons between sources stay consistent.
 
 One place applies a frame: :func:`in_frame` (a camera), :func:`depth_in_cameras`
-(a depth image) and :meth:`Frame.points_back` (points of the splats' frame
-back in the cameras' world).  Every consumer of a splat source's cameras --
+(a depth image) and :func:`points_in_cameras` (points of the splats' frame back
+in the cameras' world).  Every consumer of a splat source's cameras --
 rendering, lifting a target, target masks, orbit poses, residuals, pruning,
 the viewer -- goes through them, with ``frame=None`` (the cameras' own frame)
 costing nothing.  What is placed in the world (the target's centre, the
@@ -153,6 +153,12 @@ def in_frame(frame: Frame | None, camera: Camera) -> Camera:
     """``camera`` (the bundle's, in the cameras' world) as a source in ``frame`` sees it; the camera
     itself when ``frame`` is None (the source is in the cameras' frame: no work)."""
     return camera if frame is None else frame.camera(camera)
+
+
+def points_in_cameras(frame: Frame | None, xyz):
+    """(N, 3) points of a source in ``frame`` (e.g. its Gaussians' centres) in the cameras' world
+    (:meth:`Frame.points_back`); ``xyz`` itself when ``frame`` is None."""
+    return xyz if frame is None else frame.points_back(xyz)
 
 
 def depth_in_cameras(frame: Frame | None, depth):

@@ -48,7 +48,7 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
     "note" when no orbit is possible.
     """
     from ..bundle.model import Bundle
-    from ..io.frames import depth_in_cameras, in_frame
+    from ..io.frames import depth_in_cameras, in_frame, points_in_cameras
     from ..lift.masks import TargetMaskRenderer
     from ..lift.orbit import keep_pose, orbit_cameras
     from ..lift.resolve import scene_target
@@ -68,7 +68,7 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
     g, options, frame = _gaussians(bundle.pre)
     lifted = scene_target(bundle, g, ctx=ctx, options=options, frame=frame, warn=warn)
     # the poses live in the cameras' world, as the evaluation views do; each source sees them in its frame
-    centre, _ = lifted.extent(g.means if frame is None else frame.points_back(g.means))
+    centre, _ = lifted.extent(points_in_cameras(frame, g.means))
     cams = orbit_cameras(centre, [bundle.cameras[v] for v in bundle.views if v in bundle.cameras], n)
     pre_r = Renderer(g, ctx=ctx, options=options)
     alone = Renderer(g.subset(lifted.target), ctx=ctx, options=options)

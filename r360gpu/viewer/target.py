@@ -57,7 +57,9 @@ def _target(lifted, means, frame=None) -> Target | None:
     where the viewer's camera moves."""
     if not lifted.target.any():
         return None
-    centre, radius = lifted.extent(means if frame is None else frame.points_back(means))
+    from r360gpu.io.frames import points_in_cameras
+
+    centre, radius = lifted.extent(points_in_cameras(frame, means))
     return Target(lifted.indices, lifted.target, centre, radius)
 
 
