@@ -222,3 +222,50 @@ def test_the_viewers_target_is_placed_in_the_cameras_world(ctx):
     finally:
         a.release()
         b.release()
+
+
+def _viewer_live(folder, ctx, tmp_path) -> tuple:
+    """The headless viewer on ``folder`` with floaters shown: (live axis at the first evaluation view,
+    live axis off the views (the lifted target's projected mask), the viewer's target)."""
+    pytest.importorskip("rendercanvas")
+    pytest.importorskip("imgui_bundle")
+    from rendercanvas.offscreen import OffscreenRenderCanvas
+
+    from r360gpu.viewer.app import ViewerApp
+    from r360gpu.viewer.quality import ResolutionPolicy
+
+    clock = [100.0]
+    canvas = OffscreenRenderCanvas(size=(ARGS["width"], ARGS["height"]))
+    app = ViewerApp(load_bundle(folder), canvas=canvas, ctx=ctx, capture_dir=tmp_path, gui=False,
+                    clock=lambda: clock[0], policy=ResolutionPolicy(moving_scale=0.5))
+    canvas.request_draw(app.frame)
+    try:
+        app.key("4")  # show floaters (1 pre, 2 reference, 3 clean)
+        clock[0] += 1.0
+        canvas.draw()
+        at_view = app.live["floaters"]
+        app.camera.orbit(3, 0)
+        for _ in range(2):  # the move (reduced resolution, nothing measured), then at rest
+            clock[0] += 1.0
+            canvas.draw()
+        return at_view, app.live["floaters"], app.ensure_target()
+    finally:
+        app.close()
+
+
+def test_the_viewers_live_axis_is_unchanged_in_another_frame(room, ctx, tmp_path):
+    root, folder, _, _ = room
+    frame = random_similarity(np.random.default_rng(13), scale=(0.1, 0.1))
+    moved = moved_bundle(folder, tmp_path / "framed", frame)
+    (a_view, a_off, a), (b_view, b_off, b) = (_viewer_live(f, ctx, tmp_path) for f in (folder, moved))
+    assert a_view.mask_kind == b_view.mask_kind == "evaluation" and a_off.mask_kind == b_off.mask_kind == "projected"
+    assert b_view.acc_depth == pytest.approx(a_view.acc_depth, abs=1e-6) and a_view.n_mask > 0
+    assert b_view.threshold == pytest.approx(a_view.threshold, rel=1e-4)  # depth in the cameras' units
+    # off the views: the viewer's own lift of every view's mask (with pre's render options), rendered
+    flipped = int(np.count_nonzero(a.mask != b.mask))
+    assert flipped == 0 and b_off.n_mask == a_off.n_mask > 0
+    assert b_off.acc_depth == pytest.approx(a_off.acc_depth, abs=1e-6)
+    np.testing.assert_allclose(b.centre, a.centre, atol=1e-5)
+    print(f"viewer live acc_depth at view {a_view.acc_depth:.6f} / {b_view.acc_depth:.6f}, off the views "
+          f"{a_off.acc_depth:.6f} / {b_off.acc_depth:.6f} (mask {a_off.n_mask} / {b_off.n_mask} px); target "
+          f"{len(a.indices)} Gaussians, {flipped} differ; centre moved {np.linalg.norm(b.centre - a.centre):.2g}")

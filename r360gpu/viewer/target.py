@@ -87,8 +87,8 @@ class SceneTarget:
         pre = app.layers.get("pre")
         if not isinstance(pre, SplatLayer) or not app.cameras:
             return None
-        options = getattr(getattr(pre, "renderer", None), "options", None)
-        frame = frame_of(pre.load())
+        source = pre.load()  # its render options and frame, as scoring renders it
+        options, frame = getattr(source, "render_options", None), frame_of(source)
         if getattr(app.bundle, "target", None) is not None:
             from r360gpu.lift.resolve import lifted_target
 
