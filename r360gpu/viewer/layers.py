@@ -125,10 +125,11 @@ class SplatLayer:
 
     @classmethod
     def from_gaussians(cls, name: str, gaussians, *, ctx: GpuContext, background=(0.0, 0.0, 0.0),
-                       depth: str = "expected", frame=None) -> "SplatLayer":
+                       depth: str = "expected", frame=None, options=None) -> "SplatLayer":
         """A layer over in-memory Gaussians (e.g. the estimated target's subset of pre) in ``frame``
-        (:class:`r360gpu.io.frames.Frame`, e.g. the scene's they come from; None: the cameras')."""
-        return cls(name, lambda: _GaussiansSource(gaussians, ctx, background, frame), ctx=ctx, depth=depth)
+        (:class:`r360gpu.io.frames.Frame`; None: the cameras') rendered with ``options``
+        (:class:`r360gpu.render.conventions.RenderOptions`), e.g. those of the scene they come from."""
+        return cls(name, lambda: _GaussiansSource(gaussians, ctx, background, frame, options), ctx=ctx, depth=depth)
 
     def load(self):
         """The opened source (loads the splat file and uploads it on the first call)."""
@@ -192,14 +193,15 @@ def _depth_in_cameras(ctx: GpuContext, out, frame) -> None:
 
 class _GaussiansSource:
     """The part of :class:`r360gpu.render.sources.SceneSource` a layer uses, for in-memory Gaussians
-    (``frame``: theirs, as a scene source's; None: the cameras')."""
+    (``frame``, ``options``: theirs, as a scene source's; None: the cameras' frame, the defaults)."""
 
-    def __init__(self, gaussians, ctx: GpuContext, background, frame=None):
+    def __init__(self, gaussians, ctx: GpuContext, background, frame=None, options=None):
         from r360gpu.render import Renderer
 
         self.gaussians = gaussians
         self.frame = frame
-        self.renderer = Renderer(gaussians, ctx=ctx, background=tuple(float(c) for c in background))
+        self.renderer = Renderer(gaussians, ctx=ctx, background=tuple(float(c) for c in background),
+                                 options=options)
 
     def release(self) -> None:
         self.renderer.release()
