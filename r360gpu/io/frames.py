@@ -40,8 +40,8 @@ by ``s`` (:class:`r360gpu.render.sources.SceneSource`), so every source of a
 bundle gives depth in the units of the bundle's cameras, whatever frame each
 was trained in, and depth comparisons between sources stay consistent.
 
-One place applies a frame: :func:`in_frame` (a camera), :func:`depth_in_cameras`
-(a depth image) and :func:`points_in_cameras` (points of the splats' frame back
+One place applies a frame: `in_frame` (a camera), `depth_in_cameras`
+(a depth image) and `points_in_cameras` (points of the splats' frame back
 in the cameras' world).  Every consumer of a splat source's cameras --
 rendering, lifting a target, target masks, orbit poses, residuals, pruning,
 the viewer -- goes through them, with ``frame=None`` (the cameras' own frame)
@@ -133,7 +133,7 @@ class Frame:
         return xyz @ self.m[:3, :3].T + self.translation
 
     def points_back(self, xyz) -> np.ndarray:
-        """(N, 3) points of the frame (e.g. Gaussian centres) in the cameras' world: :meth:`points` undone."""
+        """(N, 3) points of the frame (e.g. Gaussian centres) in the cameras' world: `points` undone."""
         xyz = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
         return ((xyz - self.translation) @ self.rotation) / self.scale
 
@@ -157,12 +157,12 @@ def in_frame(frame: Frame | None, camera: Camera) -> Camera:
 
 def points_in_cameras(frame: Frame | None, xyz):
     """(N, 3) points of a source in ``frame`` (e.g. its Gaussians' centres) in the cameras' world
-    (:meth:`Frame.points_back`); ``xyz`` itself when ``frame`` is None."""
+    (`Frame.points_back`); ``xyz`` itself when ``frame`` is None."""
     return xyz if frame is None else frame.points_back(xyz)
 
 
 def depth_in_cameras(frame: Frame | None, depth):
-    """A depth image rendered at :func:`in_frame`'s camera, in the cameras' units (divided by the
+    """A depth image rendered at `in_frame`'s camera, in the cameras' units (divided by the
     frame's scale; 0 stays 0); ``depth`` itself when there is no frame or its scale is 1."""
     if frame is None or depth is None or frame.scale == 1.0:
         return depth

@@ -4,7 +4,7 @@ This package consumes render outputs (the renderer's projection, sort and
 tile lists) and target masks; nothing upstream imports it.
 
 Library (numpy arrays in, numpy out; masks may also be float32 wgpu buffers
-on the context's device, and :func:`target_masks` can leave its output there)::
+on the context's device, and `target_masks` can leave its output there)::
 
     lift_target(scene, cameras, masks, *, ctx=None, options=None, frame=None) -> LiftedTarget
         scene: Gaussians (N); cameras: [Camera]; masks: [(H, W) bool/float32 or wgpu buffer]
@@ -18,9 +18,9 @@ on the context's device, and :func:`target_masks` can leave its output there)::
         (surface_depth(reference, cameras) or depth_behind(pre, target, cameras))
     MaskLifter, TargetMaskRenderer    the device passes (weights / masks stay on the GPU)
 
-frame: the scene's world frame (:class:`r360gpu.io.frames.Frame`; None: the
+frame: the scene's world frame (`r360gpu.io.frames.Frame`; None: the
 cameras'): cameras are given in the bundle's world and moved into it
-(:func:`r360gpu.io.frames.in_frame`), depths come back in the cameras' units.
+(`r360gpu.io.frames.in_frame`), depths come back in the cameras' units.
 """
 from __future__ import annotations
 

@@ -63,7 +63,7 @@ class SceneSource:
                              f"bindings (`r360gpu doctor` lists this adapter's limits)", scene) from None
 
     def camera(self, camera):
-        """The bundle's ``camera`` as this scene's Gaussians see it (:func:`r360gpu.io.frames.in_frame`)."""
+        """The bundle's ``camera`` as this scene's Gaussians see it (`r360gpu.io.frames.in_frame`)."""
         from ..io.frames import in_frame
 
         return in_frame(self.frame, camera)
@@ -117,16 +117,16 @@ class RendersSource:
 class DeviceViewsSource:
     """Renders another GPU pipeline already holds on the device, one per view.
 
-    ``views`` maps a view name to a :class:`~r360gpu.render.DeviceRender`
+    ``views`` maps a view name to a `DeviceRender`
     (this renderer's device output, or any buffer in that plane layout) or to
     a pair ``(rgb, depth)`` with ``rgb`` float (H, W, 3) in [0, 1] and
-    ``depth`` a :class:`~r360gpu.kernels.depth_change.DeviceDepth` or a
+    ``depth`` a `DeviceDepth` or a
     float32 array.  Depth stays on the device: the geometric axis reads it
     there.  RGB comes to the host, because the probes run on the CPU.
 
     ``ctx``: the context of the device holding the buffers.  Without it, the
     source takes the context of the run it is scored in
-    (:func:`r360gpu.evaluate` binds its own, e.g. the one around
+    (`r360gpu.evaluate` binds its own, e.g. the one around
     ``device=``), so it need not be given twice.
     """
 
@@ -195,7 +195,7 @@ def host_depth(depth, ctx=None) -> np.ndarray | None:
 
 
 def frame_of(spec):
-    """The world frame (:class:`~r360gpu.io.frames.Frame`) of a bundle source's Gaussians: a scene
+    """The world frame (`Frame`) of a bundle source's Gaussians: a scene
     spec's resolved ``frame``, an opened source's; None for the cameras' own frame (Gaussians in
     memory, renders, an unresolved draft)."""
     frame = getattr(spec, "frame", None)

@@ -1,15 +1,15 @@
 """A synthetic bundle moved into another world frame, as a trainer that normalised the world leaves it.
 
-:func:`moved_bundle` copies a bundle, moves every splat file by one
-similarity :class:`~r360gpu.io.frames.Frame` (``x' = s R x + t``; the
+`moved_bundle` copies a bundle, moves every splat file by one
+similarity `Frame` (``x' = s R x + t``; the
 cameras stay where they are) and declares it as nerfstudio does: a
 ``dataparser_transforms.json`` (``transform`` = ``[R | t / s]``, ``scale`` =
 ``s``) named by scene.toml's top-level ``frame``.  The near plane is in scene
-units (:class:`~r360gpu.render.conventions.RenderOptions`, as a trainer renders
+units (`RenderOptions`, as a trainer renders
 in its own units), so each moved source gets ``near = s * NEAR_PLANE``: the same
 Gaussians culled.  Scoring the copy must give what the original gives: the
 frame is applied to the cameras, never undone on the Gaussians
-(:mod:`r360gpu.io.frames`).
+(`r360gpu.io.frames`).
 """
 from __future__ import annotations
 

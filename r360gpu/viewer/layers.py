@@ -127,8 +127,8 @@ class SplatLayer:
     def from_gaussians(cls, name: str, gaussians, *, ctx: GpuContext, background=(0.0, 0.0, 0.0),
                        depth: str = "expected", frame=None, options=None) -> "SplatLayer":
         """A layer over in-memory Gaussians (e.g. the estimated target's subset of pre) in ``frame``
-        (:class:`r360gpu.io.frames.Frame`; None: the cameras') rendered with ``options``
-        (:class:`r360gpu.render.conventions.RenderOptions`), e.g. those of the scene they come from."""
+        (`r360gpu.io.frames.Frame`; None: the cameras') rendered with ``options``
+        (`r360gpu.render.conventions.RenderOptions`), e.g. those of the scene they come from."""
         return cls(name, lambda: _GaussiansSource(gaussians, ctx, background, frame, options), ctx=ctx, depth=depth)
 
     def load(self):
@@ -146,7 +146,7 @@ class SplatLayer:
 
     def image(self, camera, view: str | None = None) -> PlaneImage:
         """The rendering at ``camera`` (``view`` is ignored: a splat renders anywhere), seen in the
-        source's frame (:func:`r360gpu.io.frames.in_frame`), its depth planes in the cameras' units."""
+        source's frame (`r360gpu.io.frames.in_frame`), its depth planes in the cameras' units."""
         import time
 
         from r360gpu.io.frames import in_frame
@@ -192,7 +192,7 @@ def _depth_in_cameras(ctx: GpuContext, out, frame) -> None:
 
 
 class _GaussiansSource:
-    """The part of :class:`r360gpu.render.sources.SceneSource` a layer uses, for in-memory Gaussians
+    """The part of `r360gpu.render.sources.SceneSource` a layer uses, for in-memory Gaussians
     (``frame``, ``options``: theirs, as a scene source's; None: the cameras' frame, the defaults)."""
 
     def __init__(self, gaussians, ctx: GpuContext, background, frame=None, options=None):
