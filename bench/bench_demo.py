@@ -1,6 +1,6 @@
 """`r360gpu demo`, first run (nothing kept from before), against the 20 s goal (issue 27) and another source tree.
 
-    python bench/bench_demo.py [--rounds 3] [--against PATH] [--processes N] [--goal 20]
+    python bench/bench_demo.py [--rounds 3] [--against PATH] [--processes N] [--orbit N] [--goal 20]
 
 Each run is a fresh process, ``python -m r360gpu demo --out TMP --quiet`` in
 a new folder, so the benchmark is generated and scored from nothing.  With
@@ -11,7 +11,8 @@ this tree's demo with ``--processes N`` is run alternately with the plain
 one the same way.  r360gpu's bytecode is compiled
 before the first run (``common.bytecode_env``).  Wall time and the CPU
 time of the process (user + system, both cores) are reported per run, with
-the machine's load average before and after.
+the machine's load average before and after.  ``--orbit N`` runs every demo
+with ``--orbit N`` (the 3D features' cost, e.g. of one tree against another).
 """
 from __future__ import annotations
 
@@ -53,15 +54,17 @@ def main() -> int:
     ap.add_argument("--against", type=Path, default=None, help="another r360gpu source tree, run alternately")
     ap.add_argument("--processes", type=int, default=None,
                     help="also run this tree's demo with --processes N, alternately")
+    ap.add_argument("--orbit", type=int, default=None, help="run every demo with --orbit N")
     ap.add_argument("--goal", type=float, default=20.0, help="wall-time goal in s (issue 27: 20)")
     args = ap.parse_args()
-    trees = {"this": (ROOT, [])}
+    common = [] if args.orbit is None else ["--orbit", str(args.orbit)]
+    trees = {"this": (ROOT, common)}
     if args.against is not None:
         if not (args.against / "r360gpu" / "__init__.py").is_file():
             sys.exit(f"{args.against}: not an r360gpu source tree")
-        trees["against"] = (args.against.resolve(), [])
+        trees["against"] = (args.against.resolve(), common)
     if args.processes is not None:
-        trees["processes"] = (ROOT, ["--processes", str(args.processes)])
+        trees["processes"] = (ROOT, ["--processes", str(args.processes), *common])
     env = bytecode_env({root / "r360gpu" for root, _ in trees.values()})
     print(f"# r360gpu demo, first run: {os.cpu_count()} CPU cores; load average before: "
           f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")

@@ -39,6 +39,15 @@ Depth: a camera in the splats' frame measures depth in the splats' units,
 by ``s`` (:class:`r360gpu.render.sources.SceneSource`), so every source of a
 bundle gives depth in the units of the bundle's cameras, whatever frame each
 was trained in, and depth comparisons between sources stay consistent.
+
+One place applies a frame: `in_frame` (a camera), `depth_in_cameras`
+(a depth image) and `points_in_cameras` (points of the splats' frame back
+in the cameras' world).  Every consumer of a splat source's cameras --
+rendering, lifting a target, target masks, orbit poses, residuals, pruning,
+the viewer -- goes through them, with ``frame=None`` (the cameras' own frame)
+costing nothing.  What is placed in the world (the target's centre, the
+orbit poses) is in the cameras' world; what belongs to one file (a residual
+PLY, a ``[target]`` box or indices over pre) is in that file's coordinates.
 """
 from __future__ import annotations
 
@@ -123,6 +132,11 @@ class Frame:
         xyz = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
         return xyz @ self.m[:3, :3].T + self.translation
 
+    def points_back(self, xyz) -> np.ndarray:
+        """(N, 3) points of the frame (e.g. Gaussian centres) in the cameras' world: `points` undone."""
+        xyz = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
+        return ((xyz - self.translation) @ self.rotation) / self.scale
+
     def camera(self, cam: Camera) -> Camera:
         """``cam`` moved into the frame: the same image of the moved world (intrinsics kept)."""
         r = self.rotation
@@ -133,6 +147,26 @@ class Frame:
 
     def describe(self) -> dict:
         return {"origin": self.origin, "scale": self.scale, "matrix": [list(row) for row in self.matrix]}
+
+
+def in_frame(frame: Frame | None, camera: Camera) -> Camera:
+    """``camera`` (the bundle's, in the cameras' world) as a source in ``frame`` sees it; the camera
+    itself when ``frame`` is None (the source is in the cameras' frame: no work)."""
+    return camera if frame is None else frame.camera(camera)
+
+
+def points_in_cameras(frame: Frame | None, xyz):
+    """(N, 3) points of a source in ``frame`` (e.g. its Gaussians' centres) in the cameras' world
+    (`Frame.points_back`); ``xyz`` itself when ``frame`` is None."""
+    return xyz if frame is None else frame.points_back(xyz)
+
+
+def depth_in_cameras(frame: Frame | None, depth):
+    """A depth image rendered at `in_frame`'s camera, in the cameras' units (divided by the
+    frame's scale; 0 stays 0); ``depth`` itself when there is no frame or its scale is 1."""
+    if frame is None or depth is None or frame.scale == 1.0:
+        return depth
+    return depth / np.float32(frame.scale)
 
 
 # --- nerfstudio ------------------------------------------------------------------------------------

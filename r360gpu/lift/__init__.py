@@ -6,17 +6,21 @@ tile lists) and target masks; nothing upstream imports it.
 Library (numpy arrays in, numpy out; masks may also be float32 wgpu buffers
 on the context's device, and `target_masks` can leave its output there)::
 
-    lift_target(scene, cameras, masks, *, ctx=None, options=None) -> LiftedTarget
+    lift_target(scene, cameras, masks, *, ctx=None, options=None, frame=None) -> LiftedTarget
         scene: Gaussians (N); cameras: [Camera]; masks: [(H, W) bool/float32 or wgpu buffer]
         LiftedTarget.target (N,) bool, .w_in / .w_out (N,) float64, .indices (K,) int64
     target_from_indices(n, indices) / load_indices(path, n) / target_from_box(means, Box)
-    target_masks(scene, target, cameras, *, ctx=None, output="numpy"|"device")
+    target_masks(scene, target, cameras, *, ctx=None, frame=None, output="numpy"|"device")
         target: (N,) bool -> yields (H, W) bool per camera (or a DeviceRender, plane "r" = share)
     orbit_cameras(centre, cameras, n) -> [Camera] (n poses around centre (3,))
-    residuals(gaussians, cameras, masks, flagged, *, behind=None, ctx=None) -> (N,) float64 in [0, 1]
+    residuals(gaussians, cameras, masks, flagged, *, behind=None, ctx=None, frame=None) -> (N,) float64 in [0, 1]
         behind: None or per camera the (H, W) float32 depth of the surface behind the object
         (surface_depth(reference, cameras) or depth_behind(pre, target, cameras))
     MaskLifter, TargetMaskRenderer    the device passes (weights / masks stay on the GPU)
+
+frame: the scene's world frame (`r360gpu.io.frames.Frame`; None: the
+cameras'): cameras are given in the bundle's world and moved into it
+(`r360gpu.io.frames.in_frame`), depths come back in the cameras' units.
 """
 from __future__ import annotations
 

@@ -17,6 +17,7 @@ from typing import Iterable, Iterator
 import numpy as np
 
 from ..errors import InputError
+from ..io.frames import in_frame
 from ..io.gaussians import Gaussians
 from ..io.sh import C0 as SH_C0
 from ..render.renderer import DeviceRender, Renderer
@@ -39,17 +40,19 @@ def label_scene(scene: Gaussians, target: np.ndarray) -> Gaussians:
 class TargetMaskRenderer:
     """Renders target masks of one scene and target at any camera (the scene uploaded once).
 
-    scene: pre's `Gaussians` (N); target: (N,)
-    bool (e.g. `LiftedTarget.target`); options: the render conventions.
+    scene: pre's `Gaussians` (N); target: (N,) bool (e.g. `LiftedTarget.target`); options: the
+    render conventions; frame: the scene's world frame (None: the cameras'), applied to every camera
+    (`r360gpu.io.frames.in_frame`).
     """
 
-    def __init__(self, scene: Gaussians, target: np.ndarray, *, ctx=None, options=None):
+    def __init__(self, scene: Gaussians, target: np.ndarray, *, ctx=None, options=None, frame=None):
         self.renderer = Renderer(label_scene(scene, target), ctx=ctx, options=options, background=(0.0, 0.0, 0.0))
         self.ctx = self.renderer.ctx
+        self.frame = frame
 
     def share(self, camera) -> np.ndarray:
         """(H, W) float32: the target's share of each pixel's composited weight, in [0, 1]."""
-        return np.clip(self.renderer.render(camera).rgb[..., 0], 0.0, 1.0)
+        return np.clip(self.renderer.render(in_frame(self.frame, camera)).rgb[..., 0], 0.0, 1.0)
 
     def mask(self, camera) -> np.ndarray:
         """(H, W) bool target mask at ``camera``."""
@@ -58,23 +61,23 @@ class TargetMaskRenderer:
     def device(self, camera) -> DeviceRender:
         """The labelled render left on the device: plane "r" (the first ``plane_stride`` float32s) is
         the target's share; threshold it at `MASK_SHARE`."""
-        return self.renderer.render_device(camera)
+        return self.renderer.render_device(in_frame(self.frame, camera))
 
     def release(self) -> None:
         self.renderer.release()
 
 
 def target_masks(scene: Gaussians, target: np.ndarray, cameras: Iterable, *, ctx=None, options=None,
-                 output: str = "numpy") -> Iterator:
+                 frame=None, output: str = "numpy") -> Iterator:
     """Target masks of ``cameras`` (see the module docstring); yields one per camera.
 
     scene: pre's Gaussians (N); target: (N,) bool.  output "numpy": (H, W)
     bool; "device": a `DeviceRender` whose "r" plane
-    holds the target's share (float32), on ``ctx``'s device.
+    holds the target's share (float32), on ``ctx``'s device.  frame: as `TargetMaskRenderer`.
     """
     if output not in ("numpy", "device"):
         raise InputError(f"output must be 'numpy' or 'device', got {output!r}")
-    r = TargetMaskRenderer(scene, target, ctx=ctx, options=options)
+    r = TargetMaskRenderer(scene, target, ctx=ctx, options=options, frame=frame)
     try:
         for cam in cameras:
             yield r.device(cam) if output == "device" else r.mask(cam)

@@ -64,15 +64,16 @@ GATE_SIGMAS = 3.0
 BEHIND_ALPHA = 0.5
 
 
-def depth_behind(pre, target, cameras, *, ctx=None, options=None) -> list:
-    """[(H, W) float32] per camera: `surface_depth` of ``pre`` (Gaussians) without ``target``
-    ((N,) bool), what pre has behind the object."""
-    return surface_depth(pre.subset(~np.asarray(target, bool)), cameras, ctx=ctx, options=options)
+def depth_behind(pre, target, cameras, *, ctx=None, options=None, frame=None) -> list:
+    """[(H, W) float32] per camera: `surface_depth` of ``pre`` (Gaussians, in ``frame``) without
+    ``target`` ((N,) bool), what pre has behind the object."""
+    return surface_depth(pre.subset(~np.asarray(target, bool)), cameras, ctx=ctx, options=options, frame=frame)
 
 
-def surface_depth(gaussians, cameras, *, ctx=None, options=None) -> list:
+def surface_depth(gaussians, cameras, *, ctx=None, options=None, frame=None) -> list:
     """[(H, W) float32] per camera: the median depth of ``gaussians`` (a scene without the object: pre
-    without the target, or the reference).
+    without the target, or the reference), in the cameras' units whatever the scene's ``frame``
+    (`Frame`; None: the cameras').
 
     Where that covers less than `BEHIND_ALPHA` (a hole: nothing there, or background the masks
     lifted with the object because every view saw it only through M), the depth of the nearest pixel
@@ -80,29 +81,35 @@ def surface_depth(gaussians, cameras, *, ctx=None, options=None) -> list:
     """
     from scipy import ndimage
 
+    from ..io.frames import depth_in_cameras, in_frame
     from ..render import Renderer
 
     r = Renderer(gaussians, ctx=ctx, options=options)
     out = []
     try:
         for cam in cameras:
-            img = r.render(cam)
-            hole = ~((img.alpha >= BEHIND_ALPHA) & np.isfinite(img.median_depth))
+            img = r.render(in_frame(frame, cam))
+            median = depth_in_cameras(frame, img.median_depth)
+            hole = ~((img.alpha >= BEHIND_ALPHA) & np.isfinite(median))
             depth = np.full(hole.shape, np.inf, np.float32)
             if not hole.all():
                 near = ndimage.distance_transform_edt(hole, return_distances=False, return_indices=True)
-                depth = img.median_depth[near[0], near[1]].astype(np.float32)
+                depth = median[near[0], near[1]].astype(np.float32)
             out.append(depth)
     finally:
         r.release()
     return out
 
 
-def in_front(gaussians, camera, behind: np.ndarray) -> np.ndarray:
+def in_front(gaussians, camera, behind: np.ndarray, *, frame=None) -> np.ndarray:
     """(N,) bool: each Gaussian's centre depth plus `GATE_SIGMAS` standard deviations along the
-    ray from ``camera`` is nearer than ``behind`` (H, W) at its centre's pixel; True where the centre
-    falls outside the image or behind the camera (no surface to compare with)."""
+    ray from ``camera`` is nearer than ``behind`` (H, W, in the cameras' units) at its centre's pixel;
+    True where the centre falls outside the image or behind the camera (no surface to compare with).
+    frame: the Gaussians' world frame (None: the cameras')."""
+    from ..io.frames import depth_in_cameras, in_frame
     from ..io.rotation import quat_to_rotmat
+
+    camera = in_frame(frame, camera)
 
     means = np.asarray(gaussians.means, np.float64)
     uv, z = camera.project(means)
@@ -116,18 +123,22 @@ def in_front(gaussians, camera, behind: np.ndarray) -> np.ndarray:
     inside[inside] = (uv[inside, 0] >= 0) & (uv[inside, 0] < w) & (uv[inside, 1] >= 0) & (uv[inside, 1] < h)
     out = np.ones(len(means), bool)
     px = np.floor(uv[inside]).astype(np.int64)
-    out[inside] = z[inside] + GATE_SIGMAS * sigma[inside] < behind[px[:, 1], px[:, 0]]
+    out[inside] = depth_in_cameras(frame, z[inside] + GATE_SIGMAS * sigma[inside]) < behind[px[:, 1], px[:, 0]]
     return out
 
 
-def residuals(gaussians, cameras, masks, flagged, *, behind=None, ctx=None, options=None) -> np.ndarray:
+def residuals(gaussians, cameras, masks, flagged, *, behind=None, ctx=None, options=None,
+              frame=None) -> np.ndarray:
     """(N,) float64 residual of each of ``gaussians`` (N) (see the module docstring).
 
     cameras: the scored views' cameras; masks: their (H, W) bool target masks
     (or float32 wgpu buffers); flagged: the names (``camera.name``) of the
     views that flag evidence; behind: None, or per camera the (H, W) depth of
-    what pre has behind the object (:func:`depth_behind`; +inf where nothing).
+    what pre has behind the object (`depth_behind`; +inf where nothing), in the cameras'
+    units; frame: the Gaussians' world frame (None: the cameras'), applied to every camera.
     """
+    from ..io.frames import in_frame
+
     flagged = set(flagged)
     if behind is not None and len(behind) != len(cameras):
         raise ValueError(f"behind has {len(behind)} depth maps for {len(cameras)} cameras")
@@ -137,14 +148,15 @@ def residuals(gaussians, cameras, masks, flagged, *, behind=None, ctx=None, opti
         lifter.reset()  # the ungated views in one pass: unflagged ones add to the totals only
         for k, (cam, m) in enumerate(zip(cameras, masks)):
             if k not in gated:
-                lifter.add_view(cam, m if cam.name in flagged else np.zeros((cam.height, cam.width), np.float32))
+                lifter.add_view(in_frame(frame, cam),
+                                m if cam.name in flagged else np.zeros((cam.height, cam.width), np.float32))
         w_in, w_out = lifter.weights()
         total = w_in + w_out
         for k in sorted(gated):  # each view's weights alone, gated by the surface behind the object there
             lifter.reset()
-            lifter.add_view(cameras[k], masks[k])
+            lifter.add_view(in_frame(frame, cameras[k]), masks[k])
             v_in, v_out = lifter.weights()
-            w_in = w_in + v_in * in_front(gaussians, cameras[k], np.asarray(behind[k]))
+            w_in = w_in + v_in * in_front(gaussians, cameras[k], np.asarray(behind[k]), frame=frame)
             total = total + v_in + v_out
     finally:
         lifter.release()

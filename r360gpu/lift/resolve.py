@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..render.sources import frame_of
 from .masks import TargetMaskRenderer
 from .target import check_extent, lift_target, load_indices, target_from_box, target_from_indices
 
@@ -56,8 +57,9 @@ def _where(bundle) -> str:
     return str(config if config is not None else getattr(bundle, "root", None) or f"scene {bundle.name!r}")
 
 
-def lifted_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
-    """(LiftedTarget, given masks {view: (H, W) bool}) for ``bundle.target`` over pre's ``gaussians``.
+def lifted_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn=None):
+    """(LiftedTarget, given masks {view: (H, W) bool}) for ``bundle.target`` over pre's ``gaussians``
+    (in ``frame``, a `Frame`; None: the cameras').
 
     The one validation of a ``[target]`` (``r360gpu check`` runs it too, :func:`check_target`):
     the indices file (type, range), the box (some but not every Gaussian inside), the given masks
@@ -83,7 +85,7 @@ def lifted_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
         warn(f"target lifted from {len(views)} view's mask only ({views[0]}): depth is ambiguous; "
              f"give masks of at least {MIN_LIFT_VIEWS} views")
     lifted = lift_target(gaussians, [bundle.cameras[v] for v in views], [given[v] for v in views], ctx=ctx,
-                         options=options)
+                         options=options, frame=frame)
     return check_extent(lifted, f"{where}: [target].masks", warn), given
 
 
@@ -98,7 +100,7 @@ def check_target(bundle, *, ctx=None, warn=None):
         if getattr(pre, "gaussians", None) is None:
             raise InputError(f"scene {bundle.name!r}: [target] needs pre as a splat scene", _where(bundle))
         return lifted_target(bundle, pre.gaussians, ctx=pre.renderer.ctx if ctx is None else ctx,
-                             options=getattr(pre, "render_options", None), warn=warn)[0]
+                             options=getattr(pre, "render_options", None), frame=frame_of(pre), warn=warn)[0]
     finally:
         release = getattr(pre, "release", None)
         if release is not None:
@@ -115,11 +117,12 @@ def resolve_target(bundle, pre, *, ctx=None, warn=None):
     if getattr(pre, "gaussians", None) is None:
         raise InputError(f"scene {bundle.name!r}: [target] needs pre as a splat scene")
     options = getattr(pre, "render_options", None)
-    lifted, given = lifted_target(bundle, pre.gaussians, ctx=ctx, options=options, warn=warn)
+    frame = frame_of(pre)
+    lifted, given = lifted_target(bundle, pre.gaussians, ctx=ctx, options=options, frame=frame, warn=warn)
     masks = {v: given[v] for v in bundle.views if v in given}
     todo = [v for v in bundle.views if v not in given]
     if todo:
-        r = TargetMaskRenderer(pre.gaussians, lifted.target, ctx=ctx, options=options)
+        r = TargetMaskRenderer(pre.gaussians, lifted.target, ctx=ctx, options=options, frame=frame)
         try:
             for v in todo:
                 masks[v] = r.mask(bundle.cameras[v])
@@ -131,11 +134,11 @@ def resolve_target(bundle, pre, *, ctx=None, warn=None):
     return replace(bundle, masks=masks), record
 
 
-def scene_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
+def scene_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn=None):
     """The LiftedTarget of any bundle with cameras: its ``[target]``, else its views' masks lifted
-    (views with a camera and a non-empty mask)."""
+    (views with a camera and a non-empty mask) to ``gaussians`` in ``frame`` (None: the cameras')."""
     if getattr(bundle, "target", None) is not None:
-        return lifted_target(bundle, gaussians, ctx=ctx, options=options, warn=warn)[0]
+        return lifted_target(bundle, gaussians, ctx=ctx, options=options, frame=frame, warn=warn)[0]
     from ..io import load_mask
 
     cams, masks = [], []
@@ -150,5 +153,5 @@ def scene_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
             masks.append(m)
     if not cams:
         raise InputError(f"scene {bundle.name!r}: no view with a camera shows the target; cannot lift it")
-    return check_extent(lift_target(gaussians, cams, masks, ctx=ctx, options=options), f"{_where(bundle)}: masks",
-                        warn)
+    return check_extent(lift_target(gaussians, cams, masks, ctx=ctx, options=options, frame=frame),
+                        f"{_where(bundle)}: masks", warn)

@@ -94,7 +94,7 @@ def decide(w_in: np.ndarray, w_out: np.ndarray, *, min_share: float = MIN_SHARE,
     return (total >= min_weight) & (w_in >= min_share * total) & (total > 0)
 
 
-def lift_target(scene, cameras, masks, *, ctx=None, options=None, min_share: float = MIN_SHARE,
+def lift_target(scene, cameras, masks, *, ctx=None, options=None, frame=None, min_share: float = MIN_SHARE,
                 min_weight: float = MIN_WEIGHT) -> LiftedTarget:
     """Lift target masks of some views to pre's Gaussians (see the module docstring).
 
@@ -104,8 +104,11 @@ def lift_target(scene, cameras, masks, *, ctx=None, options=None, min_share: flo
         size, or a wgpu buffer of H x W float32 (row-major) on ``ctx``'s device.
     options: `RenderOptions` the scene is
         rendered with (the weights are the renderer's own).
+    frame: the scene's world frame (a `Frame`; None: the cameras'), each camera
+        moved into it (`r360gpu.io.frames.in_frame`).
     Returns a `LiftedTarget` with w_in, w_out (N,) float64.
     """
+    from ..io.frames import in_frame
     from .device import MaskLifter
 
     cameras, masks = list(cameras), list(masks)
@@ -117,7 +120,7 @@ def lift_target(scene, cameras, masks, *, ctx=None, options=None, min_share: flo
     try:
         lifter.reset()
         for cam, m in zip(cameras, masks):
-            lifter.add_view(cam, m)
+            lifter.add_view(in_frame(frame, cam), m)
         w_in, w_out = lifter.weights()
     finally:
         lifter.release()

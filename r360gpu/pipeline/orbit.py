@@ -28,14 +28,17 @@ def _is_scene(spec) -> bool:
 
 
 def _gaussians(spec):
+    """(Gaussians, RenderOptions or None, world frame or None) of a splat source ``spec``."""
     from ..io import Gaussians, load_gaussians
+    from ..render.sources import frame_of
 
     if isinstance(spec, Gaussians):
-        return spec, None
+        return spec, None, None
     settings = getattr(spec, "render", None)
     from ..render.conventions import RenderOptions
 
-    return load_gaussians(spec.path), RenderOptions(**(settings.given() if settings is not None else {}))
+    return (load_gaussians(spec.path), RenderOptions(**(settings.given() if settings is not None else {})),
+            frame_of(spec))
 
 
 def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
@@ -45,6 +48,7 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
     "note" when no orbit is possible.
     """
     from ..bundle.model import Bundle
+    from ..io.frames import depth_in_cameras, in_frame, points_in_cameras
     from ..lift.masks import TargetMaskRenderer
     from ..lift.orbit import keep_pose, orbit_cameras
     from ..lift.resolve import scene_target
@@ -61,20 +65,22 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
     if not methods:
         info["note"] = "no orbit: every method is renderings only"
         return None, info
-    g, options = _gaussians(bundle.pre)
-    lifted = scene_target(bundle, g, ctx=ctx, options=options, warn=warn)
-    centre, _ = lifted.extent(g.means)
+    g, options, frame = _gaussians(bundle.pre)
+    lifted = scene_target(bundle, g, ctx=ctx, options=options, frame=frame, warn=warn)
+    # the poses live in the cameras' world, as the evaluation views do; each source sees them in its frame
+    centre, _ = lifted.extent(points_in_cameras(frame, g.means))
     cams = orbit_cameras(centre, [bundle.cameras[v] for v in bundle.views if v in bundle.cameras], n)
     pre_r = Renderer(g, ctx=ctx, options=options)
     alone = Renderer(g.subset(lifted.target), ctx=ctx, options=options)
-    masks_r = TargetMaskRenderer(g, lifted.target, ctx=ctx, options=options)
+    masks_r = TargetMaskRenderer(g, lifted.target, ctx=ctx, options=options, frame=frame)
     kept, masks = [], {}
     try:
         for cam in cams:
-            pre = pre_r.render(cam)
+            seen = in_frame(frame, cam)
+            pre = pre_r.render(seen)
             mask = masks_r.mask(cam)
-            why = keep_pose(pre.alpha, pre.median_depth, mask, alone.render(cam).alpha >= 0.5,
-                            float(np.linalg.norm(cam.center - centre)))
+            why = keep_pose(pre.alpha, depth_in_cameras(frame, pre.median_depth), mask,
+                            alone.render(seen).alpha >= 0.5, float(np.linalg.norm(cam.center - centre)))
             if why is None:
                 kept.append(cam)
                 masks[cam.name] = mask

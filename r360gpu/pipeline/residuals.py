@@ -87,18 +87,19 @@ def _behind(bundle, cams, ctx, warn):
     from ..lift.resolve import scene_target
 
     if bundle.reference is not None and _is_scene(bundle.reference):
-        g, options = _gaussians(bundle.reference)
-        return surface_depth(g, cams, ctx=ctx, options=options), "in front of the reference's surface"
+        g, options, frame = _gaussians(bundle.reference)
+        return (surface_depth(g, cams, ctx=ctx, options=options, frame=frame),
+                "in front of the reference's surface")
     if not _is_scene(bundle.pre):
         return None, "none: pre is renderings only (M's share alone)"
-    g, options = _gaussians(bundle.pre)
+    g, options, frame = _gaussians(bundle.pre)
     try:
-        lifted = scene_target(bundle, g, ctx=ctx, options=options, warn=warn)
+        lifted = scene_target(bundle, g, ctx=ctx, options=options, frame=frame, warn=warn)
     except InputError as e:
         if warn is not None:
             warn(f"residuals: {e.problem}; residuals are M's share alone")
         return None, f"none: {e.problem}"
-    return (depth_behind(g, lifted.target, cams, ctx=ctx, options=options),
+    return (depth_behind(g, lifted.target, cams, ctx=ctx, options=options, frame=frame),
             "in front of pre's surface behind the target")
 
 
@@ -120,8 +121,8 @@ def scene_residuals(bundle, scene_res: dict, out, *, ctx=None, xis=(0.3,), warn=
     behind, gate = _behind(bundle, cams, ctx, warn)
     for m, spec in splat.items():
         flagged = flagged_views(scene_res["methods"][m]["views"], xis=xis)
-        g, options = _gaussians(spec)
-        r = residuals(g, cams, masks, flagged, behind=behind, ctx=ctx, options=options)
+        g, options, frame = _gaussians(spec)
+        r = residuals(g, cams, masks, flagged, behind=behind, ctx=ctx, options=options, frame=frame)
         values[m] = r
         # rows of the method's file as written (the loader may have dropped invalid ones)
         entry[m] = {"flagged_views": flagged, "top": g.rows[top_residuals(r, TOP)].tolist(),
@@ -145,7 +146,7 @@ def pruned_bundle(bundle, values: dict, q, out):
     methods, info = {}, {}
     for m, r in values.items():
         spec = bundle.methods[m]
-        g, _ = _gaussians(spec)
+        g, _, _ = _gaussians(spec)
         # only Gaussians with some residual are residual Gaussians: none when no view flags evidence
         n_residual = int(np.count_nonzero(np.asarray(r) > 0))
         asked = asked_count(q, g.n)

@@ -62,16 +62,20 @@ class SceneSource:
             raise InputError(f"{e.problem}; prune or split the scene, or run on an adapter with larger storage "
                              f"bindings (`r360gpu doctor` lists this adapter's limits)", scene) from None
 
+    def camera(self, camera):
+        """The bundle's ``camera`` as this scene's Gaussians see it (`r360gpu.io.frames.in_frame`)."""
+        from ..io.frames import in_frame
+
+        return in_frame(self.frame, camera)
+
     def images(self, view: str, camera) -> ViewImages:
+        from ..io.frames import depth_in_cameras
+
         if camera is None:
             raise InputError(f"view {view!r} has no camera, so scene {self.path} cannot be rendered there")
-        if self.frame is not None:
-            camera = self.frame.camera(camera)
-        r = self.renderer.render(camera)
+        r = self.renderer.render(self.camera(camera))
         depth = r.depth if self.depth_mode == "expected" else r.median_depth
-        if self.frame is not None and self.frame.scale != 1.0:
-            depth = depth / np.float32(self.frame.scale)  # splat units -> the cameras' units (0 stays 0)
-        return ViewImages(np.clip(r.rgb, 0.0, 1.0), depth, r.alpha)
+        return ViewImages(np.clip(r.rgb, 0.0, 1.0), depth_in_cameras(self.frame, depth), r.alpha)
 
     def describe(self) -> dict:
         from dataclasses import asdict
@@ -190,6 +194,14 @@ def host_depth(depth, ctx=None) -> np.ndarray | None:
     return depth
 
 
+def frame_of(spec):
+    """The world frame (`Frame`) of a bundle source's Gaussians: a scene
+    spec's resolved ``frame``, an opened source's; None for the cameras' own frame (Gaussians in
+    memory, renders, an unresolved draft)."""
+    frame = getattr(spec, "frame", None)
+    return frame if hasattr(frame, "camera") else None
+
+
 def open_source(spec, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "expected"):
     """A source for a bundle entry: a ``SourceSpec`` (splat file or renders
     folder), a :class:`~r360gpu.io.Gaussians` in memory, or a ready source
@@ -204,10 +216,8 @@ def open_source(spec, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "exp
         return spec
     if spec.kind == "scene":
         settings = getattr(spec, "render", None)
-        frame = getattr(spec, "frame", None)
         return SceneSource(spec.path, ctx=ctx, background=background, depth=depth,
-                           render=settings.given() if settings is not None else None,
-                           frame=frame if hasattr(frame, "camera") else None)
+                           render=settings.given() if settings is not None else None, frame=frame_of(spec))
     if spec.kind == "renders":
         return RendersSource(spec)
     raise InputError(f"unknown source kind {spec.kind!r} for {spec.path}")

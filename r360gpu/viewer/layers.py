@@ -125,9 +125,11 @@ class SplatLayer:
 
     @classmethod
     def from_gaussians(cls, name: str, gaussians, *, ctx: GpuContext, background=(0.0, 0.0, 0.0),
-                       depth: str = "expected") -> "SplatLayer":
-        """A layer over in-memory Gaussians (e.g. the estimated target's subset of pre)."""
-        return cls(name, lambda: _GaussiansSource(gaussians, ctx, background), ctx=ctx, depth=depth)
+                       depth: str = "expected", frame=None, options=None) -> "SplatLayer":
+        """A layer over in-memory Gaussians (e.g. the estimated target's subset of pre) in ``frame``
+        (`r360gpu.io.frames.Frame`; None: the cameras') rendered with ``options``
+        (`r360gpu.render.conventions.RenderOptions`), e.g. those of the scene they come from."""
+        return cls(name, lambda: _GaussiansSource(gaussians, ctx, background, frame, options), ctx=ctx, depth=depth)
 
     def load(self):
         """The opened source (loads the splat file and uploads it on the first call)."""
@@ -143,18 +145,25 @@ class SplatLayer:
         return True
 
     def image(self, camera, view: str | None = None) -> PlaneImage:
-        """The rendering at ``camera`` (``view`` is ignored: a splat renders anywhere)."""
+        """The rendering at ``camera`` (``view`` is ignored: a splat renders anywhere), seen in the
+        source's frame (`r360gpu.io.frames.in_frame`), its depth planes in the cameras' units."""
         import time
+
+        from r360gpu.io.frames import in_frame
+        from r360gpu.render.sources import frame_of
 
         key = camera_key(camera)
         img = self.images.get(key)
         if img is not None:
             return img
-        renderer = self.load().renderer
+        source = self.load()
+        frame = frame_of(source)
         stride = plane_stride(camera.width, camera.height)
         buf = self.images.new_buffer(stride * len(PLANES) * 4)
         t0 = time.perf_counter()
-        out = renderer.render_device(camera, image=buf)
+        out = source.renderer.render_device(in_frame(frame, camera), image=buf)
+        if frame is not None and frame.scale != 1.0:
+            _depth_in_cameras(self.ctx, out, frame)
         self.render_seconds = time.perf_counter() - t0
         self.renders_done += 1
         img = PlaneImage(out.buffer, out.width, out.height, out.plane_stride, self.depth_plane)
@@ -172,14 +181,27 @@ class SplatLayer:
             self.source = None
 
 
-class _GaussiansSource:
-    """The part of :class:`r360gpu.render.sources.SceneSource` a layer uses, for in-memory Gaussians."""
+def _depth_in_cameras(ctx: GpuContext, out, frame) -> None:
+    """Both depth planes of a device rendering in ``frame`` divided by its scale, in place (a round
+    trip through the host, for scaled frames only: the scenes a trainer normalised)."""
+    from r360gpu.io.frames import depth_in_cameras
 
-    def __init__(self, gaussians, ctx: GpuContext, background):
+    offset = PLANES.index("depth") * out.plane_stride * 4
+    count = 2 * out.plane_stride  # depth and median_depth, adjacent
+    ctx.write(out.buffer, depth_in_cameras(frame, ctx.read(out.buffer, np.float32, count, offset)), offset)
+
+
+class _GaussiansSource:
+    """The part of `r360gpu.render.sources.SceneSource` a layer uses, for in-memory Gaussians
+    (``frame``, ``options``: theirs, as a scene source's; None: the cameras' frame, the defaults)."""
+
+    def __init__(self, gaussians, ctx: GpuContext, background, frame=None, options=None):
         from r360gpu.render import Renderer
 
         self.gaussians = gaussians
-        self.renderer = Renderer(gaussians, ctx=ctx, background=tuple(float(c) for c in background))
+        self.frame = frame
+        self.renderer = Renderer(gaussians, ctx=ctx, background=tuple(float(c) for c in background),
+                                 options=options)
 
     def release(self) -> None:
         self.renderer.release()

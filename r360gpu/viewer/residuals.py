@@ -101,11 +101,15 @@ class ResidualHighlight:
             if r is None:
                 self._layers[name] = None
             else:
+                from r360gpu.render.sources import frame_of
+
                 base = self.app.layers[name]
+                source = base.load()  # rendered as the scene itself: its frame and render options
                 depth = next(k for k, v in DEPTH_PLANE.items() if v == base.depth_plane)
                 self._layers[name] = SplatLayer.from_gaussians(
                     f"{name} residuals", highlighted(base.gaussians, r), ctx=self.app.ctx,
-                    background=self.app.bundle.options.background, depth=depth)
+                    background=self.app.bundle.options.background, depth=depth, frame=frame_of(source),
+                    options=getattr(source, "render_options", None))
         return self._layers[name]
 
     def release(self) -> None:

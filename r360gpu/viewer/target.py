@@ -35,9 +35,10 @@ def lift_views(n: int) -> list[int]:
     return [int(i) for i in np.unique(np.linspace(0, n - 1, min(MAX_LIFT_VIEWS, n)).round().astype(int))]
 
 
-def estimate_target(gaussians, cameras: list, masks: list, *, ctx=None, options=None) -> Target | None:
-    """The target lifted from ``masks`` ((H, W) bool, one per camera) over ``gaussians`` (pre);
-    None when no mask shows the target or nothing lifts."""
+def estimate_target(gaussians, cameras: list, masks: list, *, ctx=None, options=None,
+                    frame=None) -> Target | None:
+    """The target lifted from ``masks`` ((H, W) bool, one per camera) over ``gaussians`` (pre, in
+    ``frame``; None: the cameras'); None when no mask shows the target or nothing lifts."""
     from r360gpu.lift import lift_target
 
     if len(cameras) != len(masks):
@@ -46,14 +47,19 @@ def estimate_target(gaussians, cameras: list, masks: list, *, ctx=None, options=
     if not pairs:
         return None
     pairs = [pairs[i] for i in lift_views(len(pairs))]
-    lifted = lift_target(gaussians, [c for c, _ in pairs], [m for _, m in pairs], ctx=ctx, options=options)
-    return _target(lifted, gaussians.means)
+    lifted = lift_target(gaussians, [c for c, _ in pairs], [m for _, m in pairs], ctx=ctx, options=options,
+                         frame=frame)
+    return _target(lifted, gaussians.means, frame)
 
 
-def _target(lifted, means) -> Target | None:
+def _target(lifted, means, frame=None) -> Target | None:
+    """The Target of ``lifted`` over pre's ``means`` (in ``frame``), placed in the cameras' world,
+    where the viewer's camera moves."""
     if not lifted.target.any():
         return None
-    centre, radius = lifted.extent(means)
+    from r360gpu.io.frames import points_in_cameras
+
+    centre, radius = lifted.extent(points_in_cameras(frame, means))
     return Target(lifted.indices, lifted.target, centre, radius)
 
 
@@ -70,6 +76,7 @@ class SceneTarget:
     def ensure(self) -> Target | None:
         """Lift the 3D target once, None when impossible."""
         from r360gpu.lift import TargetMaskRenderer
+        from r360gpu.render.sources import frame_of
 
         from .layers import SplatLayer
 
@@ -80,19 +87,21 @@ class SceneTarget:
         pre = app.layers.get("pre")
         if not isinstance(pre, SplatLayer) or not app.cameras:
             return None
-        options = getattr(getattr(pre, "renderer", None), "options", None)
+        source = pre.load()  # its render options and frame, as scoring renders it
+        options, frame = getattr(source, "render_options", None), frame_of(source)
         if getattr(app.bundle, "target", None) is not None:
             from r360gpu.lift.resolve import lifted_target
 
-            lifted, _ = lifted_target(app.bundle, pre.gaussians, ctx=app.ctx, options=options)
-            self.target = _target(lifted, pre.gaussians.means)
+            lifted, _ = lifted_target(app.bundle, pre.gaussians, ctx=app.ctx, options=options, frame=frame)
+            self.target = _target(lifted, pre.gaussians.means, frame)
         else:
             pairs = [(v, c) for v, c in zip(app.views, app.view_cameras) if c is not None and v in app.bundle.masks]
             cams = [c for _, c in pairs]
             masks = [app.pictures.mask_of(v, c.width, c.height) for v, c in pairs]
-            self.target = estimate_target(pre.gaussians, cams, masks, ctx=app.ctx, options=options)
+            self.target = estimate_target(pre.gaussians, cams, masks, ctx=app.ctx, options=options, frame=frame)
         if self.target is not None:
-            self.masks = TargetMaskRenderer(pre.gaussians, self.target.mask, ctx=app.ctx, options=options)
+            self.masks = TargetMaskRenderer(pre.gaussians, self.target.mask, ctx=app.ctx, options=options,
+                                            frame=frame)
         return self.target
 
     def focus(self) -> None:
