@@ -62,7 +62,7 @@ SCALES = (0.1, 10.0)
 REAL_DEPTH_SLACK = 1.01
 #: Mask errors (pixels too wide, too narrow) under which the correct frame is also checked.
 MISDRAWN = (2, -2, 1, -1)
-VERDICTS = ("ok", "note", "warn", "refuse")
+VERDICTS = ("ok", "note", "refuse")
 
 
 class Case:
