@@ -108,3 +108,26 @@ def test_the_refusal_names_what_it_saw_and_the_fix(demo_scene, ctx):
     assert back == v
     msg = frame_check.mismatch_message(v, source="ply", frame=None, cameras="colmap")
     assert "different world frames" in msg and "--frame gsplat" in msg and "dataparser_transforms.json" in msg
+
+
+def test_a_flat_outline_is_a_quiet_note_in_results_json(tmp_path, ctx):
+    """The room framed right with its masks drawn 3 pixels wide of the sofa: the outline has little
+    depth step, the cones agree.  Scored as usual; results.json keeps the note under frame_check,
+    with no warning and no frame advice."""
+    import cv2
+
+    from r360gpu.pipeline import EvaluateOptions, evaluate
+    from r360gpu.synthetic import write_bundle
+
+    scene = make_scene("room", seed=0, n_views=5, width=96, height=72, detail=0.1)
+    folder = write_bundle(scene, tmp_path / "room", methods=["clean"], ctx=ctx)
+    for png in sorted((folder / "masks").glob("*.png")):
+        m = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(png), cv2.dilate(m, np.ones((7, 7), np.uint8)))
+    res = evaluate(folder, options=EvaluateOptions(n_boot=50, n_perm=20, boundary=False, pictures=False,
+                                                   controls=False), ctx=ctx, progress=False)
+    check = res["scenes"]["room"]["frame_check"]["pre"]
+    assert check["level"] == "note" and check["step"] < frame_check.STEP_NOTE
+    assert check["cones"] >= frame_check.CONES_MIN and "little depth step" in check["note"]
+    assert not [w for w in res["warnings"] if "frame" in w["message"]]
+    assert res["scenes"]["room"]["methods"]["clean"]["axes"]["rqs"] is not None
