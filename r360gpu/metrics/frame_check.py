@@ -308,8 +308,8 @@ def check_views(views: list) -> FrameVerdict:
 
 
 def _listed(verdict: FrameVerdict) -> str:
-    return ", ".join(f"{v.view} {100 * v.coverage:.0f}%" + ("" if v.target is None else f" (target {100 * v.target:.0f}%)")
-                     for v in verdict.views)
+    return ", ".join(f"{v.view} {100 * v.coverage:.0f}%"
+                     + ("" if v.target is None else f" (target {100 * v.target:.0f}%)") for v in verdict.views)
 
 
 def mismatch_message(verdict: FrameVerdict, *, source: str, frame: str | None, cameras: str | None) -> str:
@@ -318,8 +318,8 @@ def mismatch_message(verdict: FrameVerdict, *, source: str, frame: str | None, c
     if verdict.views and all(v.touched < EMPTY for v in verdict.views):
         what = "renders nothing"
     elif 2 * verdict.n_target_missed >= max(1, with_target):
-        what = f"covers less than {100 * TARGET_COVERED:.0f}% of the target at {verdict.n_target_missed} of " \
-               f"{with_target} views"
+        what = (f"covers less than {100 * TARGET_COVERED:.0f}% of the target at {verdict.n_target_missed} of "
+                f"{with_target} views")
     else:
         what = (f"renders its surface under the target masks away from where their viewing cones meet (cone "
                 f"agreement {verdict.cones:.2f} < {CONES_MIN}): the cameras see other splats than the masks mark")
@@ -331,7 +331,8 @@ def mismatch_message(verdict: FrameVerdict, *, source: str, frame: str | None, c
 def note_message(verdict: FrameVerdict) -> str:
     """The quiet note of a "note" verdict (results.json ``frame_check``): what was measured and
     what it means for the check, with no frame advice (the cameras do see the masks' object)."""
+    by = ("its coverage (one view: no cones)" if verdict.cones is None
+          else f"its viewing cones (cone agreement {verdict.cones:.2f})")
     return (f"the target's outline has little depth step (median {verdict.step:.2f} < {STEP_NOTE} of the outline "
-            f"in front of its surroundings; cone agreement {verdict.cones if verdict.cones is None else round(verdict.cones, 2)}): "
-            f"a flat target, or masks a few pixels off its outline; the frame check confirmed the target's "
-            f"place by its viewing cones only")
+            f"in front of its surroundings): a flat target, or masks a few pixels off its outline; the frame check "
+            f"confirmed the target's place by {by} only")
