@@ -347,6 +347,27 @@ def test_cone_agreement_is_high_where_the_masks_cones_meet_and_low_elsewhere():
     assert cone_agreement(behind) is None  # fewer than MIN_PIXELS points in any other image
 
 
+def test_cone_agreement_ignores_points_hidden_in_the_other_view():
+    """A point behind pre's surface in view j (an occluder in front of the target there) says
+    nothing about j's mask, which marks only the target's visible pixels."""
+    views = _cube_views()
+    cam0, pts0, mask0 = views[0]
+    cam1, pts1, mask1 = views[1]
+    # view 1's mask loses its right three quarters (an occluder), and its depth shows the occluder 1 unit in front
+    mid = int(np.percentile(np.nonzero(mask1)[1], 25))
+    occluded = mask1.copy()
+    occluded[:, mid:] = False
+    depth1 = np.full(mask1.shape, 10.0)  # the backdrop, behind the cube (about 4 units away)
+    depth1[:, mid:] = 2.0
+    plain = [(cam0, pts0, mask0), (cam1, pts1, occluded)]
+    assert cone_agreement(plain) < 0.8  # the hidden part counted against the mask
+    seen = [(cam0, pts0, mask0, None), (cam1, pts1, occluded, depth1)]
+    assert cone_agreement(seen) == 1.0
+    # a point *in front of* the surface is not hidden: shifted off the masks, it still counts
+    off = [(c, p, m, np.full(m.shape, 10.0)) for c, p, m in _cube_views((0.0, 0.0, 1.5))]
+    assert cone_agreement(off) == 0.0
+
+
 def test_backprojection_inverts_the_camera():
     cam = look_at((3.0, 1.0, 1.0), w=80, h=60)
     rows, cols = np.mgrid[0:60, 0:80]

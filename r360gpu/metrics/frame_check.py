@@ -103,6 +103,10 @@ STEP = 0.05
 MIN_PIXELS = 10
 #: Mask points back-projected per view (an even subsample beyond).
 MAX_POINTS = 4000
+#: A back-projected point farther from camera j than this times pre's depth at its pixel is hidden
+#: in view j (behind an occluder: it says nothing about j's mask); the slack is the STEP of the
+#: outline, the depth a Gaussian's thickness and the blended outline leave.
+HIDDEN = 1.0 + STEP
 #: ``cones`` below this: pre's surface under the masks is not where their cones meet (refused).
 #: Framed right 0.86-1.00 (masks up to 2 pixels off), 0.95-0.99 with exact masks; 197 of 202
 #: random wrong frames of the bench's draw fall below it (bench/frame_check_scenes.py).
@@ -221,21 +225,24 @@ def backprojected(camera, alpha: np.ndarray, depth: np.ndarray, mask: np.ndarray
 
 def cone_agreement(views: list) -> float | None:
     """Median over ordered pairs (i, j) of views of the fraction of view i's back-projected mask
-    points that land in view j's mask, among those in front of camera j and inside its image
-    (points outside image j say nothing).  ``views``: [(camera, points (N, 3), mask (H, W))].
+    points that land in view j's mask, among those in front of camera j, inside its image and
+    not hidden there (points outside image j, or behind pre's surface in it, say nothing about
+    its mask: an annotator marks only the target's visible pixels).  ``views``: [(camera,
+    points (N, 3), mask (H, W)[, depth (H, W)])]; with view j's z-depth (NaN where pre renders
+    nothing solid), a point farther than :data:`HIDDEN` times the depth at its pixel is hidden.
     View j's mask is widened by ``max(2, 0.5% of its longer side)`` pixels for the blended
     outline and the camera model's rounding.  None when no pair has :data:`MIN_PIXELS` points
-    in image j."""
+    seen in image j."""
     import cv2
 
     fractions = []
     widened = []
-    for camera, _, mask in views:
+    for _, _, mask, *_ in views:
         m = np.asarray(mask, np.uint8)
         r = max(2, int(round(0.005 * max(m.shape))))
         widened.append(cv2.dilate(m, np.ones((2 * r + 1, 2 * r + 1), np.uint8)) > 0)
-    for i, (_, pts, _) in enumerate(views):
-        for j, (camera, _, mask) in enumerate(views):
+    for i, (_, pts, *_) in enumerate(views):
+        for j, (camera, _, _, *depth) in enumerate(views):
             if i == j or not len(pts):
                 continue
             h, w = widened[j].shape
@@ -246,9 +253,15 @@ def cone_agreement(views: list) -> float | None:
             z = np.where(front, x[:, 2], 1.0)
             u, v = camera.fx * x[:, 0] / z + camera.cx, camera.fy * x[:, 1] / z + camera.cy
             seen = front & (u >= 0) & (u < w) & (v >= 0) & (v < h)
-            if seen.sum() < MIN_PIXELS:
+            rows, cols = v[seen].astype(np.int64), u[seen].astype(np.int64)
+            if depth and depth[0] is not None:
+                there = np.asarray(depth[0], np.float64)[rows, cols]
+                with np.errstate(invalid="ignore"):
+                    shown = ~(z[seen] > HIDDEN * there)  # NaN (nothing solid there): not hidden
+                rows, cols = rows[shown], cols[shown]
+            if rows.size < MIN_PIXELS:
                 continue
-            fractions.append(float(widened[j][v[seen].astype(np.int64), u[seen].astype(np.int64)].mean()))
+            fractions.append(float(widened[j][rows, cols].mean()))
     return float(np.median(fractions)) if fractions else None
 
 
@@ -303,7 +316,7 @@ def check_views(views: list) -> FrameVerdict:
     for name, camera, alpha, depth, mask in views:
         seen.append(view_coverage(name, alpha, mask, depth))
         if camera is not None and depth is not None and np.asarray(mask).any():
-            cones.append((camera, backprojected(camera, alpha, depth, mask), mask))
+            cones.append((camera, backprojected(camera, alpha, depth, mask), mask, _depth(depth, _alpha(alpha))))
     return frame_verdict(seen, cone_agreement(cones) if len(cones) > 1 else None)
 
 
