@@ -363,6 +363,9 @@ def test_cone_agreement_ignores_points_hidden_in_the_other_view():
     assert cone_agreement(plain) < 0.8  # the hidden part counted against the mask
     seen = [(cam0, pts0, mask0, None), (cam1, pts1, occluded, depth1)]
     assert cone_agreement(seen) == 1.0
+    # no pair with a point seen: the hidden points count after all (opposite sides of an object)
+    everywhere = [(cam0, pts0, mask0, np.full(mask0.shape, 1.0)), (cam1, pts1, occluded, np.full(mask1.shape, 1.0))]
+    assert cone_agreement(everywhere) == cone_agreement(plain)
     # a point *in front of* the surface is not hidden: shifted off the masks, it still counts
     off = [(c, p, m, np.full(m.shape, 10.0)) for c, p, m in _cube_views((0.0, 0.0, 1.5))]
     assert cone_agreement(off) == 0.0
