@@ -6,7 +6,8 @@ bench/parity_sam.py does (samexporter's encoder; segment-anything's
 at 1 (samexporter's export, what most users have) and with it dynamic.  On the
 same 640 x 480 image and the same parameters it times, per image:
 
-* official: ``SamAutomaticMaskGenerator.generate`` on CPU torch;
+* official: ``SamAutomaticMaskGenerator.generate`` on CPU torch (``--torch-device
+  cuda``: on CUDA torch, for the GPU comparison of bench/device_suite.py);
 * r360gpu before: the path of r360gpu before this bench (the batch-1 export,
   one decoder run per prompt computing every decoder output);
 * r360gpu after: the batched export, the decoder cut to the outputs the
@@ -15,7 +16,10 @@ same 640 x 480 image and the same parameters it times, per image:
 * r360gpu unhoisted (only when asked for in ``--runs``): "after" without the
   second rewrite (``SamModels(..., hoist=False)``);
 
-each with its image encoder run from scratch.
+each with its image encoder run from scratch.  r360gpu's runs use onnxruntime's
+provider for ``--probe-device`` (default cpu; ``auto``: the GPU one when installed,
+r360gpu.probes.providers); ``--warmup`` runs each generator once untimed first (a GPU's
+first run pays its kernels' compilation and the allocator's growth).
 
 With ``--model sam2.1`` the same for SAM 2.1 Hiera-Tiny (random weights, built and
 exported as bench/parity_sam2.py does: samexporter's ``export_sam2.py`` graphs, whose
@@ -82,6 +86,10 @@ def parse_args():
     ap.add_argument("--runs", default="official,before,after",
                     help="which generators to time, in this order (comma-separated)")
     ap.add_argument("--reuse-exports", action="store_true", help="keep ONNX files already in --work (same seed)")
+    ap.add_argument("--torch-device", default="cpu", help="torch device of the official generator (cpu, cuda)")
+    ap.add_argument("--probe-device", default="cpu", help="onnxruntime device of r360gpu's runs (cpu, cuda, webgpu, "
+                                                          "auto, ...)")
+    ap.add_argument("--warmup", action="store_true", help="run each generator once, untimed, before its timed run")
     args = ap.parse_args()
     src = {"sam": ("--sam-src", args.sam_src), "sam2.1": ("--gsam2-src", args.gsam2_src)}[args.model]
     if not src[1]:
@@ -123,10 +131,10 @@ class BeforeDecoder:
         return self.model.run(feeds, None)
 
 
-def load_models(enc: Path, dec: Path, before: bool, hoist: bool = True):
+def load_models(enc: Path, dec: Path, before: bool, hoist: bool = True, device: str = "cpu"):
     from r360gpu.probes.onnx_models import SamModels
 
-    models = SamModels(enc, dec, hoist=hoist)
+    models = SamModels(enc, dec, device=device, hoist=hoist)
     if before:
         models.decoder = BeforeDecoder(dec)
     return models
@@ -152,7 +160,8 @@ def onnx_only(argv) -> int:
 
     ap = argparse.ArgumentParser(description="r360gpu's SAM automatic masks on an ONNX pair")
     ap.add_argument("--onnx", nargs=2, required=True, metavar=("ENCODER", "DECODER"))
-    ap.add_argument("--device", default="auto", help="onnxruntime device: cpu, cuda, directml, coreml, auto")
+    ap.add_argument("--device", default="auto",
+                    help="onnxruntime device: auto, cpu, cuda, tensorrt, webgpu, directml, coreml")
     ap.add_argument("--points-per-side", type=int, default=32)
     ap.add_argument("--points-per-batch", type=int, default=64)
     ap.add_argument("--size", default="640x480")
@@ -193,6 +202,7 @@ def build_model(args, image):
         sam = P.build_sam(args.seed)
         enc, dec1 = P.export_onnx(sam, work, batched_decoder=False, reuse=args.reuse_exports)
         _, dec_b = P.export_onnx(sam, work, batched_decoder=True, reuse=True)
+        sam.to(args.torch_device)  # exported on the CPU; the official generator runs where the model is
         return (lambda params: P.official_generate(sam, image, params)[0], {"before": (enc, dec1), "after": (enc, dec_b)}, None,
                 P.generator_configs(args.points_per_side)[0], "ViT-B")
     import parity_sam2 as P2
@@ -227,7 +237,9 @@ def main() -> int:
     official, pairs, algorithm, params, label = build_model(args, image)
     pairs["unhoisted"] = pairs["after"]
     params = dataclasses.replace(params, points_per_batch=args.points_per_batch)
-    print(f"# SAM automatic masks on CPU: official (torch {torch.__version__}, {tv}) vs r360gpu (onnxruntime)")
+    gpu = torch.cuda.get_device_name() if args.torch_device.startswith("cuda") else "CPU"
+    print(f"# SAM automatic masks: official (torch {torch.__version__} on {args.torch_device}: {gpu}, {tv}) vs "
+          f"r360gpu (onnxruntime, probe device {args.probe_device})")
     print(f"machine: {os.cpu_count()} CPU cores; {load()}; exports ready in {time.perf_counter() - t0:.0f} s")
     print(f"image {width}x{height}; {label} random weights, seed {args.seed}; points {params.points_per_side}x"
           f"{params.points_per_side}, batch {params.points_per_batch}, mask_threshold {params.mask_threshold}, "
@@ -236,19 +248,21 @@ def main() -> int:
 
     masks, times = {}, {}
     for run in [r.strip() for r in args.runs.split(",") if r.strip()]:
-        EMBEDDINGS.clear()  # every generator encodes its image itself
         if run == "official":
-            m, wall, cpu = timed(lambda: official(params))
+            generate = lambda: official(params)  # noqa: E731
         elif run == "algorithm" and algorithm is not None:
-            r, wall, cpu = timed(lambda: generate_masks(algorithm, image, params))
-            m = r.masks
+            generate = lambda: generate_masks(algorithm, image, params).masks  # noqa: E731
         elif run in pairs:
-            models = load_models(*pairs[run], before=run == "before", hoist=run != "unhoisted")
-            r, wall, cpu = timed(lambda: generate_masks(models, image, params))
-            m = r.masks
+            models = load_models(*pairs[run], before=run == "before", hoist=run != "unhoisted",
+                                 device=args.probe_device)
+            print(f"  {run} runs on {models.provider}")
+            generate = lambda: generate_masks(models, image, params).masks  # noqa: E731
         else:
             raise SystemExit(f"unknown run {run!r}; use official, {', '.join(pairs)}"
                              f"{', algorithm' if algorithm is not None else ''}")
+        for _ in range(2 if args.warmup else 1):
+            EMBEDDINGS.clear()  # every generator encodes its image itself
+            m, wall, cpu = timed(generate)
         masks[run], times[run] = m, (wall, cpu)
         print(f"  {run:8s}: {wall:7.1f} s wall, {cpu:7.1f} CPU-s, {len(m)} masks   ({load()})", flush=True)
 
@@ -267,7 +281,7 @@ def main() -> int:
                   f"{f' (mask-count maps differ at {px} pixels)' if px is not None else ''}")
 
     if "after" in times:
-        models = load_models(*pairs["after"], before=False)
+        models = load_models(*pairs["after"], before=False, device=args.probe_device)
         EMBEDDINGS.clear()
         _, enc_wall, enc_cpu = timed(lambda: models.embed(image))
         _, hit_wall, _ = timed(lambda: models.embed(image))

@@ -20,6 +20,16 @@ compute pass timed on the device (timestamp queries) and prints the device
 milliseconds per kernel, their sum, and the rest of the frame's wall time
 (host recording, submissions and waits).
 
+``--host-recording`` measures instead what the host spends recording and
+submitting one frame (issue 37): frames of one camera rendered to the device
+with the sorts recorded as WGSL passes (``R360GPU_SORT=gpu``, the blocks
+variant: what a GPU adapter records), the main thread's CPU seconds per frame
+outside its waits for the device (``time.thread_time``, so the load of other
+processes and lavapipe's own threads do not count), in a fresh process per
+side and round; ``--peer ROOT`` runs the same measurement on the r360gpu of
+another checkout (e.g. main's, before frames of one shape reused their bind
+groups and uniform buffers) in alternating rounds and prints the ratio.
+
 Synthetic scene: means uniform inside the camera frustum at depths 2..20,
 per-axis scales log-normal (median 0.02, sigma 0.8 in log space), random
 rotations, opacities sigmoid(N(0, 2)) (bimodal, like trained scenes), SH
@@ -27,12 +37,16 @@ degree 3.
 
 Usage:  python bench/bench_render.py [--sizes 100000 1000000] [--repeat 3] [--no-oracle]
                                      [--variants serial blocks] [--rounds 2] [--gpu-times]
+        python bench/bench_render.py --host-recording [--sizes 65000] [--size 480x360] [--repeat 20]
+                                     [--rounds 3] [--peer /path/to/other/checkout]
 The 1M case renders 3 x ``--repeat`` frames per variant and round; keep it small on a shared machine.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import subprocess
 import sys
 import time
 
@@ -231,6 +245,86 @@ def print_kernel_times(results: list, supported: bool) -> None:
             print(f"    {label:<32} {count:>4} passes {1e3 * secs:>9.3f} ms")
 
 
+def host_recording(n: int, width: int, height: int, frames: int) -> dict:
+    """Main-thread CPU seconds per device frame outside the waits for the device (this process's
+    r360gpu), dispatches per frame, and (where the renderer keeps them) bind groups and uniform
+    buffers created per frame."""
+    os.environ["R360GPU_SORT"] = "gpu"
+    os.environ[VARIANT_ENV] = "blocks"
+    ctx = get_context()
+    renderer = Renderer(synthetic_scene(n), ctx=ctx)
+    cam = camera(width, height, FOCAL * width / WIDTH)
+    image = renderer.render_device(cam).buffer
+    for _ in range(2):  # warm-up: pipelines, scratch buffers, and (where kept) the frame's device objects
+        renderer.render_device(cam, image=image)
+        ctx.read(image, np.uint32, 1)
+    read, dispatch = ctx.read, ctx.dispatch
+    waited, dispatches = [0.0], [0]
+
+    def timed_read(*args, **kwargs):
+        t = time.thread_time()
+        try:
+            return read(*args, **kwargs)
+        finally:
+            waited[0] += time.thread_time() - t
+
+    def counted_dispatch(*args, **kwargs):
+        dispatches[0] += 1
+        return dispatch(*args, **kwargs)
+
+    ctx.read, ctx.dispatch = timed_read, counted_dispatch
+    kept = getattr(renderer, "frames", None)
+    before = dict(kept.counts) if kept else None
+    t = time.thread_time()
+    for _ in range(frames):
+        renderer.render_device(cam, image=image)
+        ctx.read(image, np.uint32, 1)
+    host = (time.thread_time() - t - waited[0]) / frames
+    del ctx.read, ctx.dispatch
+    out = dict(host_s=host, dispatches=dispatches[0] / frames, keys=renderer.stats.keys,
+               module=os.path.dirname(sys.modules["r360gpu"].__file__))
+    if kept:
+        out.update({k: (kept.counts[k] - before[k]) / frames for k in ("groups_created", "uniforms_created")})
+    renderer.release()
+    return out
+
+
+def host_recording_child(root: str, python: str, n: int, size: tuple, frames: int) -> dict:
+    """:func:`host_recording` in a fresh process importing the r360gpu of checkout ``root``."""
+    env = dict(os.environ, PYTHONPATH=root)
+    cmd = [python, os.path.abspath(__file__), "--host-child", str(n), f"{size[0]}x{size[1]}", str(frames)]
+    res = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True, check=False)
+    if res.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} (in {root}) failed:\n{res.stderr[-2000:]}")
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def bench_host_recording(sizes, size: tuple, frames: int, rounds: int, peer: str | None) -> None:
+    ours = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    sides = {"ours": (ours, sys.executable)}
+    if peer:
+        python = os.path.join(peer, ".venv", "bin", "python")
+        sides["peer"] = (peer, python if os.path.exists(python) else sys.executable)
+    print(f"host recording per frame, {size[0]}x{size[1]}, {frames} frames of one camera per process, "
+          f"medians of {rounds} alternating rounds (main-thread CPU outside device waits; WGSL sorts, blocks variant)")
+    print(f"{'N':>9} {'side':>5} {'host ms':>8} {'dispatches':>10} {'groups new':>10} {'uniforms new':>12} {'keys':>9}  r360gpu")
+    for n in sizes:
+        runs = {k: [] for k in sides}
+        for _ in range(rounds):
+            for side, (root, python) in sides.items():
+                runs[side].append(host_recording_child(root, python, n, size, frames))
+        med = {k: float(np.median([r["host_s"] for r in rs])) for k, rs in runs.items()}
+        for side, rs in runs.items():
+            r = rs[-1]
+            fmt = (lambda key: f"{r[key]:.1f}" if key in r else "-")  # noqa: E731
+            print(f"{n:>9} {side:>5} {1e3 * med[side]:8.2f} {r['dispatches']:10.1f} {fmt('groups_created'):>10} "
+                  f"{fmt('uniforms_created'):>12} {r['keys']:>9}  {r['module']}")
+        if "peer" in med:
+            print(f"  N={n}: host recording per frame {1e3 * med['peer']:.2f} -> {1e3 * med['ours']:.2f} ms "
+                  f"({med['peer'] / med['ours']:.2f}x less); per round: "
+                  + ", ".join(f"{p['host_s'] / o['host_s']:.2f}x" for p, o in zip(runs["peer"], runs["ours"])))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[100_000, 1_000_000])
@@ -242,8 +336,20 @@ def main(argv=None) -> int:
                     help="time these radix sort variants with the sorts in WGSL (first = the peer)")
     ap.add_argument("--rounds", type=int, default=1, help="alternating rounds of the variants (medians reported)")
     ap.add_argument("--gpu-times", action="store_true", help="device time per kernel of one frame (timestamp queries)")
+    ap.add_argument("--host-recording", action="store_true",
+                    help="only the host's recording time per frame (--repeat frames per process, --rounds rounds)")
+    ap.add_argument("--peer", help="with --host-recording: a checkout whose r360gpu is measured alike (its .venv)")
+    ap.add_argument("--host-child", nargs=3, metavar=("N", "SIZE", "FRAMES"), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.host_child:
+        n, size, count = args.host_child
+        w, h = (int(v) for v in size.lower().split("x"))
+        print(json.dumps(host_recording(int(n), w, h, int(count))))
+        return 0
     width, height = (int(v) for v in args.size.lower().split("x"))
+    if args.host_recording:
+        bench_host_recording(args.sizes, (width, height), args.repeat, args.rounds, args.peer)
+        return 0
     variants = tuple(args.variants) if args.variants else (None,)
     if args.variants:
         os.environ["R360GPU_SORT"] = "gpu"

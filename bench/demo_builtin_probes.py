@@ -20,7 +20,7 @@ Printed per case: the appearance probe's IoU with the target mask M
 (acc_seg counts a view as removed when IoU_post < 0.3); for each structural
 probe the number of masks, the best IoU of one mask with M, the number of
 masks retained (IoU with M >= 0.1) and sim_SAM against the clean reference
-(Hungarian matching of the retained sets, PROTOCOL.md); and timings.
+(Hungarian matching of the retained sets, docs/protocol.md); and timings.
 
 Run: /work/venv/bin/python bench/demo_builtin_probes.py [--size 1920x1080] [--threads 1]
 """
@@ -131,13 +131,13 @@ def iou(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def retained(masks: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Masks with IoU >= 0.1 with the target (PROTOCOL.md, structural axis)."""
+    """Masks with IoU >= 0.1 with the target (docs/protocol.md, structural axis)."""
     keep = [i for i, m in enumerate(masks) if iou(m, target) >= 0.1]
     return masks[keep]
 
 
 def sim_sam(a: np.ndarray, b: np.ndarray) -> float:
-    """sim^v between two retained mask sets (PROTOCOL.md)."""
+    """sim^v between two retained mask sets (docs/protocol.md)."""
     if len(a) == 0 and len(b) == 0:
         return 1.0
     if len(a) == 0 or len(b) == 0:

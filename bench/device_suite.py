@@ -1,6 +1,7 @@
 """One run of r360gpu's checks and benchmarks on a machine with a GPU, in one table, within 8 minutes.
 
-    python bench/device_suite.py [--public PATH] [--sam-onnx ENCODER DECODER] [--budget 480] [--small]
+    python bench/device_suite.py [--public PATH] [--sam-onnx ENCODER DECODER] [--sam-src DIR --samexporter-src DIR]
+        [--grounded DINO TOKENIZER SAM_ENCODER SAM_DECODER] [--budget 480] [--small]
 
 Steps, each a fresh process with its share of the time left (a step that
 runs out is stopped and marked so; the next one still runs):
@@ -9,16 +10,35 @@ runs out is stopped and marked so; the next one still runs):
    oracle (pass / fail);
 2. the renderer at 1M Gaussians, 1920x1080 (bench/bench_render.py): frames/s,
    goal >= 100;
+2b. the WGSL radix sort alone (bench/bench_render_sort.py ``--no-frames``): 1M
+   (u32, u32) pairs by 32 bits in keys/s of wall and of device time, beside
+   wgpu_sort's published 1M pairs in 317 us (RTX A5000), and the renderer's
+   two exact sorts of a 1M-Gaussian 1080p frame against one packed-key sort;
+2c. the renderer's host recording per frame (bench/bench_render.py
+   ``--host-recording``): main-thread CPU ms per device frame outside the waits;
 3. ``r360gpu score`` against the public Remove360 scripts
    (bench/bench_vs_public.py, 20 views of 1200x1000): both times and the
    ratio; needs ``--public`` (a checkout of simonakocour/anything_left, or
    its bare git directory), else skipped;
 4. the structural probe (bench/bench_amg.py ``--onnx``): r360gpu's SAM
-   automatic masks, 32x32 points on a 640x480 image, on onnxruntime's CUDA
-   provider when the installed onnxruntime has it (else its CPU provider,
-   said in the table); needs ``--sam-onnx`` (e.g. the random-weight ViT-B
+   automatic masks, 32x32 points on a 640x480 image, on onnxruntime's GPU
+   provider (``--device auto``: CUDA or WebGPU when the installed
+   onnxruntime has one, else its CPU provider, said in the table); needs ``--sam-onnx`` (e.g. the random-weight ViT-B
    exports bench/parity_sam.py writes), else the tiny stand-in graphs of
    tests/onnx_graphs.py (they check the path, not the speed; marked so);
+4b. our SAM automatic masks on the GPU provider against segment-anything's
+   official ``SamAutomaticMaskGenerator`` on CUDA torch, on the same GPU
+   (bench/bench_amg.py ``--torch-device cuda --probe-device auto --warmup``):
+   SAM ViT-B with random weights, 32x32 points, 640x480, per-image times,
+   the ratio (goal >= 3x) and the mask sets by Hungarian matching (count,
+   pixel-identical pairs, least IoU); needs torch with CUDA and the
+   segment-anything and samexporter sources (``--sam-src``,
+   ``--samexporter-src``, or the installed packages), else "not available"
+   with what is missing.  ``--sam-work DIR`` keeps the ONNX exports (the
+   encoder's export takes minutes) for the next run;
+4c. the grounded probe (bench/bench_grounded.py) on the GPU provider:
+   ``--grounded`` files, else the stand-in graphs (the path: which
+   providers start, the masks that come back);
 5. ``r360gpu demo`` from nothing (bench/bench_demo.py's run) with
    ``R360GPU_HOST_THREADS=2`` (the count a 2-core machine uses), then with
    the host threads scaled to the machine's cores, then with ``--processes auto``
@@ -56,6 +76,12 @@ def parse_args(argv=None):
     ap.add_argument("--public", type=Path, default=None, help="anything_left checkout or bare git dir (step 3)")
     ap.add_argument("--sam-onnx", nargs=2, type=Path, default=None, metavar=("ENCODER", "DECODER"),
                     help="a SAM ONNX pair for the probe step (step 4)")
+    ap.add_argument("--sam-src", type=Path, default=None, help="folder holding segment_anything (step 4b)")
+    ap.add_argument("--samexporter-src", type=Path, default=None, help="folder holding samexporter (step 4b)")
+    ap.add_argument("--sam-work", type=Path, default=None,
+                    help="where step 4b writes (and reuses) its ONNX exports (default: a temporary folder)")
+    ap.add_argument("--grounded", nargs=4, type=Path, default=None,
+                    metavar=("DINO", "TOKENIZER", "SAM_ENCODER", "SAM_DECODER"), help="grounded probe files (4c)")
     ap.add_argument("--budget", type=float, default=480.0, help="seconds for the whole suite (default 480)")
     ap.add_argument("--small", action="store_true", help="small workloads: checks the suite on a CPU adapter")
     ap.add_argument("--adapter", default=None, help="r360gpu adapter choice passed to every step")
@@ -90,6 +116,10 @@ def last(pattern: str, text: str):
     return found[-1] if found else None
 
 
+#: wgpu_sort's published figure (issue 37): 1M (key, value) pairs sorted in this many microseconds on an RTX A5000.
+WGPU_SORT_1M_US = 317
+
+
 def describe(step: Step, small: bool, renders: int) -> None:
     """Fill the table's figure and goal columns from what the step printed."""
     out = step.output
@@ -104,6 +134,17 @@ def describe(step: Step, small: bool, renders: int) -> None:
         step.goal = ">= 100 frames/s at 1M, 1080p" + (" (not this size)" if small else "")
         if fps and not small:
             step.goal += " MET" if float(fps) >= 100 else " NOT MET"
+    elif step.name == "render sort":
+        rates = re.findall(r"^ *(serial|blocks) +(\S+) pairs +\d+ +32 +[\d.]+ +([\d.]+) +(\S+) +(\S+) +True$", out, re.M)
+        packed = dict(re.findall(r"^  (serial|blocks): the renderer's exact sorts .*? ms \(([\d.]+)x\)", out, re.M))
+        step.figure = "; ".join(
+            f"{v}: {n} pairs {wall} Mkeys/s wall" + (f", {dev} Mkeys/s device" if dev != "-" else "")
+            + (f" (packed-key sort of the frame's keys {packed[v]}x the exact pair's time)" if v in packed else "")
+            for v, n, wall, _, dev in rates)
+        step.goal = f"wgpu_sort: 1M pairs in {WGPU_SORT_1M_US} us on an RTX A5000 ({1e6 / WGPU_SORT_1M_US:.0f} Mkeys/s)"
+    elif step.name == "render recording":
+        host = last(r"(?m)^ *\d+ +ours +([\d.]+) +([\d.]+)", out)
+        step.figure = f"{host[0]} ms host recording per frame ({host[1]} passes)" if host else ""
     elif step.name == "vs public":
         row = last(r"\| \d+ views [^|]+\| ([\d.]+) s \| ([\d.]+) s \| ([\d.]+)x \| ([\d.]+) s \| ([\d.]+)x "
                    r"\| ([\d.]+) s \| ([\d.]+)x", out)
@@ -113,6 +154,21 @@ def describe(step: Step, small: bool, renders: int) -> None:
         line = last(r"(\S+ on \S+) \(batched decoder: (\w+)\)", out)
         per = last(r"([\d.]+) s per image", out)
         step.figure = (f"{per} s per image ({line[0]}, batched: {line[1]})" if line and per else "")
+    elif step.name == "probe vs official":
+        runs = dict(re.findall(r"^  (official|after)\s*: +([\d.]+) s wall", out, re.M))
+        ratio = last(r"official/after: wall ([\d.]+)x", out)
+        sets = last(r"official vs after: (\d+) / (\d+) masks, (\d+) pixel-identical pairs, min IoU ([\d.na]+)", out)
+        step.figure = (f"official {runs.get('official')} s, r360gpu {runs.get('after')} s per image, {ratio}x; "
+                       f"masks {sets[0]} / {sets[1]}, {sets[2]} pixel-identical, least IoU {sets[3]}"
+                       if ratio and sets else "")
+        step.goal = ">= 3x, equal mask sets" + (" (not this size)" if small else (
+            " MET" if ratio and sets and float(ratio) >= 3 and sets[0] == sets[1] and sets[3] != "nan"
+            and float(sets[3]) >= 0.99 else " NOT MET"))
+    elif step.name == "grounded":
+        per = last(r"([\d.]+) s per image", out)
+        where = last(r"(GroundingDINO on \S+, SAM on \S+);", out)
+        found = last(r"(\d+) instance\(s\)", out)
+        step.figure = f"{per} s per image ({where}; {found} instance(s))" if per and where else ""
     elif step.name.startswith("demo"):
         secs = last(r"demo wall ([\d.]+) s", out)
         step.figure = f"{secs} s" if secs else ""
@@ -146,6 +202,44 @@ DEMO_SCRIPT = (
 )
 
 
+#: Prints what step 4b needs that this machine has: CUDA torch (the GPU's name) and the folders
+#: holding segment_anything and samexporter (given, or where they are installed).
+NEEDS_SCRIPT = (
+    "import importlib.util, json, sys; out = {}\n"
+    "try:\n import torch; out['cuda'] = torch.cuda.get_device_name() if torch.cuda.is_available() else None\n"
+    "except ImportError: out['cuda'] = None\n"
+    "for name, given in (('segment_anything', sys.argv[1]), ('samexporter', sys.argv[2])):\n"
+    " if given: sys.path.insert(0, given)\n"
+    " spec = importlib.util.find_spec(name)\n"
+    " out[name] = given or (str(__import__('pathlib').Path(spec.origin).parent.parent) if spec else None)\n"
+    "print(json.dumps(out))"
+)
+
+
+def official_step(args, work: Path) -> Step:
+    """Step 4b, or why it cannot run here ("not available: ...")."""
+    import json
+
+    py = sys.executable
+    p = subprocess.run([py, "-c", NEEDS_SCRIPT, str(args.sam_src or ""), str(args.samexporter_src or "")],
+                       capture_output=True, text=True, timeout=120)
+    try:
+        have = json.loads(p.stdout.strip().splitlines()[-1])
+    except (ValueError, IndexError):
+        have = {}
+    missing = [what for what, ok in (("torch with CUDA", have.get("cuda")),
+                                     ("segment-anything (--sam-src)", have.get("segment_anything")),
+                                     ("samexporter (--samexporter-src)", have.get("samexporter"))) if not ok]
+    if missing:
+        return Step("probe vs official", None, 0.3, f"not available: no {', no '.join(missing)}")
+    size = ["--points-per-side", "8", "--size", "320x240"] if args.small else ["--points-per-side", "32"]
+    sam_work = args.sam_work or work / "sam"
+    return Step("probe vs official", [py, str(HERE / "bench_amg.py"), "--sam-src", have["segment_anything"],
+                                      "--samexporter-src", have["samexporter"], "--work", str(sam_work),
+                                      *(["--reuse-exports"] if args.sam_work else []), "--runs", "official,after",
+                                      "--torch-device", "cuda", "--probe-device", "auto", "--warmup", *size], 0.3)
+
+
 def build_steps(args, work: Path) -> list[Step]:
     py = sys.executable
     adapter = ["--adapter", args.adapter] if args.adapter else []
@@ -154,6 +248,13 @@ def build_steps(args, work: Path) -> list[Step]:
     steps = [Step("doctor", [py, "-m", "r360gpu", "doctor", *adapter], 0.15)]
     steps.append(Step("render", [py, str(HERE / "bench_render.py"), "--sizes", str(renders), "--repeat", "3",
                                  "--no-oracle"] + (["--size", "480x270"] if small else []), 0.2))
+    frame = ["480", "270"] if small else ["1920", "1080"]
+    steps.append(Step("render sort", [py, str(HERE / "bench_render_sort.py"), "--no-frames", "--sizes", str(renders),
+                                      "--width", frame[0], "--height", frame[1], "--sort-reps", "3",
+                                      "--pairs", "100000" if small else "1000000"], 0.05))
+    steps.append(Step("render recording", [py, str(HERE / "bench_render.py"), "--host-recording", "--sizes",
+                                           str(renders), "--size", "x".join(frame), "--rounds", "1",
+                                           "--repeat", "5" if small else "20"], 0.05))
     if args.public is None:
         steps.append(Step("vs public", None, 0.3, "no --public checkout given"))
     else:
@@ -176,6 +277,12 @@ def build_steps(args, work: Path) -> list[Step]:
                               "--device", "auto", *size], 0.2)
         step.goal = label
         steps.append(step)
+    steps.append(official_step(args, work))
+    grounded = ["--grounded", *map(str, args.grounded)] if args.grounded else ["--stand-in"]
+    step = Step("grounded", [py, str(HERE / "bench_grounded.py"), *grounded, "--device", "auto",
+                             *(["--size", "320x240"] if small else [])], 0.05)
+    step.goal = "" if args.grounded else "stand-in graphs (path check, not speed)"
+    steps.append(step)
     demo_size = ["--n-views", "4", "--width", "160", "--height", "120"] if small else []
     # The 2-thread run first: a first run pays the cold file cache, which must not favour the default.
     two = Step("demo, 2 host threads", [py, "-c", DEMO_SCRIPT, str(work / "demo2"), *adapter, *demo_size], 0.15)

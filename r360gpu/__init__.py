@@ -5,9 +5,9 @@ Data flows one way through the sub-packages:
 -> ``aggregate`` -> ``report``; ``pipeline`` runs the stages per view.  ``gpu`` and ``kernels`` are the device layer
 used by ``render`` and ``metrics``; ``cli`` drives everything.
 
-The names exported here: :func:`evaluate` with :class:`EvaluateOptions` (score scenes),
-:func:`load_bundle` / :func:`check_bundle` (read or validate a scene folder),
-:func:`scene_from_objects` and :class:`DeviceViewsSource` (scenes held in memory or on a GPU).
+The names exported here: `evaluate` with `EvaluateOptions` (score scenes),
+`load_bundle` / `check_bundle` (read or validate a scene folder),
+`scene_from_objects` and `DeviceViewsSource` (scenes held in memory or on a GPU).
 """
 from __future__ import annotations
 

@@ -1,35 +1,38 @@
 """The Remove360 protocol's constants and r360gpu's result schemas, defined once.
 
-Every number here is fixed by the protocol (``/work/shared/spec/PROTOCOL.md``, the paper's
-Sec. 3 and Supp. A.4), not a tuning choice of this implementation; everything else in the
-package imports them from here, and ``tests/test_protocol_constants.py`` fails when one of
-these literals is written again elsewhere (as a default argument, a module constant, a tuple
-of the axis names or a schema string).  Rendering conventions live in
-:mod:`r360gpu.render.conventions`, in the same spirit.
+Every number here is fixed by the protocol (the paper's Sec. 3 and Supp. A.4; definitions and
+values on the docs page "The protocol", docs/protocol.md), not a tuning choice of this
+implementation -- except `MIN_SCENES_TO_RANK`, r360gpu's own rule, with its reason beside it.
+Everything else in the package imports them from here, and
+``tests/test_protocol_constants.py`` fails when one of these literals is written again
+elsewhere (as a default argument, a module constant, a tuple of the axis names or a schema
+string).  Rendering conventions live in
+`r360gpu.render.conventions`, in the same spirit.
 
 Semantic axis (``eq:acc_seg``)
-    :data:`XI_DEFAULT`: a view counts as detected when ``IoU(M_post, M) >= xi``;
-    ``s_sem = acc_seg`` at this xi.  :data:`XI_SWEEP`: the thresholds of the
-    sensitivity sweep.  :data:`XI_PUBLIC`: the thresholds the public scripts report.
+    `XI_DEFAULT`: a view counts as detected when ``IoU(M_post, M) >= xi``;
+    ``s_sem = acc_seg`` at this xi.  `XI_SWEEP`: the thresholds of the
+    sensitivity sweep.  `XI_PUBLIC`: the thresholds the public scripts report.
 
 Structural axis (``eq:sim_sam``)
-    :data:`RETAIN_IOU`: a probe mask is retained when its IoU with the target mask
-    is at least this.  :data:`STRUCTURAL_MODES`: with a reference ``sim_SAM(I_post, I_ref)``,
+    `RETAIN_IOU`: a probe mask is retained when its IoU with the target mask
+    is at least this.  `STRUCTURAL_MODES`: with a reference ``sim_SAM(I_post, I_ref)``,
     without one ``1 - sim_SAM(I_pre, I_post)``.
 
 Geometric axis (``eq:acc_depth``)
-    GHT (Barron, ECCV 2020) on a :data:`GHT_BINS`-bin histogram of |dD| with the reference
-    parameters :data:`GHT_NU`, :data:`GHT_TAU`, :data:`GHT_KAPPA`, :data:`GHT_OMEGA`.
+    GHT (Barron, ECCV 2020) on a `GHT_BINS`-bin histogram of |dD| with the reference
+    parameters `GHT_NU`, `GHT_TAU`, `GHT_KAPPA`, `GHT_OMEGA`.
 
 Aggregation (``eq:rqs``, Supp. A.4)
-    :data:`AXES`: the three axes, in the order RQS, ranks and tables use; RQS is their
+    `AXES`: the three axes, in the order RQS, ranks and tables use; RQS is their
     geometric mean, the cube root of their product.  The reliability statistics use
-    :data:`N_BOOT` paired bootstrap resamples, :data:`N_PERM` permutations and a
-    :data:`CI_LEVEL` confidence interval; the boundary sweep erodes and dilates the target
-    by :data:`BOUNDARY_PX` pixels.
+    `N_BOOT` paired bootstrap resamples, `N_PERM` permutations and a
+    `CI_LEVEL` confidence interval, stated only from `MIN_SCENES_TO_RANK` scenes
+    on; the boundary sweep erodes and dilates the target
+    by `BOUNDARY_PX` pixels.
 
 Schemas
-    :data:`RESULTS_SCHEMA` names ``results.json``; :data:`VIEW_RECORD_SCHEMA` one cached
+    `RESULTS_SCHEMA` names ``results.json``; `VIEW_RECORD_SCHEMA` one cached
     per-view record.  A reader refuses any other name.
 """
 from __future__ import annotations
@@ -60,6 +63,13 @@ AXES: tuple[str, str, str] = ("s_sem", "s_geo", "s_str")
 N_BOOT: int = 20000
 N_PERM: int = 5000
 CI_LEVEL: float = 0.95
+#: Fewest scenes for which r360gpu states how sure a ranking is (the interval and P(beats best));
+#: r360gpu's rule, not the paper's.  S scenes give only C(2S-1, S) distinct paired resamples: 3 for 2
+#: scenes, 35 for 4, 126 for 5 (the first count past 100).  With 2 or 3 scenes the 95% interval is
+#: exactly the scenes' range (all S draws of the lowest scene have probability S^-S >= 1/27 > 2.5%),
+#: and with 4 it rests on a handful of resamples: the numbers would restate the scenes while looking
+#: like a statement about the methods.
+MIN_SCENES_TO_RANK: int = 5
 
 #: Boundary sensitivity: erode and dilate the target mask by these radii (pixels).
 BOUNDARY_PX: tuple[int, ...] = (5, 10, 15)
@@ -70,6 +80,6 @@ VIEW_RECORD_SCHEMA: str = "r360gpu.view_record/1"
 
 __all__ = [
     "AXES", "BOUNDARY_PX", "CI_LEVEL", "GHT_BINS", "GHT_KAPPA", "GHT_NU", "GHT_OMEGA", "GHT_TAU",
-    "N_BOOT", "N_PERM", "RESULTS_SCHEMA", "RETAIN_IOU", "STRUCTURAL_MODES",
+    "MIN_SCENES_TO_RANK", "N_BOOT", "N_PERM", "RESULTS_SCHEMA", "RETAIN_IOU", "STRUCTURAL_MODES",
     "VIEW_RECORD_SCHEMA", "XI_DEFAULT", "XI_PUBLIC", "XI_SWEEP",
 ]

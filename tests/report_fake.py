@@ -251,3 +251,17 @@ def add_expected(results: dict) -> dict:
             "ghost": {"failure": "half-transparent object at its old depth", "caught_by": ["s_geo", "s_str"]},
         }
     return results
+
+
+def add_ranked_reliability(results: dict, n_scenes: int = 6) -> dict:
+    """The "how sure is the ranking" statistics of a grid with enough scenes to state them (the fake's
+    two scenes are too few): the fake's methods over ``n_scenes`` seeded random scenes."""
+    methods = tuple(results["aggregate"]["methods"])
+    rng = np.random.default_rng(n_scenes)
+    cells = AxisCells(tuple(f"s{i}" for i in range(n_scenes)), methods,
+                      *(rng.random((n_scenes, len(methods))) for _ in range(3)))
+    ranked = aggregate_tables(cells, n_boot=200, n_perm=50)
+    agg = results["aggregate"]
+    agg["reliability"], agg["reliability_best"] = ranked["reliability"], ranked["reliability_best"]
+    agg["notes"].pop("reliability", None)
+    return results

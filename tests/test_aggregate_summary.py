@@ -22,7 +22,7 @@ def _cells(s_sem, s_geo, s_str, scenes=None, methods=None, **kw):
 
 def test_structure_and_lossless_json_round_trip():
     rng = np.random.default_rng(1)
-    cells = _cells(*(rng.random((4, 3)) for _ in range(3)), iou_drop=rng.random((4, 3)) - 0.2)
+    cells = _cells(*(rng.random((5, 3)) for _ in range(3)), iou_drop=rng.random((5, 3)) - 0.2)
     out = aggregate_tables(cells, n_boot=200, n_perm=100, seed=3)
     assert json.loads(json.dumps(out, allow_nan=False)) == out
     assert set(out["rqs"]) == set(cells.scenes)
@@ -37,7 +37,8 @@ def test_structure_and_lossless_json_round_trip():
     assert out["overall_pooling"] == "scene-macro"
     assert out["notes"] == {}
     assert out["reliability"][out["reliability_best"]]["p_beats_best"] is None
-    assert out["settings"] == {"n_boot": 200, "n_perm": 100, "seed": 3, "ci_level": 0.95, "rank_decimals": None}
+    assert out["settings"] == {"n_boot": 200, "n_perm": 100, "seed": 3, "ci_level": 0.95, "min_scenes_to_rank": 5,
+                               "rank_decimals": None}
 
 
 def test_deterministic():
@@ -67,13 +68,14 @@ def test_one_scene_omits_reliability_and_association_with_notes():
     out = aggregate_tables(cells)
     assert "reliability" not in out and "axis_association" not in out
     assert set(out["notes"]) == {"reliability", "axis_association"}
-    assert "at least two scenes" in out["notes"]["reliability"]
+    assert out["notes"]["reliability"] == "too few scenes to rank with confidence (1 scene; at least 5 needed)"
+    assert "at least two scenes" in out["notes"]["axis_association"]
     assert out["rqs"]["s0"]["m0"] == 0.0  # an axis at 0 gives RQS 0
     assert out["ranks"]["m0"]["str"] == 2.0
 
 
 def test_identical_methods_and_single_method():
-    same = [[0.3, 0.3], [0.8, 0.8]]
+    same = [[0.3, 0.3], [0.8, 0.8], [0.5, 0.5], [0.1, 0.1], [0.9, 0.9]]
     out = aggregate_tables(_cells(same, same, same), n_boot=100, n_perm=50)
     assert out["ranks"]["m0"] == out["ranks"]["m1"]
     assert out["ranks"]["m0"]["avg_rank"] == 1.5
@@ -84,6 +86,19 @@ def test_identical_methods_and_single_method():
     assert assoc["rho"] == pytest.approx(1.0)
     assert assoc["rho_centred"] is None and assoc["p_centred"] is None and assoc["tau_mean"] is None
     assert json.dumps(single, allow_nan=False)
+
+
+@pytest.mark.parametrize("n_scenes", [2, 3, 4])
+def test_too_few_scenes_says_so_instead_of_intervals(n_scenes):
+    """Below MIN_SCENES_TO_RANK scenes: no interval, no P(beats best), a note saying why and how many
+    are needed; the axis association (two scenes) is still computed."""
+    rng = np.random.default_rng(n_scenes)
+    out = aggregate_tables(_cells(*(rng.random((n_scenes, 3)) for _ in range(3))), n_boot=100, n_perm=50)
+    assert "reliability" not in out and "reliability_best" not in out
+    assert out["notes"] == {"reliability": f"too few scenes to rank with confidence ({n_scenes} scenes; "
+                                           f"at least 5 needed)"}
+    assert "axis_association" in out
+    assert json.loads(json.dumps(out, allow_nan=False)) == out
 
 
 def test_rank_decimals_ranks_as_printed():

@@ -95,7 +95,7 @@ def test_overall_rows_as_one_scene_reproduce_main_results(tmp_path, capsys):
         assert row["avg_rank"].matches(data["ranks"][m]["avg_rank"]), m
         assert data["overall"][m]["iou_drop"] == pytest.approx(row["iou_drop"].value)
     assert set(data["notes"]) == {"reliability", "axis_association"}
-    assert "Note: reliability omitted: needs at least two scenes; got 1" in out
+    assert "Note: too few scenes to rank with confidence (1 scene; at least 5 needed)" in out
 
 
 def test_n_views_gives_view_weighted_overall(tmp_path, capsys):

@@ -30,6 +30,15 @@ def test_the_site_builds_strictly(site):
     assert "Load a Gaussian-splat scene" in api and "measure_view_methods" in api
 
 
+def test_api_page_shows_no_sphinx_roles(site):
+    """The docstrings are Markdown (mkdocs.yml: docstring_style null renders them as written): a Sphinx
+    role such as :func:`x` would reach the page as the raw text ":func:" before the code span."""
+    api = (site / "api" / "index.html").read_text(encoding="utf-8")
+    assert "r360gpu.protocol" in api and "MIN_SCENES_TO_RANK" in api
+    roles = re.findall(r":(?:py:)?[a-z]+:(?:<code>|`)", re.sub(r"<span[^>]*>|</span>", "", api))
+    assert roles == [], f"{len(roles)} Sphinx roles on the API page, e.g. {roles[:5]}"
+
+
 def test_every_page_is_in_the_nav():
     import yaml
 

@@ -100,6 +100,14 @@ def test_scoring_records_given_and_rendered_views(bench, tmp_path, ctx):
     assert rec["given"] == sorted(given) and len(rec["rendered"]) == ARGS["n_views"] - len(given)
     assert rec["lifted_from"] == sorted(given)
     assert set(res["scenes"]["room"]["methods"]) == {"clean", "floaters"}
+    from r360gpu.io import load_gaussians
+    from r360gpu.report.outputs import summary_lines
+
+    assert rec["of"] == load_gaussians(bundle.pre.path).n and 0 < rec["gaussians"] < rec["of"]
+    print("target record:", {k: rec[k] for k in ("source", "gaussians", "of")}, len(rec["given"]), len(rec["rendered"]))
+    assert (f"room: [target] lifted onto {rec['gaussians']} of {rec['of']} Gaussians of pre (from the masks of views "
+            f"{', '.join(sorted(given))}); masks rendered for {len(rec['rendered'])} of {ARGS['n_views']} views"
+            in summary_lines(res))
 
 
 def test_scene_from_objects_with_a_target(bench, ctx):

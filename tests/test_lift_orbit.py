@@ -127,6 +127,16 @@ def test_report_shows_capture_vs_orbit(scored):
     assert "capture RQS" in text and "orbit RQS" in text and "worst orbit views" in text
     assert len(t.rows) == 2
     assert orbit_table({"scenes": {"a": {"methods": {}}}}) is None
+    # and on the console: the poses, then each method's capture -> orbit axes
+    from r360gpu.report.outputs import summary_lines
+
+    orbit = scored["scenes"]["garden"]["orbit"]
+    text = "\n".join(summary_lines(scored))
+    assert f"  garden: {orbit['kept']} of 12 poses scored" in text
+    for m in ("clean", "backside"):
+        assert f"  garden / {m}: s_sem " in text
+        assert f"RQS {scored['scenes']['garden']['methods'][m]['axes']['rqs']:.3f} -> " \
+               f"{orbit['methods'][m]['axes']['rqs']:.3f}" in text
 
 
 def test_renderings_only_methods_have_no_orbit(tmp_path, ctx):

@@ -169,6 +169,12 @@ def test_pruning_the_floaters_raises_their_axes_and_is_never_ranked(floaters_run
     clean = scene["pruned"]["clean+pruned"]
     assert clean["removed"] == min(n_floaters, int(np.count_nonzero(clean_r > 0)))
     assert ("note" in clean) == (clean["removed"] == 0) and ("axes" in clean) == (clean["removed"] > 0)
+    # fewer than asked, said with the reason, on the console and in results.json
+    assert what_if["asked"] == n_floaters and "fewer" not in what_if
+    if 0 < clean["removed"] < n_floaters:
+        assert clean["asked"] == n_floaters
+        assert clean["fewer"].startswith(f"only {int(np.count_nonzero(clean_r > 0))} Gaussians have a residual above 0")
+        assert any(f"({clean['removed']} of {clean['of']} Gaussians removed; {n_floaters} asked: " in ln for ln in lines)
     # deterministic: a second run (its own output folder, nothing cached) gives the same document parts
     assert again["scenes"]["room"]["pruned"] == scene["pruned"]
     assert again["scenes"]["room"]["residuals"] == scene["residuals"]

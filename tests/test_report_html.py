@@ -267,7 +267,7 @@ def test_renders_in_headless_chromium(report, tmp_path):
 
 # -- issue 16: first screen, per-view table, probe checks, known failures --------------
 
-from report_fake import add_expected, add_probe_checks  # noqa: E402
+from report_fake import add_expected, add_probe_checks, add_ranked_reliability  # noqa: E402
 
 from r360gpu.report import findings  # noqa: E402
 from r360gpu.report.tables import render_latex  # noqa: E402
@@ -452,16 +452,30 @@ def test_no_sideways_scroll_and_sorting_in_chromium(checked_report, tmp_path, wi
     assert sorted(got["before"]) == sorted(got["asc"])
 
 
-def test_first_screen_says_how_sure_the_ranking_is(checked_report):
+def test_first_screen_says_too_few_scenes_to_rank(checked_report):
+    """The fake's two scenes: the sentence saying so where the intervals would be, and no intervals."""
     results, _, path = checked_report
     text = path.read_text(encoding="utf-8")
+    leaks = text[text.index('<section id="leaks">'):text.index('<section id="summary">')]
+    assert "reliability" not in results["aggregate"]
+    said = "too few scenes to rank with confidence (2 scenes; at least 5 needed)"
+    assert results["aggregate"]["notes"]["reliability"] == said
+    assert "How sure is the ranking" in leaks and said in leaks
+    assert "95% CI" not in text and "P(beats " not in text
+    assert text.count(said) == 1  # not repeated among the table notes
+
+
+def test_first_screen_says_how_sure_the_ranking_is(tmp_path):
+    results = add_ranked_reliability(add_probe_checks(fake_results(tmp_path, pictures=False)))
+    text = write_html(results, tmp_path).read_text(encoding="utf-8")
     leaks = text[text.index('<section id="leaks">'):text.index('<section id="summary">')]
     rel = results["aggregate"]["reliability"]
     assert "How sure is the ranking" in leaks and "95% CI" in leaks and "P(beats " in leaks
     assert leaks.index("How sure is the ranking") < leaks.index("Probe checks")  # right under the main table
     for m, r in rel.items():
-        if r.get("ci_low") is not None:
-            assert f"[{r['ci_low']:.3f}, {r['ci_high']:.3f}]" in leaks
+        assert 0.0 <= r["ci_low"] <= r["ci_high"] <= 1.0
+        assert f"[{r['ci_low']:.3f}, {r['ci_high']:.3f}]" in leaks
+    assert "too few scenes" not in text
     tables = text[text.index('<section id="tables">'):]
     assert "95% CI" not in tables[:tables.index("</section>")]  # shown once
 

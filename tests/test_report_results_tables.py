@@ -137,11 +137,13 @@ def test_sensitivity_tables(results):
 def test_write_tables(results, tmp_path):
     md_path, tex_path = write_tables(results, tmp_path)
     md, tex = md_path.read_text(), tex_path.read_text()
-    tables, _ = build_results_tables(results)
-    assert [t.key for t in tables] == [
+    tables, notes = build_results_tables(results)
+    assert [t.key for t in tables] == [  # two scenes: no reliability table, a note instead
         "main_results", "rqs_per_scene", "axis_iou_drop", "axis_s_sem", "axis_s_geo", "axis_s_str", "axis_psnr",
-        "axis_ssim", "axis_lpips", "iou_pre_post", "scene_macro", "rank_agg", "reliability", "axis_association",
+        "axis_ssim", "axis_lpips", "iou_pre_post", "scene_macro", "rank_agg", "axis_association",
         "xi_sensitivity", "boundary_sensitivity"]
+    assert "too few scenes to rank with confidence (2 scenes; at least 5 needed)" in notes
+    assert "Note: too few scenes to rank with confidence" in md
     for t in tables:
         assert t.title in md
         assert rf"\label{{tab:r360_{t.key}}}" in tex

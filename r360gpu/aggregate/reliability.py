@@ -6,15 +6,23 @@ Reproduces tab:supp_reliability from the per-scene RQS table tab:supp_rqs:
 * ``sd``: sample standard deviation over scenes, ``ddof=1`` (ddof=0 does not
   reproduce the printed values, e.g. 0.167 instead of 0.175 for GC);
 * ``min``/``max``: the range over scenes;
-* ``ci_low``/``ci_high``: normal-approximation interval
-  ``mean +- z_(1+level)/2 * sd / sqrt(S)`` with z = 1.95996 for 95%.  This is
-  the reading that reproduces all six printed intervals exactly; the
-  t-interval (e.g. [0.547, 0.782] for GC) and the bootstrap percentile
-  interval (e.g. [0.563, 0.760]) do not;
+* ``ci_low``/``ci_high``: the paired bootstrap's percentile interval of the
+  scene-macro mean RQS: the (1 - level)/2 and (1 + level)/2 quantiles of the
+  resampled means.  A mean of scenes cannot leave the scenes' range, so the
+  interval lies within [min, max] and never outside [0, 1] for a score in
+  [0, 1], however few the scenes.  The paper prints the normal approximation
+  ``mean +- 1.96 sd / sqrt(S)`` instead (reproduced from ``mean`` and ``sd`` in
+  tests/test_aggregate_reliability.py); with 2 scenes that interval falls below
+  0 (e.g. [-0.135, 0.416]) for a score that cannot;
 * ``p_beats_best``: paired scene-level bootstrap.  Each resample draws S
   scenes with replacement, the same scenes for every method; the value is the
   fraction of resamples in which the method's scene-macro mean RQS is strictly
   greater than that of the best method (highest mean RQS).
+
+The interval and the probability come from the same resamples, so one seed
+fixes both.  Below `r360gpu.protocol.MIN_SCENES_TO_RANK` scenes the
+tables leave both out (``aggregate_tables``); this function computes them for
+any S >= 2.
 """
 from __future__ import annotations
 
@@ -63,7 +71,7 @@ def reliability(scene_rqs, n_boot: int = N_BOOT, seed: int = 0, ci_level: float 
         n_boot: number of bootstrap resamples (>= 1).
         seed: seed of the ``numpy.random.default_rng`` generator; the same
             seed gives the same result.
-        ci_level: coverage of the normal-approximation interval, in (0, 1).
+        ci_level: coverage of the bootstrap percentile interval, in (0, 1).
 
     Returns:
         :class:`Reliability`.
@@ -83,27 +91,27 @@ def reliability(scene_rqs, n_boot: int = N_BOOT, seed: int = 0, ci_level: float 
 
     mean = r.mean(axis=0)
     sd = r.std(axis=0, ddof=1)
-    # here, not at the top: scipy.special costs every command ~0.15 s to import, and only
-    # runs of two scenes or more need the normal quantile (scipy.stats would cost ~0.6 s)
-    from scipy.special import ndtri
-
-    half = ndtri(0.5 + ci_level / 2.0) * sd / np.sqrt(n_scenes)
     best = int(np.argmax(mean))
 
     rng = np.random.default_rng(seed)
     wins = np.zeros(n_methods, dtype=np.int64)
+    boot_means = np.empty((n_boot, n_methods))  # kept for the percentile interval
     done = 0
     while done < n_boot:
         n = min(_CHUNK, n_boot - done)
         idx = rng.integers(0, n_scenes, size=(n, n_scenes))
-        boot_means = r[idx].mean(axis=1)  # (n, M)
-        wins += (boot_means > boot_means[:, [best]]).sum(axis=0)
+        chunk = boot_means[done:done + n] = r[idx].mean(axis=1)  # (n, M)
+        wins += (chunk > chunk[:, [best]]).sum(axis=0)
         done += n
     p = wins / float(n_boot)
     p[best] = np.nan
+    tail = (1.0 - ci_level) / 2.0
+    low, high = np.quantile(boot_means, [tail, 1.0 - tail], axis=0)
+    # The clip only undoes rounding: a resampled mean of equal scenes may differ from them by an ulp.
+    lo, hi = r.min(axis=0), r.max(axis=0)
 
     return Reliability(
-        mean=mean, sd=sd, min=r.min(axis=0), max=r.max(axis=0),
-        ci_low=mean - half, ci_high=mean + half,
+        mean=mean, sd=sd, min=lo, max=hi,
+        ci_low=np.clip(low, lo, hi), ci_high=np.clip(high, lo, hi),
         p_beats_best=p, best=best, n_boot=int(n_boot), seed=int(seed), ci_level=float(ci_level),
     )

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 
-from ..protocol import CI_LEVEL, N_BOOT, N_PERM
+from ..protocol import CI_LEVEL, MIN_SCENES_TO_RANK, N_BOOT, N_PERM
 from .association import axis_association
 from .cells import AXES, AxisCells
 from .ranks import rank_summary
@@ -18,6 +18,12 @@ def _num(x) -> float | None:
     """A JSON-safe float: NaN (undefined) becomes None."""
     x = float(x)
     return None if math.isnan(x) else x
+
+
+def too_few_scenes(n_scenes: int) -> str:
+    """Why the ranking's interval and P(beats best) are left out: fewer than MIN_SCENES_TO_RANK scenes."""
+    return (f"too few scenes to rank with confidence ({n_scenes} scene{'s' if n_scenes != 1 else ''}; "
+            f"at least {MIN_SCENES_TO_RANK} needed)")
 
 
 def aggregate_tables(
@@ -53,7 +59,7 @@ def aggregate_tables(
              "axis_association": {"sem-geo" | "sem-str" | "geo-str":
                                   {"rho", "rho_centred", "p_centred", "tau_mean", "tau_sd",
                                    "n_tau_scenes"}},
-             "settings": {"n_boot", "n_perm", "seed", "ci_level", "rank_decimals"},
+             "settings": {"n_boot", "n_perm", "seed", "ci_level", "min_scenes_to_rank", "rank_decimals"},
              "notes": {KEY: str}}
 
         ``overall`` pools over scenes view-weighted when ``cells.n_views`` is
@@ -61,9 +67,10 @@ def aggregate_tables(
         scene-macro mean; ``overall_pooling`` says which, and RQS is computed
         from the pooled axes.  ``scene_macro`` always weights scenes equally
         and its ``mean_rqs`` is the mean of the per-scene RQS (not the RQS of
-        the mean axes).  ``reliability``, ``reliability_best`` and
-        ``axis_association`` need at least two scenes; with one scene they are
-        absent and ``notes`` says why.
+        the mean axes).  ``reliability`` and ``reliability_best`` need at least
+        ``MIN_SCENES_TO_RANK`` scenes and ``axis_association`` two; with fewer
+        they are absent and ``notes`` says why (``notes["reliability"]``:
+        "too few scenes to rank with confidence (N scenes; at least M needed)").
     """
     if n_boot < 1 or n_perm < 1:
         raise ValueError("n_boot and n_perm must be at least 1")
@@ -111,9 +118,9 @@ def aggregate_tables(
     }
 
     settings = {"n_boot": int(n_boot), "n_perm": int(n_perm), "seed": int(seed), "ci_level": CI_LEVEL,
-                "rank_decimals": rank_decimals}
+                "min_scenes_to_rank": MIN_SCENES_TO_RANK, "rank_decimals": rank_decimals}
     notes: dict[str, str] = {}
-    if len(scenes) >= 2:
+    if len(scenes) >= MIN_SCENES_TO_RANK:
         rel = reliability(scene_rqs, n_boot=n_boot, seed=seed, ci_level=settings["ci_level"])
         out["reliability"] = {
             m: {
@@ -125,6 +132,9 @@ def aggregate_tables(
             for j, m in enumerate(methods)
         }
         out["reliability_best"] = methods[rel.best]
+    else:
+        notes["reliability"] = too_few_scenes(len(scenes))
+    if len(scenes) >= 2:
         out["axis_association"] = {
             pair: {
                 "rho": _num(a.rho), "rho_centred": _num(a.rho_centred), "p_centred": _num(a.p_centred),
@@ -133,9 +143,7 @@ def aggregate_tables(
             for pair, a in axis_association(cells, n_perm=n_perm, seed=seed).items()
         }
     else:
-        why = f"needs at least two scenes; got {len(scenes)}"
-        notes["reliability"] = f"reliability omitted: {why}"
-        notes["axis_association"] = f"axis association omitted: {why}"
+        notes["axis_association"] = f"axis association omitted: needs at least two scenes; got {len(scenes)}"
     out["settings"] = settings
     out["notes"] = notes
     return out

@@ -7,12 +7,12 @@ are what enforce it.
 
 A folder in the public Remove360 evaluation layout (``rgb/{before,after}``,
 ``depth/{before,after}``, ``masks/``) without scene.toml is also a bundle:
-see :mod:`.remove360_layout`; several such folders of one scene (one per
-method) are joined by :mod:`.group`, which also reads a benchmark root
+see `.remove360_layout`; several such folders of one scene (one per
+method) are joined by `.group`, which also reads a benchmark root
 ``ROOT/<method>/<scene>/``.
 
-Entry points: :func:`load_bundle` (raises :class:`BundleError` listing every
-problem), :func:`check_bundle` (the problems as a list), :func:`inspect_bundle`.
+Entry points: `load_bundle` (raises `BundleError` listing every
+problem), `check_bundle` (the problems as a list), `inspect_bundle`.
 """
 from __future__ import annotations
 

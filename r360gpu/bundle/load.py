@@ -42,18 +42,18 @@ from .views import cameras_by_view, check_masks, list_masks, narrow_views, selec
 
 def load_bundle(path: str | os.PathLike | Bundle, *, views: list[str] | None = None, prompt: str | None = None,
                 method_name: str | None = None, frame: str | None = None) -> Bundle:
-    """Load a bundle folder (or its scene.toml); raise :class:`BundleError` listing every problem.
+    """Load a bundle folder (or its scene.toml); raise `BundleError` listing every problem.
 
     views: glob patterns over view names replacing scene.toml's ``views`` (``--views``;
-    case-sensitive, :func:`~.views.matching`); the bundle records them (``view_patterns``).
+    case-sensitive, `matching`); the bundle records them (``view_patterns``).
     prompt: replaces scene.toml's ``prompt`` (for the Remove360 layout: instead
     of prompt.txt).  method_name: name of the Remove360 layout's method
     (default "after"); not used for scene.toml bundles.  frame: replaces
     scene.toml's top-level ``frame`` (the default of every splat scene; a
     source's own ``frame`` key still wins), e.g. ``"gsplat"`` (``--frame``).
     Masks are checked from their PNG headers (see the module docstring).
-    A :class:`Bundle` already loaded is returned as it is, with only the views ``views`` selects
-    (:func:`~.views.narrow_views`: a scene from objects or from METHOD=FOLDER folders).
+    A `Bundle` already loaded is returned as it is, with only the views ``views`` selects
+    (`narrow_views`: a scene from objects or from METHOD=FOLDER folders).
     """
     if isinstance(path, Bundle):
         return path if views is None else narrow_views(path, views)
@@ -66,8 +66,8 @@ def load_bundle(path: str | os.PathLike | Bundle, *, views: list[str] | None = N
 
 def check_bundle(path: str | os.PathLike, *, views: list[str] | None = None, prompt: str | None = None,
                  method_name: str | None = None, frame: str | None = None) -> list[Problem]:
-    """Every problem of a bundle ([] when it is valid); arguments as :func:`load_bundle`.
-    Unlike :func:`load_bundle`, decodes every mask."""
+    """Every problem of a bundle ([] when it is valid); arguments as `load_bundle`.
+    Unlike `load_bundle`, decodes every mask."""
     return inspect_bundle(path, views=views, prompt=prompt, method_name=method_name, frame=frame, deep=True)[1]
 
 

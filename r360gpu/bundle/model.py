@@ -147,7 +147,7 @@ class Bundle:
     evaluation view (None for renders-only bundles without cameras).  masks: the target-mask
     PNG of each view.  methods: in the order of the bundle file.
     layout: "scene.toml", "remove360" (a public Remove360 evaluation
-    folder), "group" (several methods' folders, :mod:`.group`) or "objects"; config: the scene.toml (None for the Remove360 layout);
+    folder), "group" (several methods' folders, `.group`) or "objects"; config: the scene.toml (None for the Remove360 layout);
     cameras_path: what ``cameras`` named (None without cameras).
     method_pres: the methods that bring their own pre-removal source (the
     others use ``pre``); used for that method's IoU_pre / IoU_drop, D_pre and
@@ -178,7 +178,7 @@ class Bundle:
 
     def sources(self) -> dict[str, SourceSpec]:
         """Every source by name: "pre", "reference" (when present), the methods, then each
-        method's own pre as ``"pre/<method>"`` (see :func:`pre_name`)."""
+        method's own pre as ``"pre/<method>"`` (see `pre_name`)."""
         out = {"pre": self.pre}
         if self.reference is not None:
             out["reference"] = self.reference
@@ -187,7 +187,7 @@ class Bundle:
         return out
 
     def with_render_settings(self, **settings) -> "Bundle":
-        """A copy whose splat-scene sources use ``settings`` (keys of :data:`RENDER_KEYS`;
+        """A copy whose splat-scene sources use ``settings`` (keys of `RENDER_KEYS`;
         None leaves a source's own value), e.g. ``antialiased=True`` from ``score --antialiased``."""
         from dataclasses import replace
 
@@ -224,7 +224,7 @@ class Bundle:
         every file the bundle reads: camera files, the masks and renderings of
         the evaluation views, the splat files.  Digests are remembered per
         file identity and ctime once a file is 2 s old
-        (:mod:`r360gpu.util.filehash`), so an unchanged rerun reads nothing,
+        (`r360gpu.util.filehash`), so an unchanged rerun reads nothing,
         while other bytes of the same size with a restored mtime still change
         the fingerprint.  A missing file is hashed as missing.  Paths are taken
         relative to the bundle root when inside it.
@@ -233,7 +233,7 @@ class Bundle:
 
     def file_digests(self) -> dict[str, str | None]:
         """{path: content digest, None when missing} of every file the bundle reads
-        (:meth:`fingerprint`); a run keeps them to check that what it decoded is what it keyed."""
+        (`fingerprint`); a run keeps them to check that what it decoded is what it keyed."""
         files = [os.fspath(f) for f in self._referenced_files()]
 
         def one(f: str) -> str | None:
@@ -251,11 +251,11 @@ class Bundle:
             return dict(zip(files, pool.map(one, files)))
 
     def file_digests_paths(self) -> list[str]:
-        """The paths :meth:`file_digests` hashes, without hashing them."""
+        """The paths `file_digests` hashes, without hashing them."""
         return [os.fspath(f) for f in self._referenced_files()]
 
     def fingerprint_of(self, digests: dict[str, str | None]) -> str:
-        """:meth:`fingerprint` from digests taken before (:meth:`file_digests`)."""
+        """`fingerprint` from digests taken before (`file_digests`)."""
         h = hashlib.sha256()
 
         def add(*item) -> None:
@@ -279,8 +279,8 @@ class Bundle:
         return h.hexdigest()
 
     def view_files(self, view: str, readers: dict | None = None) -> list[str]:
-        """The paths (as keyed by :meth:`file_digests`) of the files the scores of ``view`` are decoded from: its mask, the
-        renderings of every renders source and every splat file (a subset of :meth:`file_digests`)."""
+        """The paths (as keyed by `file_digests`) of the files the scores of ``view`` are decoded from: its mask, the
+        renderings of every renders source and every splat file (a subset of `file_digests`)."""
         files = [self.masks[view]] if isinstance(self.masks.get(view), (str, os.PathLike)) else []
         readers = {} if readers is None else readers  # {source name: RendersReader}, kept by the caller
         for name, spec in self.sources().items():

@@ -23,6 +23,10 @@ from ..errors import InputError
 # Names of the non-method sources; a method may not use them (case-insensitive):
 # outputs and records key methods and these sources in one namespace.
 RESERVED_METHOD_NAMES = ("pre", "reference")
+#: Suffixes r360gpu adds to a method's name for the outputs it derives from it (``--prune-residuals``:
+#: the what-if METHOD+pruned, its residuals/SCENE/METHOD+pruned.ply); a method may not be named like
+#: another one's derived output (case-insensitive), which would overwrite it.
+DERIVED_SUFFIXES = ("+pruned",)
 # Windows device names: a folder called CON or NUL cannot be created there.
 _DEVICE_NAMES = {"con", "prn", "aux", "nul", *(f"com{i}" for i in range(1, 10)), *(f"lpt{i}" for i in range(1, 10))}
 _MAX_LEN = 200  # file names are at most 255 bytes on common file systems; leave room for suffixes
@@ -72,6 +76,14 @@ def name_problems(what: str, names: Iterable, *, reserved: tuple[str, ...] = ())
                             f"output files would collide)")
         else:
             seen[key] = name
+    if what == "method":
+        for key, name in seen.items():
+            for suffix in DERIVED_SUFFIXES:
+                if key.endswith(suffix) and key[: -len(suffix)] in seen:
+                    base = seen[key[: -len(suffix)]]
+                    problems.append(f"method name {name!r} is the name r360gpu gives method {base!r}'s pruned "
+                                    f"what-if (score --prune-residuals writes residuals/SCENE/{base}{suffix}.ply); "
+                                    f"rename it")
     return problems
 
 

@@ -14,17 +14,17 @@ def scene_from_objects(name: str, prompt: str, masks: dict, pre, methods: dict, 
                        cameras: dict | None = None, background=(0.0, 0.0, 0.0), depth: str = "expected",
                        reference_free: bool = False, method_pres: dict | None = None, target: dict | None = None
                        ) -> Bundle:
-    """A scene to pass to :func:`r360gpu.evaluate` without files.
+    """A scene to pass to `r360gpu.evaluate` without files.
 
     masks: {view: bool (H, W) target mask}; the keys are the evaluation views.
-    pre, reference, methods[...]: each a :class:`~r360gpu.io.Gaussians`
+    pre, reference, methods[...]: each a `Gaussians`
         (rendered at ``cameras``), a
-        :class:`~r360gpu.render.sources.DeviceViewsSource` (renders another
+        `DeviceViewsSource` (renders another
         GPU pipeline already holds on the device), or a bundle ``SourceSpec``.
     cameras: {view: Camera}, needed when any source is rendered here.
     method_pres: {method: source} for methods scored against their own
         pre-removal source instead of ``pre`` (same kinds as ``pre``).
-    target: as scene.toml's [target] (:mod:`.target`): {"masks": {view: (H, W) bool},
+    target: as scene.toml's [target] (`.target`): {"masks": {view: (H, W) bool},
         "indices": (K,) int or (N,) bool over pre's Gaussians, "box": {min, max} or
         {centre, size, rotation}}; then ``masks`` may be empty, every camera is an
         evaluation view and views without a mask get the target's rendered mask.

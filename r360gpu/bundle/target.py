@@ -95,6 +95,8 @@ def target_views(draft, where: str, cameras: dict | None, top_masks: dict | None
     if draft.pre is not None and draft.pre.kind != "scene":
         problems.append(Problem(where, "[target] needs [pre] as a splat scene (scene = ...): the target's "
                                        "masks are rendered from pre's Gaussians"))
+    if isinstance(spec.indices, Path) and not spec.indices.is_file():
+        problems.append(Problem(str(spec.indices), "[target].indices: no such file"))
     given: dict[str, Path] = dict(top_masks or {})
     if isinstance(spec.masks, Path):
         given.update(list_masks(spec.masks, problems) or {})
@@ -137,14 +139,33 @@ def target_from_objects(target: dict, views: list[str]) -> TargetSpec:
     unknown = sorted(set(target) - {"masks", "indices", "box"})
     if unknown:
         raise InputError(f"target: unknown key(s) {unknown}")
+    from ..io.indices import index_array
+
     masks = target.get("masks")
     if masks is not None:
+        if not isinstance(masks, dict):
+            raise InputError(f"target['masks'] must be a dict {{view: (H, W) mask}}, got a {type(masks).__name__}")
         missing = sorted(set(masks) - set(views))
         if missing:
             raise InputError(f"target masks for views without a camera: {missing[:5]}")
-        masks = {v: np.asarray(m) for v, m in masks.items()}
+        masks = {v: _mask_array(m, f"target['masks'][{v!r}]") for v, m in masks.items()}
     box = target.get("box")
     if box is not None and not isinstance(box, Box):
         box = Box.from_table(box, where="target['box']")
-    return TargetSpec(masks=masks, indices=None if target.get("indices") is None else np.asarray(target["indices"]),
+    indices = target.get("indices")
+    return TargetSpec(masks=masks, indices=None if indices is None else index_array(indices, "target['indices']"),
                       box=box)
+
+
+def _mask_array(value, where: str) -> np.ndarray:
+    """A given target mask as an (H, W) array of numbers or booleans (InputError naming ``where``)."""
+    from ..errors import InputError
+
+    try:
+        m = np.asarray(value)
+    except (TypeError, ValueError):
+        m = None
+    if m is None or m.dtype.kind not in "biuf" or m.ndim != 2:
+        raise InputError(f"{where} must be an (H, W) array of booleans or numbers, got "
+                         f"{type(value).__name__}{'' if m is None else f' of {m.dtype}, shape {m.shape}'}")
+    return m

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..bundle import DEFAULT_METHOD_NAME, PROMPT_FILE, Bundle, inspect_bundle
+from ..bundle import DEFAULT_METHOD_NAME, PROMPT_FILE, Bundle, Problem, inspect_bundle
 from .frame_option import add_frame_option
 from .lists import add_views_option
 
@@ -50,6 +50,8 @@ def _run(args: argparse.Namespace) -> int:
     for path in args.bundles:
         bundle, problems = inspect_bundle(path, views=args.views, prompt=args.prompt,
                                           method_name=args.method_name, frame=args.frame, deep=True)
+        if bundle is not None and bundle.target is not None:
+            problems = target_problems(bundle)
         for problem in problems:
             print(problem)
         if problems:
@@ -63,6 +65,21 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{n} bundles checked: {n - n_bad} valid, {n_bad} invalid"
               + (f" ({n_problems} problems)" if n_problems else ""))
     return 0 if n_bad == 0 else 2
+
+
+def target_problems(bundle: Bundle) -> list[Problem]:
+    """The problem (none or one) of a valid bundle's ``[target]``, found by the validation ``score``
+    runs (:func:`r360gpu.lift.resolve.check_target`: indices, box, given masks, the lift itself)."""
+    from ..errors import InputError
+    from ..lift.resolve import check_target
+    from ..util import warning_log
+
+    try:
+        with warning_log.where(scene=bundle.name):
+            check_target(bundle, warn=warning_log.warn)
+    except InputError as e:
+        return [Problem(e.path, f"{e.problem} ([target])")]
+    return []
 
 
 def summary(bundle: Bundle) -> str:

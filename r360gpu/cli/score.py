@@ -18,6 +18,13 @@ def add_scoring_options(p) -> None:
     g.add_argument("--structural-probe", action="append", metavar="SPEC", default=None,
                    help="structural probe (repeatable). 'builtin' (default: graph segmentation), "
                         "'sam-json:DIR', 'sam:encoder=PATH,decoder=PATH'")
+    g.add_argument("--probe-device", default="auto", metavar="DEVICE", type=str.lower,
+                   help="onnxruntime execution provider of the learned probes (sam:, grounded:) and LPIPS: "
+                        "auto (default: a GPU provider for the renderer's GPU when the installed onnxruntime has "
+                        "one, else cpu), cpu, cuda, tensorrt, webgpu, directml, coreml; a spec's device= wins. "
+                        "A provider named here that onnxruntime lacks is an error; one that cannot start is a "
+                        "warning naming what ran. GPU providers: pip install 'r360gpu[gpu-cuda]' or "
+                        "'r360gpu[gpu-webgpu]'")
     g = p.add_argument_group("protocol")
     g.add_argument("--reference-free", action="store_true",
                    help="s_str = 1 - sim(pre, post) even when a reference exists")
@@ -56,7 +63,8 @@ def add_scoring_options(p) -> None:
     g.add_argument("--n-perm", type=int, default=N_PERM, help=f"permutations (default {N_PERM})")
     g.add_argument("--seed", type=int, default=0, help="seed of bootstrap and permutations (default 0)")
     g = p.add_argument_group("run")
-    g.add_argument("--adapter", default=None, help="GPU adapter: auto, gpu, cpu, or part of its name")
+    g.add_argument("--adapter", default=None,
+                   help="GPU adapter: auto, gpu, gpu:N (the N-th GPU), cpu, or part of its name")
     g.add_argument("--force", action="store_true", help="recompute everything (ignore cached per-view results)")
     g.add_argument("--quiet", action="store_true", help="no progress bars")
 
@@ -137,7 +145,7 @@ def processes_from_args(args):
     value = getattr(args, "processes", None)
     if value is None:
         return None
-    from ..pipeline.processes import ProcessExecutor, default_workers
+    from ..pipeline.processes import ProcessExecutor, check_workers, default_workers
 
     if value == "auto":
         workers = default_workers()
@@ -146,8 +154,7 @@ def processes_from_args(args):
             workers = int(value)
         except ValueError:
             raise InputError(f"--processes takes a number of worker processes or 'auto', got {value!r}") from None
-        if workers < 1:
-            raise InputError(f"--processes must be at least 1, got {workers}")
+        check_workers(workers)
     return ProcessExecutor(workers, adapter=args.adapter) if workers > 1 else None
 
 
@@ -192,13 +199,14 @@ def options_from_args(args):
         views=tuple(args.views) if args.views else None,
         boundary=not args.no_boundary,
         lpips_model=args.lpips,
+        probe_device=args.probe_device,
         pictures=not args.no_pictures,
         controls=not args.no_controls,
         n_boot=args.n_boot,
         n_perm=args.n_perm,
         seed=args.seed,
         antialiased=getattr(args, "antialiased", False),
-        orbit=_orbit_count(getattr(args, "orbit", 0)),
+        orbit=getattr(args, "orbit", 0),
         residuals=getattr(args, "residuals", False) or getattr(args, "prune_residuals", None) is not None,
         prune_residuals=getattr(args, "prune_residuals", None),
     )
@@ -218,24 +226,44 @@ def _prune_amount(text: str):
         raise argparse.ArgumentTypeError(f"expected a count (integer >= 1) or a fraction in (0, 1), got {text!r}")
 
 
-def _orbit_count(n: int) -> int:
-    from ..errors import InputError
-
-    if n < 0:
-        raise InputError(f"--orbit needs a number of cameras >= 0, got {n}")
-    return n
-
-
-def probe_from_spec(spec: str, axis: str):
-    """A probe from a command-line spec; ``builtin`` is the weight-free default of the axis."""
+def probe_from_spec(spec: str, axis: str, device: str = "cpu"):
+    """A probe from a command-line spec; ``builtin`` is the weight-free default of the axis; device:
+    a learned probe's onnxruntime device when the spec gives none."""
     from ..probes.registry import probe_for_axis
 
-    return probe_for_axis(spec, axis)
+    return probe_for_axis(spec, axis, device)
+
+
+def probe_device(args) -> str:
+    """--probe-device, with auto resolved for the GPU the renderer uses (--adapter)."""
+    from ..probes.providers import choose
+
+    if args.probe_device != "auto":
+        return choose(args.probe_device)
+    from ..gpu import get_context
+
+    return choose("auto", get_context(args.adapter).adapter_info)
+
+
+def _learned_probes(args) -> bool:
+    specs = list(args.semantic_probe or []) + list(args.structural_probe or [])
+    return any(str(s).strip().lower().startswith(("sam:", "grounded:")) for s in specs)
+
+
+def check_probe_device(args) -> None:
+    """InputError, before any work, for a --probe-device named explicitly whose provider the installed
+    onnxruntime lacks, when a learned probe would use it."""
+    from ..probes.providers import plan
+
+    if args.probe_device != "auto" and _learned_probes(args):
+        plan(args.probe_device)
 
 
 def probes_from_args(args):
-    sem = [probe_from_spec(s, "semantic") for s in args.semantic_probe] if args.semantic_probe else None
-    stru = [probe_from_spec(s, "structural") for s in args.structural_probe] if args.structural_probe else None
+    device = probe_device(args) if _learned_probes(args) else "cpu"
+    sem = [probe_from_spec(s, "semantic", device) for s in args.semantic_probe] if args.semantic_probe else None
+    stru = ([probe_from_spec(s, "structural", device) for s in args.structural_probe]
+            if args.structural_probe else None)
     return sem, stru
 
 
@@ -328,6 +356,7 @@ def run(args) -> int:
 
     out = check_output_folder(args.out)  # before any work
     options_from_args(args)  # every option checked before any work (EvaluateOptions._check)
+    check_probe_device(args)
     executor = executor_from_args(args)  # says how to install Ray before any work starts
     with collecting():  # the warnings of loading the bundles are the run's too (results.json)
         return score_and_report(bundles_from_args(args), out, args, executor)

@@ -8,6 +8,9 @@ the environment variable ``R360GPU_ADAPTER``:
     otherwise a CPU adapter (lavapipe / llvmpipe via Vulkan).
 ``gpu``
     a non-CPU adapter; an error if there is none.
+``gpu:N``
+    the N-th GPU adapter (from 0) in wgpu's order (:func:`gpu_adapters`); a
+    worker given GPU N opens it (:mod:`r360gpu.gpu.assign`).
 ``cpu``
     a CPU (software) adapter such as lavapipe; an error if there is none.
 any other text
@@ -71,6 +74,16 @@ def list_adapters() -> list:
     )
 
 
+def gpu_adapters(adapters: list) -> list:
+    """The GPU (non-CPU) adapters of ``adapters`` on one backend, each physical GPU once: the
+    backend listed first (Vulkan / Metal, then D3D12, then OpenGL), in wgpu's order."""
+    gpus = [a for a in adapters if not _is_cpu(a.info)]
+    if not gpus:
+        return []
+    backend = min(gpus, key=lambda a: _BACKEND_ORDER.get(a.info.get("backend_type"), 2)).info.get("backend_type")
+    return [a for a in gpus if a.info.get("backend_type") == backend]
+
+
 def select_adapter(choice: str | None = None):
     """Return a ``wgpu.GPUAdapter`` for ``choice`` (see the module docstring)."""
     choice = (choice or os.environ.get(ENV_VAR) or "auto").strip()
@@ -85,7 +98,11 @@ def select_adapter(choice: str | None = None):
         for group in (native_gpus, cpus, gpus, adapters):
             if group:
                 return group[0]
-    if key == "gpu":
+    if key.startswith("gpu:") and key[4:].strip().isdigit():
+        gpus = gpu_adapters(adapters)
+        n = int(key[4:])
+        found = gpus[n : n + 1]
+    elif key == "gpu":
         found = [a for a in adapters if not _is_cpu(a.info)]
     elif key in ("cpu", "lavapipe"):
         found = [a for a in adapters if _is_cpu(a.info)]

@@ -19,8 +19,10 @@ arguments so the chunking paths can be tested on small inputs.
 from __future__ import annotations
 
 import math
+import struct
 import threading
 from collections import OrderedDict
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -76,6 +78,29 @@ class BufferRange:
     size: int
 
 
+_F32 = struct.Struct("<f")
+_U32 = struct.Struct("<I")
+
+
+def uniform_words(values: Sequence) -> np.ndarray:
+    """32-bit scalars as the u32 words of a uniform buffer (padded with zeros to a multiple of 4
+    words, at least 4): floats as float32 (rounded to nearest), ints as u32 (negative ones
+    two's complement).  Packed with ``struct``, not numpy scalars: this runs for every
+    recorded pass, and numpy's per-scalar conversions cost several times as much."""
+    out = bytearray()
+    for v in values:
+        if isinstance(v, (float, np.floating)):
+            try:
+                out += _F32.pack(v)
+            except OverflowError:  # beyond float32's range: infinity, as numpy rounds it
+                out += np.float32(v).tobytes()
+        else:
+            i = int(v)
+            out += _U32.pack(i & 0xFFFFFFFF if i < 0 else i)
+    out += bytes(4 * (max(4, -(-len(values) // 4) * 4) - len(values)))
+    return np.frombuffer(bytes(out), dtype=np.uint32)
+
+
 class GpuContext:
     """A wgpu device with shader/pipeline caches and buffer helpers.
 
@@ -110,6 +135,7 @@ class GpuContext:
         self._uniforms: OrderedDict[bytes, Any] = OrderedDict()
         self._profile: dict | None = None
         self._lock = threading.Lock()
+        self._frame = threading.local()  # .cache: the FrameCache active on this thread (recording)
 
     def _set_device_facts(self, limits: dict, features: set, info) -> None:
         limit_binding_bytes, limit_workgroups = self._caps
@@ -284,14 +310,13 @@ class GpuContext:
         Nothing writes a uniform buffer after this, so equal contents share
         one buffer (the last ``_UNIFORMS_KEPT`` distinct ones are kept): the
         renderer's dispatches of one view repeat in the next, and creating a
-        buffer was most of the host's cost of recording a dispatch.
+        buffer was most of the host's cost of recording a dispatch.  Under
+        `recording` the frame cache's buffers serve instead.
         """
-        words = np.zeros(max(4, int(math.ceil(len(values) / 4) * 4)), dtype=np.uint32)
-        for i, v in enumerate(values):
-            if isinstance(v, (float, np.floating)):
-                words[i] = np.float32(v).view(np.uint32)
-            else:
-                words[i] = np.int64(v).astype(np.uint32) if int(v) < 0 else np.uint32(int(v))
+        words = uniform_words(values)
+        frame = getattr(self._frame, "cache", None)
+        if frame is not None:
+            return frame.uniform(words, lambda: self.buffer(words, usage=UNIFORM | COPY_DST, label=label), self.write)
         key = words.tobytes()
         with self._lock:
             buf = self._uniforms.get(key)
@@ -355,8 +380,17 @@ class GpuContext:
         """A bind group for ``pipeline``: ``resources[i]`` goes to ``@binding(i)``.
 
         Each resource is a buffer (bound whole), a :class:`BufferRange`, or
-        ``None`` for a binding the entry point does not use.
+        ``None`` for a binding the entry point does not use.  Under
+        `recording` an equal bind group of the frame before is reused.
         """
+        frame = getattr(self._frame, "cache", None)
+        if frame is not None:
+            key = (pipeline, group, tuple(r if r is None or isinstance(r, BufferRange) else BufferRange(r, 0, r.size)
+                                          for r in resources))
+            return frame.bind_group(key, lambda: self._create_bind_group(pipeline, resources, group))
+        return self._create_bind_group(pipeline, resources, group)
+
+    def _create_bind_group(self, pipeline, resources: Sequence, group: int):
         entries = []
         for i, res in enumerate(resources):
             if res is None:
@@ -366,6 +400,29 @@ class GpuContext:
             else:
                 entries.append({"binding": i, "resource": {"buffer": res, "offset": 0, "size": res.size}})
         return self.device.create_bind_group(layout=pipeline.get_bind_group_layout(group), entries=entries)
+
+    def span(self, buffer, offset: int, nbytes: int) -> BufferRange:
+        """A binding of ``buffer`` from ``offset`` holding at least ``nbytes``: the rest of the
+        buffer, up to one storage binding.
+
+        For data whose length changes from frame to frame in a buffer that does not (the
+        renderer's key lists): the binding, and so a kept bind group (`recording`),
+        stays the same.  Only for kernels that bound their loops by a count they are
+        given, never by the binding's length (``arrayLength``).
+        """
+        rest = min(buffer.size - offset, self.max_binding_bytes) // 4 * 4
+        return BufferRange(buffer, offset, max(int(nbytes), rest))
+
+    @contextmanager
+    def recording(self, cache):
+        """Record with ``cache`` (a `FrameCache` of `r360gpu.gpu.recording`) on this thread:
+        `uniform` and `bind_group` reuse what the frame before created."""
+        before = getattr(self._frame, "cache", None)
+        self._frame.cache = cache
+        try:
+            yield cache
+        finally:
+            self._frame.cache = before
 
     def encoder(self):
         return self.device.create_command_encoder()
@@ -444,7 +501,7 @@ _contexts_lock = threading.Lock()
 
 
 def get_context(adapter: str | None = None, device=None) -> GpuContext:
-    """The shared context for ``adapter`` (see :mod:`r360gpu.gpu.adapter`), or
+    """The shared context for ``adapter`` (see `r360gpu.gpu.adapter`), or
     a context around the caller's ``device``.  Contexts are created once per
     adapter choice and reused."""
     if device is not None:

@@ -2,13 +2,13 @@
 
 Data types (each module defines its conventions once):
 
-* :class:`Gaussians` (:mod:`.gaussians`): means, linear scales, (w, x, y, z)
+* `Gaussians` (`.gaussians`): means, linear scales, (w, x, y, z)
   unit quaternions, sigmoid'd opacities, SH coefficients (N, K, 3); the SH
-  basis and colour rule are in :mod:`.sh`.
-* :class:`Camera` (:mod:`.camera`): OpenCV world-to-camera pinhole camera,
+  basis and colour rule are in `.sh`.
+* `Camera` (`.camera`): OpenCV world-to-camera pinhole camera,
   pixel coordinates with the top-left pixel's centre at (0.5, 0.5).
 
-Entry points: :func:`load_gaussians`, :func:`load_cameras`, :func:`load_mask`;
+Entry points: `load_gaussians`, `load_cameras`, `load_mask`;
 one module per file format with its reader and writer.
 """
 from __future__ import annotations

@@ -41,16 +41,22 @@ class Box:
         centre_key = "centre" if "centre" in keys else "center"
         if keys == {"min", "max"}:
             lo, hi = vec("min"), vec("max")
-            if np.any(hi < lo):
-                raise InputError(f"{where}: max must be >= min on every axis, got min={lo.tolist()} max={hi.tolist()}")
+            if np.any(hi <= lo):
+                raise InputError(f"{where}: max must be > min on every axis (a box of no volume holds no "
+                                 f"Gaussian), got min={lo.tolist()} max={hi.tolist()}")
             return cls(0.5 * (lo + hi), 0.5 * (hi - lo))
         if centre_key in keys and "size" in keys and keys <= {centre_key, "size", "rotation"}:
             size = vec("size")
-            if np.any(size < 0):
-                raise InputError(f"{where}.size must be >= 0, got {size.tolist()}")
+            if np.any(size <= 0):
+                raise InputError(f"{where}.size must be > 0 on every axis (a box of no volume holds no "
+                                 f"Gaussian), got {size.tolist()}")
             rot = np.eye(3)
             if "rotation" in table:
-                r = np.asarray(table["rotation"], np.float64)
+                try:
+                    r = np.asarray(table["rotation"], np.float64)
+                except (TypeError, ValueError):  # text, or a ragged matrix numpy refuses
+                    raise InputError(f"{where}.rotation must be a 3x3 rotation matrix or a (w, x, y, z) "
+                                     f"quaternion of numbers, got {table['rotation']!r}") from None
                 if r.shape == (4,):
                     if not np.isfinite(r).all() or np.linalg.norm(r) == 0:
                         raise InputError(f"{where}.rotation quaternion must be finite and non-zero")

@@ -113,7 +113,7 @@ class Camera:
 
     @property
     def camera_to_world(self) -> np.ndarray:
-        """(4, 4) float64 inverse of :attr:`world_to_camera` (OpenCV camera axes)."""
+        """(4, 4) float64 inverse of `world_to_camera` (OpenCV camera axes)."""
         m = np.eye(4)
         m[:3, :3], m[:3, 3] = self.R.T, self.center
         return m

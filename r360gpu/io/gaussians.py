@@ -27,7 +27,10 @@ are an :class:`~r360gpu.errors.InputError`; individual Gaussians with
 NaN/Inf in any parameter, a zero quaternion, a non-positive scale or an
 opacity outside [0, 1] are dropped, and the drop is reported in ONE
 :class:`~r360gpu.errors.R360Warning` with counts per reason.  A file left
-with no Gaussian at all is an InputError.
+with no Gaussian at all is an InputError.  The Gaussians kept remember
+their rows of the file (:attr:`Gaussians.rows`, :attr:`Gaussians.n_file`):
+indices a user gives (``[target].indices``) and indices r360gpu writes
+(residuals) are rows of the file as written.
 """
 from __future__ import annotations
 
@@ -65,20 +68,33 @@ class Gaussians:
     quats: np.ndarray
     opacities: np.ndarray
     sh: np.ndarray
+    #: (N,) int64 row of the file each Gaussian was read from, when a loader dropped invalid rows
+    #: (None: Gaussian i is row i); ``file_count`` is then the file's number of rows.  Indices a
+    #: user gives and indices r360gpu writes refer to the file's rows (:attr:`rows`, :attr:`n_file`).
+    file_rows: np.ndarray | None = None
+    file_count: int | None = None
 
     def __post_init__(self) -> None:
         for name in ("means", "scales", "quats", "opacities", "sh"):
             object.__setattr__(self, name, _frozen_f32(getattr(self, name)))
         self._check_shapes()
         self._check_values()
+        if self.file_rows is not None:
+            rows = np.asarray(self.file_rows, np.int64)
+            count = self.n if self.file_count is None else int(self.file_count)
+            if rows.shape != (self.n,) or (rows.size and (rows.min() < 0 or rows.max() >= count)):
+                raise ValueError(f"file_rows must be ({self.n},) rows of a file of {count}")
+            object.__setattr__(self, "file_rows", rows)
 
     # -- construction without re-validation (inputs already valid) ----------
     @classmethod
-    def _trusted(cls, means, scales, quats, opacities, sh) -> "Gaussians":
+    def _trusted(cls, means, scales, quats, opacities, sh, file_rows=None, file_count=None) -> "Gaussians":
         g = object.__new__(cls)
         for name, arr in zip(("means", "scales", "quats", "opacities", "sh"),
                              (means, scales, quats, opacities, sh)):
             object.__setattr__(g, name, _frozen_f32(arr))
+        object.__setattr__(g, "file_rows", file_rows)
+        object.__setattr__(g, "file_count", file_count)
         g._check_shapes()
         return g
 
@@ -114,6 +130,16 @@ class Gaussians:
         return self.n
 
     @property
+    def rows(self) -> np.ndarray:
+        """(N,) int64: the file row of each Gaussian (0..N-1 when no row was dropped)."""
+        return np.arange(self.n, dtype=np.int64) if self.file_rows is None else self.file_rows
+
+    @property
+    def n_file(self) -> int:
+        """Rows of the file the Gaussians were read from (N when no row was dropped)."""
+        return self.n if self.file_count is None else int(self.file_count)
+
+    @property
     def sh_degree(self) -> int:
         """SH degree 0..3, from ``K = sh.shape[1] = (degree + 1)**2``."""
         return sh_degree_from_count(self.sh.shape[1])
@@ -142,7 +168,7 @@ class Gaussians:
         if sel.dtype != bool and not np.issubdtype(sel.dtype, np.integer):
             raise ValueError(f"selection must be a boolean mask or integer indices, got dtype {sel.dtype}")
         return Gaussians._trusted(self.means[sel], self.scales[sel], self.quats[sel],
-                                  self.opacities[sel], self.sh[sel])
+                                  self.opacities[sel], self.sh[sel], self.rows[sel], self.n_file)
 
     def with_sh_degree(self, degree: int) -> "Gaussians":
         """The same Gaussians with SH truncated to, or zero-padded up to, ``degree``."""
@@ -152,7 +178,8 @@ class Gaussians:
         else:
             sh = np.zeros((self.n, k, 3), np.float32)
             sh[:, : self.sh.shape[1], :] = self.sh
-        return Gaussians._trusted(self.means, self.scales, self.quats, self.opacities, sh)
+        return Gaussians._trusted(self.means, self.scales, self.quats, self.opacities, sh, self.file_rows,
+                                  self.file_count)
 
     @staticmethod
     def concat(parts: Sequence["Gaussians"]) -> "Gaussians":
@@ -232,6 +259,8 @@ def build_gaussians(means, scales, quats, opacities, sh, *, source: str | os.Pat
         means, scales, quats, opacities, sh = (a[keep] for a in (means, scales, quats, opacities, sh))
     quats = quats / np.max(np.abs(quats), axis=1, keepdims=True)
     quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    if bad:  # indices into the file stay the file's: the loaded Gaussians remember their rows
+        return Gaussians._trusted(means, scales, quats, opacities, sh, np.flatnonzero(keep).astype(np.int64), n)
     return Gaussians._trusted(means, scales, quats, opacities, sh)
 
 

@@ -33,6 +33,9 @@ from .sh import sh_coeff_count
 _REQUIRED = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
              "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"]
 _OPTIONAL = ["nx", "ny", "nz"]
+#: The vertex property r360gpu's residual PLYs add (:func:`r360gpu.lift.residuals.write_residual_ply`);
+#: read back without a warning, and not part of the Gaussians.
+RESIDUAL = "residual"
 _F_REST = re.compile(r"f_rest_(\d+)$")
 _VALID_REST_COUNTS = {0: 0, 9: 1, 24: 2, 45: 3}
 
@@ -80,7 +83,7 @@ def gaussians_from_inria_ply(ply: PlyData) -> Gaussians:
     rest_idx = check_inria_header(ply)
     el = ply.element("vertex")
     names = el.property_names()
-    _warn_ignored(ply, known=set(_REQUIRED) | set(_OPTIONAL) | {f"f_rest_{i}" for i in rest_idx})
+    _warn_ignored(ply, known=set(_REQUIRED) | set(_OPTIONAL) | {f"f_rest_{i}" for i in rest_idx} | {RESIDUAL})
 
     v = ply.arrays["vertex"]
     n = el.count
@@ -127,6 +130,12 @@ def save_ply(path: str | os.PathLike, gaussians: Gaussians, format: str = "binar
     format: 'binary_little_endian' (default, what INRIA writes),
     'binary_big_endian' or 'ascii'.
     """
+    write_ply(path, [("vertex", vertex_records(gaussians))], format=format)
+
+
+def vertex_records(gaussians: Gaussians) -> np.ndarray:
+    """(N,) structured float32 array of the INRIA 3DGS vertex properties of ``gaussians`` (as
+    :func:`save_ply` writes them)."""
     g = gaussians
     n, k = g.n, g.sh.shape[1]
     rest_names = [f"f_rest_{i}" for i in range(3 * (k - 1))]
@@ -147,4 +156,4 @@ def save_ply(path: str | os.PathLike, gaussians: Gaussians, format: str = "binar
         rec[f"scale_{i}"] = log_s[:, i]
         rec[f"rot_{i}"] = g.quats[:, i]
     rec["rot_3"] = g.quats[:, 3]
-    write_ply(path, [("vertex", rec)], format=format)
+    return rec

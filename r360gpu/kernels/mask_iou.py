@@ -440,8 +440,8 @@ def iou_from_counts(inter: np.ndarray, area_a: np.ndarray, area_b: np.ndarray) -
 def mask_iou(a, b, *, ctx: GpuContext | None = None) -> MaskIoU:
     """IoU matrix between stack ``a`` (N, H, W) and stack ``b`` (M, H, W).
 
-    Inputs: numpy bool/integer arrays (non-zero = inside), :class:`DeviceMasks`
-    or :class:`PackedMasks` (pack once with :func:`pack` to reuse a stack).
+    Inputs: numpy bool/integer arrays (non-zero = inside), `DeviceMasks`
+    or `PackedMasks` (pack once with `pack` to reuse a stack).
     N = 0 or M = 0 gives empty matrices; different H x W is an InputError.
     """
     ctx = ctx or get_context()

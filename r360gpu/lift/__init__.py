@@ -4,7 +4,7 @@ This package consumes render outputs (the renderer's projection, sort and
 tile lists) and target masks; nothing upstream imports it.
 
 Library (numpy arrays in, numpy out; masks may also be float32 wgpu buffers
-on the context's device, and :func:`target_masks` can leave its output there)::
+on the context's device, and `target_masks` can leave its output there)::
 
     lift_target(scene, cameras, masks, *, ctx=None, options=None) -> LiftedTarget
         scene: Gaussians (N); cameras: [Camera]; masks: [(H, W) bool/float32 or wgpu buffer]

@@ -32,11 +32,11 @@ CONSTANTS = {"ALPHA_MAX": ALPHA_MAX, "ALPHA_MIN": ALPHA_MIN, "T_MIN": T_MIN}
 class MaskLifter(Renderer):
     """Accumulates, per Gaussian, its compositing weight inside and outside target masks.
 
-    Parameters as :class:`~r360gpu.render.Renderer` (``background`` is
-    irrelevant: weights do not depend on it).  Call :meth:`add_view` per
-    (camera, mask), then :meth:`weights`.  ``acc`` is the device buffer of
+    Parameters as `Renderer` (``background`` is
+    irrelevant: weights do not depend on it).  Call `add_view` per
+    (camera, mask), then `weights`.  ``acc`` is the device buffer of
     N x 4 u32: (in low, in high, out low, out high) words of the 64-bit
-    fixed-point sums (:data:`SCALE` units per unit weight).
+    fixed-point sums (`SCALE` units per unit weight).
     """
 
     def __init__(self, scene, **kwargs):
@@ -79,8 +79,9 @@ class MaskLifter(Renderer):
                                  f"a {width}x{height} float32 mask needs {width * height * 4}")
             buf = mask
         self._mask = BufferRange(buf, 0, max(4, width * height * 4))
-        prep, t0 = self._prepare(cam, whole=True)
-        self._render_rows(prep, cam, (0, tile_grid(width, height)[1]), buf, width * height, t0)
+        with self._frame():
+            prep, t0 = self._prepare(cam, whole=True)
+            self._render_rows(prep, cam, (0, tile_grid(width, height)[1]), buf, width * height, t0)
         self.views += 1
 
     def _record_tiles(self, enc, lists: TileLists, cam: dict, band: Band, work) -> None:
@@ -90,7 +91,7 @@ class MaskLifter(Renderer):
                          scale=SCALE)
         per_gaussian = max(16, n * 16)
         ctx.dispatch(enc, ctx.pipeline("lift_accumulate", "main", CONSTANTS),
-                     [params, lists.ranges, BufferRange(lists.vals, 0, max(4, lists.num_keys * 4)),
+                     [params, lists.ranges, ctx.span(lists.vals, 0, max(4, lists.num_keys * 4)),
                       BufferRange(proj.pos_op, 0, per_gaussian), BufferRange(proj.conic, 0, per_gaussian),
                       self._mask, BufferRange(self.acc, 0, per_gaussian)],
                      ctx.grid(window.end - window.begin))

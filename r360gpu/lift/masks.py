@@ -39,8 +39,8 @@ def label_scene(scene: Gaussians, target: np.ndarray) -> Gaussians:
 class TargetMaskRenderer:
     """Renders target masks of one scene and target at any camera (the scene uploaded once).
 
-    scene: pre's :class:`~r360gpu.io.gaussians.Gaussians` (N); target: (N,)
-    bool (e.g. :attr:`LiftedTarget.target`); options: the render conventions.
+    scene: pre's `Gaussians` (N); target: (N,)
+    bool (e.g. `LiftedTarget.target`); options: the render conventions.
     """
 
     def __init__(self, scene: Gaussians, target: np.ndarray, *, ctx=None, options=None):
@@ -57,7 +57,7 @@ class TargetMaskRenderer:
 
     def device(self, camera) -> DeviceRender:
         """The labelled render left on the device: plane "r" (the first ``plane_stride`` float32s) is
-        the target's share; threshold it at :data:`MASK_SHARE`."""
+        the target's share; threshold it at `MASK_SHARE`."""
         return self.renderer.render_device(camera)
 
     def release(self) -> None:
@@ -69,7 +69,7 @@ def target_masks(scene: Gaussians, target: np.ndarray, cameras: Iterable, *, ctx
     """Target masks of ``cameras`` (see the module docstring); yields one per camera.
 
     scene: pre's Gaussians (N); target: (N,) bool.  output "numpy": (H, W)
-    bool; "device": a :class:`~r360gpu.render.DeviceRender` whose "r" plane
+    bool; "device": a `DeviceRender` whose "r" plane
     holds the target's share (float32), on ``ctx``'s device.
     """
     if output not in ("numpy", "device"):

@@ -59,7 +59,7 @@ def capture_up(cameras) -> np.ndarray:
 def orbit_cameras(centre, cameras, n: int, *, prefix: str = "orbit") -> list[Camera]:
     """``n`` cameras around ``centre`` (3,) (see the module docstring), named ``{prefix}_000`` on.
 
-    cameras: the evaluation cameras (:class:`~r360gpu.io.camera.Camera`, at
+    cameras: the evaluation cameras (`Camera`, at
     least one).  Returns a list of Camera with the median-focal evaluation
     camera's fx, fy, cx, cy, width, height.
     """

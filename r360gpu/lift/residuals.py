@@ -40,10 +40,10 @@ FLAG_BELOW = 0.5
 
 
 def flagged_views(records, xis=(0.3,)) -> list[str]:
-    """Views (names) of a method's per-view records (:class:`~r360gpu.metrics.record.ViewRecord`
+    """Views (names) of a method's per-view records (`ViewRecord`
     or their dicts) where some axis flags evidence: the semantic probe fires in M on I_post
     (s_sem), the depth in M stays pre's (acc_depth), or the structure differs (s_str), each below
-    :data:`FLAG_BELOW` on that view alone."""
+    `FLAG_BELOW` on that view alone."""
     from ..aggregate.results import method_axes
     from ..metrics.record import ViewRecord
 
@@ -65,7 +65,7 @@ BEHIND_ALPHA = 0.5
 
 
 def depth_behind(pre, target, cameras, *, ctx=None, options=None) -> list:
-    """[(H, W) float32] per camera: :func:`surface_depth` of ``pre`` (Gaussians) without ``target``
+    """[(H, W) float32] per camera: `surface_depth` of ``pre`` (Gaussians) without ``target``
     ((N,) bool), what pre has behind the object."""
     return surface_depth(pre.subset(~np.asarray(target, bool)), cameras, ctx=ctx, options=options)
 
@@ -74,7 +74,7 @@ def surface_depth(gaussians, cameras, *, ctx=None, options=None) -> list:
     """[(H, W) float32] per camera: the median depth of ``gaussians`` (a scene without the object: pre
     without the target, or the reference).
 
-    Where that covers less than :data:`BEHIND_ALPHA` (a hole: nothing there, or background the masks
+    Where that covers less than `BEHIND_ALPHA` (a hole: nothing there, or background the masks
     lifted with the object because every view saw it only through M), the depth of the nearest pixel
     that has a surface, as a completion continues its surroundings; +inf when no pixel has one.
     """
@@ -99,7 +99,7 @@ def surface_depth(gaussians, cameras, *, ctx=None, options=None) -> list:
 
 
 def in_front(gaussians, camera, behind: np.ndarray) -> np.ndarray:
-    """(N,) bool: each Gaussian's centre depth plus :data:`GATE_SIGMAS` standard deviations along the
+    """(N,) bool: each Gaussian's centre depth plus `GATE_SIGMAS` standard deviations along the
     ray from ``camera`` is nearer than ``behind`` (H, W) at its centre's pixel; True where the centre
     falls outside the image or behind the camera (no surface to compare with)."""
     from ..io.rotation import quat_to_rotmat
@@ -158,21 +158,38 @@ def top_residuals(residual: np.ndarray, k: int) -> np.ndarray:
     return order[: max(0, int(k))].astype(np.int64)
 
 
-def write_residual_ply(path: str | os.PathLike, gaussians, residual: np.ndarray) -> Path:
+def write_residual_ply(path: str | os.PathLike, gaussians, residual: np.ndarray, *, source=None) -> Path:
     """Write ``gaussians`` as an INRIA 3DGS PLY with a float ``residual`` vertex property (SuperSplat
-    and r360gpu's viewer can colour by it)."""
+    and r360gpu's viewer can colour by it).
+
+    The vertices are the rows of the method's file: ``source`` (its path), when it is an INRIA PLY,
+    is copied vertex for vertex with every property it has (a ``my_label`` stays); otherwise the
+    Gaussians' own properties.  A row the loader dropped (invalid values, `Gaussians.rows`)
+    keeps its place with residual NaN (and, when not copied, NaN properties).
+    """
     from numpy.lib import recfunctions
 
-    from ..io.inria_ply import save_ply
+    from ..io.inria_ply import RESIDUAL, is_inria_ply, vertex_records
     from ..io.ply import read_ply, write_ply
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     r = np.asarray(residual, np.float32)
     if r.shape != (gaussians.n,):
         raise ValueError(f"residual has shape {r.shape}, the scene {gaussians.n} Gaussians")
-    save_ply(path, gaussians)
-    vert = read_ply(path).arrays["vertex"]
-    vert = recfunctions.append_fields(vert, "residual", r, dtypes="<f4", usemask=False)
+    full = np.full(gaussians.n_file, np.nan, np.float32)
+    full[gaussians.rows] = r
+    vert = None
+    if source is not None and Path(source).suffix.lower() == ".ply" and Path(source).is_file():
+        ply = read_ply(source)
+        if is_inria_ply(ply) and len(ply.arrays["vertex"]) == gaussians.n_file:
+            vert = ply.arrays["vertex"]
+            if RESIDUAL in (vert.dtype.names or ()):  # a residual PLY scored again: this run's residual
+                vert = recfunctions.drop_fields(vert, RESIDUAL, usemask=False)
+    if vert is None:
+        own = vertex_records(gaussians)
+        vert = np.full(gaussians.n_file, np.nan, own.dtype)
+        vert[gaussians.rows] = own
+    vert = recfunctions.append_fields(vert, RESIDUAL, full, dtypes="<f4", usemask=False)
+    path.parent.mkdir(parents=True, exist_ok=True)
     write_ply(path, [("vertex", vert)])
     return path

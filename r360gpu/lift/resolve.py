@@ -8,21 +8,25 @@ view gets the lifted target's mask rendered over pre
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 from .masks import TargetMaskRenderer
-from .target import lift_target, load_indices, target_from_box, target_from_indices
+from .target import check_extent, lift_target, load_indices, target_from_box, target_from_indices
 
 #: Fewer given masks than this: the lifted target is doubtful (one view cannot tell depth).
 MIN_LIFT_VIEWS = 2
 
 
-def _given_masks(bundle) -> dict:
+def _given_masks(bundle, warn=None) -> dict:
+    """{view: (H, W) bool} of the views with a given mask, decoded and checked against the camera (an
+    error names the mask's file); a mask whose every pixel is target is warned about, and refused when
+    every given mask is."""
     from ..io import load_mask
 
-    out = {}
+    out, paths = {}, {}
     spec = bundle.target
     extra = spec.masks if isinstance(spec.masks, dict) else {}
     for v in bundle.cameras:
@@ -30,41 +34,83 @@ def _given_masks(bundle) -> dict:
         if m is None:
             continue
         c = bundle.cameras[v]
+        paths[v] = f"target mask of view {v!r}" if isinstance(m, np.ndarray) else str(m)
         out[v] = np.asarray(m) != 0 if isinstance(m, np.ndarray) else load_mask(m, shape=(c.height, c.width))
         if out[v].shape != (c.height, c.width):
-            raise InputError(f"target mask of view {v!r} is {out[v].shape[1]}x{out[v].shape[0]}, "
-                             f"its camera {c.width}x{c.height}")
+            raise InputError(f"{paths[v]}: mask is {'x'.join(map(str, out[v].shape[::-1]))}, the camera of "
+                             f"view {v!r} is {c.width}x{c.height}")
+    full = [v for v in sorted(out) if out[v].all()]
+    if full and len(full) == len(out):
+        raise InputError(f"every given target mask is target at every pixel ({', '.join(paths[v] for v in full[:3])}"
+                         f"{', ...' if len(full) > 3 else ''}): inverted masks? nothing would be left around "
+                         f"the object", _where(bundle))
+    for v in full:
+        if warn is not None:
+            warn(f"{paths[v]}: the target mask is target at every pixel (inverted?)")
     return out
 
 
+def _where(bundle) -> str:
+    """The file that declared the bundle's target (its scene.toml; the folder or scene name otherwise)."""
+    config = getattr(bundle, "config", None)
+    return str(config if config is not None else getattr(bundle, "root", None) or f"scene {bundle.name!r}")
+
+
 def lifted_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
-    """(LiftedTarget, given masks {view: (H, W) bool}) for ``bundle.target`` over pre's ``gaussians``."""
+    """(LiftedTarget, given masks {view: (H, W) bool}) for ``bundle.target`` over pre's ``gaussians``.
+
+    The one validation of a ``[target]`` (``r360gpu check`` runs it too, :func:`check_target`):
+    the indices file (type, range), the box (some but not every Gaussian inside), the given masks
+    (decoded, at their camera's size, not every pixel target), and the lift holding some but not
+    every Gaussian; every error names the file."""
     spec = bundle.target
-    given = _given_masks(bundle)
+    where = _where(bundle)
+    given = _given_masks(bundle, warn)
     if spec.indices is not None:
+        rows = dict(rows=gaussians.file_rows, warn=warn)  # the user's indices are rows of pre's file
         if isinstance(spec.indices, np.ndarray):
-            return target_from_indices(gaussians.n, spec.indices, where="target indices"), given
-        return load_indices(spec.indices, gaussians.n, prop=spec.prop), given
+            lifted = target_from_indices(gaussians.n_file, spec.indices, where="target indices", **rows)
+        else:
+            lifted = load_indices(spec.indices, gaussians.n_file, prop=spec.prop, **rows)
+        return check_extent(lifted, str(spec.indices) if isinstance(spec.indices, Path) else where, warn), given
     if spec.box is not None:
-        return target_from_box(gaussians.means, spec.box), given
+        return (check_extent(target_from_box(gaussians.means, spec.box, where=where), f"{where}: [target].box", warn),
+                given)
     views = [v for v in sorted(given) if given[v].any()]
     if not views:
-        raise InputError(f"scene {bundle.name!r}: no given target mask shows the target; nothing to lift")
+        raise InputError(f"no given target mask shows the target (scene {bundle.name!r}); nothing to lift", where)
     if len(views) < MIN_LIFT_VIEWS and warn is not None:
         warn(f"target lifted from {len(views)} view's mask only ({views[0]}): depth is ambiguous; "
              f"give masks of at least {MIN_LIFT_VIEWS} views")
     lifted = lift_target(gaussians, [bundle.cameras[v] for v in views], [given[v] for v in views], ctx=ctx,
                          options=options)
-    if not lifted.target.any():
-        raise InputError(f"scene {bundle.name!r}: the target masks lift to no Gaussian of pre")
-    return lifted, given
+    return check_extent(lifted, f"{where}: [target].masks", warn), given
+
+
+def check_target(bundle, *, ctx=None, warn=None):
+    """The LiftedTarget of a valid bundle's ``[target]`` over its pre, validated as ``score`` does
+    (:func:`lifted_target`, pre opened by :func:`~r360gpu.render.sources.open_source`): what
+    ``r360gpu check`` runs so that its OK means ``score`` accepts the target."""
+    from ..render.sources import open_source
+
+    pre = open_source(bundle.pre, ctx=ctx, background=bundle.options.background)
+    try:
+        if getattr(pre, "gaussians", None) is None:
+            raise InputError(f"scene {bundle.name!r}: [target] needs pre as a splat scene", _where(bundle))
+        return lifted_target(bundle, pre.gaussians, ctx=pre.renderer.ctx if ctx is None else ctx,
+                             options=getattr(pre, "render_options", None), warn=warn)[0]
+    finally:
+        release = getattr(pre, "release", None)
+        if release is not None:
+            release()
 
 
 def resolve_target(bundle, pre, *, ctx=None, warn=None):
     """(bundle with a mask for every view, record) for a bundle with ``[target]``.
 
     pre: the opened pre source (a :class:`~r360gpu.render.sources.SceneSource`).  record:
-    {"source", "gaussians", "given", "rendered", "lifted_from"} for results.json.
+    {"source", "gaussians", "of", "given", "rendered", "lifted_from"} for results.json ("gaussians" of
+    pre's "of" Gaussians are the target).
     """
     if getattr(pre, "gaussians", None) is None:
         raise InputError(f"scene {bundle.name!r}: [target] needs pre as a splat scene")
@@ -79,7 +125,7 @@ def resolve_target(bundle, pre, *, ctx=None, warn=None):
                 masks[v] = r.mask(bundle.cameras[v])
         finally:
             r.release()
-    record = {"source": lifted.source, "gaussians": int(lifted.target.sum()),
+    record = {"source": lifted.source, "gaussians": int(lifted.target.sum()), "of": int(pre.gaussians.n),
               "given": sorted(v for v in bundle.views if v in given), "rendered": todo,
               "lifted_from": list(lifted.views)}
     return replace(bundle, masks=masks), record
@@ -104,7 +150,5 @@ def scene_target(bundle, gaussians, *, ctx=None, options=None, warn=None):
             masks.append(m)
     if not cams:
         raise InputError(f"scene {bundle.name!r}: no view with a camera shows the target; cannot lift it")
-    lifted = lift_target(gaussians, cams, masks, ctx=ctx, options=options)
-    if not lifted.target.any():
-        raise InputError(f"scene {bundle.name!r}: the target masks lift to no Gaussian of pre")
-    return lifted
+    return check_extent(lift_target(gaussians, cams, masks, ctx=ctx, options=options), f"{_where(bundle)}: masks",
+                        warn)

@@ -34,6 +34,8 @@ from ..io.box import Box
 MIN_SHARE = 0.5
 #: ...and its summed weight over all given pixels is at least this (units: one fully opaque pixel).
 MIN_WEIGHT = 0.05
+#: A target of more than this share of pre's Gaussians is warned about (a box in other units, say).
+MAX_TARGET_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -96,13 +98,13 @@ def lift_target(scene, cameras, masks, *, ctx=None, options=None, min_share: flo
                 min_weight: float = MIN_WEIGHT) -> LiftedTarget:
     """Lift target masks of some views to pre's Gaussians (see the module docstring).
 
-    scene: :class:`~r360gpu.io.gaussians.Gaussians` (N Gaussians).
-    cameras: sequence of :class:`~r360gpu.io.camera.Camera`.
+    scene: `Gaussians` (N Gaussians).
+    cameras: sequence of `Camera`.
     masks: one per camera: (H, W) bool or float32 in [0, 1] at the camera's
         size, or a wgpu buffer of H x W float32 (row-major) on ``ctx``'s device.
-    options: :class:`~r360gpu.render.conventions.RenderOptions` the scene is
+    options: `RenderOptions` the scene is
         rendered with (the weights are the renderer's own).
-    Returns a :class:`LiftedTarget` with w_in, w_out (N,) float64.
+    Returns a `LiftedTarget` with w_in, w_out (N,) float64.
     """
     from .device import MaskLifter
 
@@ -123,19 +125,31 @@ def lift_target(scene, cameras, masks, *, ctx=None, options=None, min_share: flo
                         tuple(getattr(c, "name", "") for c in cameras))
 
 
-def target_from_indices(n: int, indices, *, where: str = "indices") -> LiftedTarget:
-    """The target given as Gaussian indices (int array, any order, duplicates allowed) or an (n,) bool mask."""
-    idx = np.asarray(indices)
+def target_from_indices(n: int, indices, *, where: str = "indices", rows=None, warn=None) -> LiftedTarget:
+    """The target given as Gaussian indices (int array, any order, duplicates allowed) or an (n,) bool mask.
+
+    n: the rows of pre's file the indices refer to; rows: None, or the (M,) file row of each loaded
+    Gaussian when the loader dropped invalid rows (`r360gpu.io.Gaussians.rows`): the result is
+    over the M loaded Gaussians, and target rows that were dropped are warned about (``warn``).
+
+    Refused (InputError naming ``where``): anything but a flat array of whole numbers or booleans
+    (`r360gpu.io.indices.index_array`), indices outside 0..n-1, an n-long array of 0s and 1s
+    (a boolean mask saved as integers: read as indices it would select Gaussians 0 and 1), and a
+    target of no Gaussian.
+    """
+    from ..io.indices import index_array
+
+    idx = index_array(indices, where)
     sel = np.zeros(int(n), bool)
     if idx.dtype == bool:
         if idx.shape != (n,):
             raise InputError(f"{where}: a boolean target needs one entry per Gaussian ({n}), got shape {idx.shape}")
         sel[:] = idx
     else:
-        if idx.size and not np.issubdtype(idx.dtype, np.integer):
-            if not np.all(np.isfinite(idx)) or np.any(idx != np.round(idx)):
-                raise InputError(f"{where}: target indices must be whole numbers")
-        idx = idx.astype(np.int64).reshape(-1)
+        if n > 2 and idx.shape == (n,) and np.isin(idx, (0, 1)).all():
+            raise InputError(f"{where}: {n} entries, each 0 or 1: a mask over pre's {n} Gaussians saved as "
+                             f"integers (as indices it selects Gaussians 0 and 1 only); save it as booleans "
+                             f"(mask.astype(bool))")
         bad = idx[(idx < 0) | (idx >= n)]
         if bad.size:
             raise InputError(f"{where}: {bad.size} target indices outside 0..{n - 1} (e.g. {int(bad[0])}); "
@@ -143,13 +157,39 @@ def target_from_indices(n: int, indices, *, where: str = "indices") -> LiftedTar
         sel[idx] = True
     if not sel.any():
         raise InputError(f"{where}: the target has no Gaussians")
+    if rows is not None:
+        file_sel, sel = sel, sel[np.asarray(rows)]
+        lost = int(file_sel.sum() - sel.sum())
+        if lost and warn is not None:
+            warn(f"{where}: {lost} of the {int(file_sel.sum())} target rows are Gaussians pre's loader dropped "
+                 f"(invalid values); the target is the other {int(sel.sum())}")
     return LiftedTarget(sel, "indices")
 
 
-def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None) -> LiftedTarget:
+def check_extent(lifted: LiftedTarget, where: str, warn=None) -> LiftedTarget:
+    """``lifted`` unless it holds no Gaussian or every one of pre's (a box in other units, masks
+    that cover every view): InputError naming ``where``.  More than :data:`MAX_TARGET_SHARE` of
+    pre's Gaussians is doubtful (an object to remove is rarely most of a scene) and is warned
+    about (``warn``)."""
+    k, n = int(lifted.target.sum()), lifted.n
+    if k == 0:
+        raise InputError(f"{where}: the target ({lifted.source}) holds no Gaussian of pre")
+    if k == n and n > 1:
+        hint = {"box": "is the box in the scene's units?", "masks": "do the masks cover every pixel?",
+                "indices": "are these the object's indices?"}[lifted.source]
+        raise InputError(f"{where}: the target ({lifted.source}) is every one of pre's {n} Gaussians, so "
+                         f"nothing would be left; {hint}")
+    if k > MAX_TARGET_SHARE * n and warn is not None:
+        warn(f"{where}: the target ({lifted.source}) is {k} of pre's {n} Gaussians ({100 * k / n:.0f}%), most of "
+             f"the scene; is that the object to remove?")
+    return lifted
+
+
+def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None, rows=None,
+                 warn=None) -> LiftedTarget:
     """Target indices from a file: ``.npy`` (indices, or (n,) bool) or ``.ply`` (vertex
     property ``prop``, default the first of "target", "label", "is_target", non-zero = target;
-    the PLY must have one vertex per pre Gaussian)."""
+    the PLY must have one vertex per row of pre's file).  n, rows, warn: as `target_from_indices`."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: target indices file does not exist")
@@ -158,7 +198,7 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None) ->
             arr = np.load(path, allow_pickle=False)
         except (ValueError, OSError) as e:
             raise InputError(f"{path}: not a readable .npy array ({e})") from None
-        return target_from_indices(n, arr, where=str(path))
+        return target_from_indices(n, arr, where=str(path), rows=rows, warn=warn)
     if path.suffix.lower() == ".ply":
         from ..io.ply import read_ply
 
@@ -172,15 +212,15 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None) ->
             raise InputError(f"{path}: no target property ({prop or 'target, label or is_target'}) among "
                              f"{', '.join(names)}")
         if len(vert) != n:
-            raise InputError(f"{path}: {len(vert)} vertices, pre has {n} Gaussians")
-        return target_from_indices(n, np.asarray(vert[choice[0]]) != 0, where=str(path))
+            raise InputError(f"{path}: {len(vert)} vertices, pre's file has {n} Gaussians")
+        return target_from_indices(n, np.asarray(vert[choice[0]]) != 0, where=str(path), rows=rows, warn=warn)
     raise InputError(f"{path}: target indices must be a .npy or .ply file")
 
 
-def target_from_box(means: np.ndarray, box: Box) -> LiftedTarget:
-    """The Gaussians whose centre (means (N, 3)) is inside ``box``."""
+def target_from_box(means: np.ndarray, box: Box, *, where: str | None = None) -> LiftedTarget:
+    """The Gaussians whose centre (means (N, 3)) is inside ``box`` (``where``: the file that gave it)."""
     sel = box.contains(means)
     if not sel.any():
         raise InputError(f"no Gaussian centre lies in the target box (centre {box.centre.tolist()}, "
-                         f"half-size {box.half.tolist()})")
+                         f"half-size {box.half.tolist()}); is the box in the scene's units?", where)
     return LiftedTarget(sel, "box")

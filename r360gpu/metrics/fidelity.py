@@ -1,5 +1,5 @@
 """Pixel fidelity of I_post against I_ref: PSNR, SSIM, LPIPS (diagnostics only;
-never in RQS or ranks; PROTOCOL.md "Pixel fidelity vs I_ref").
+never in RQS or ranks; the paper's "Pixel fidelity vs I_ref").
 
 Images are (H, W, 3) or (H, W) RGB / gray, either uint8 (0..255, divided by
 255) or float in [0, 1]; values outside [0, 1] or non-finite values are an
@@ -164,26 +164,32 @@ def ssim(a, b) -> float:
 
 
 class LpipsModel:
-    """An LPIPS network in ONNX form, run with onnxruntime on the CPU.
+    """An LPIPS network in ONNX form, run with onnxruntime.
 
     path: the .onnx file.  The model must have exactly two inputs of rank 4
     (N, 3, H, W) (names and order read from the model) and at least one
-    output; its first output must hold one value per image pair.
+    output; its first output must hold one value per image pair.  device:
+    the execution provider, chosen as the learned probes' (``--probe-device``,
+    :mod:`r360gpu.probes.providers`); the one that ran is in :meth:`describe`.
     """
 
-    def __init__(self, path: str | os.PathLike):
+    def __init__(self, path: str | os.PathLike, device: str = "cpu"):
         import onnxruntime as ort
+
+        from ..probes.providers import open_session, plan, started
 
         self.path = os.fspath(path)
         if not os.path.isfile(self.path):
             raise InputError("LPIPS model file not found", self.path)
+        chosen = plan(device)
         self.sha256 = file_sha256(self.path)
         opts = ort.SessionOptions()
         opts.log_severity_level = 3
         try:
-            self._session = ort.InferenceSession(self.path, sess_options=opts, providers=["CPUExecutionProvider"])
+            self._session = open_session(self.path, opts, chosen)
         except Exception as exc:  # onnxruntime raises its own exception types
             raise InputError(f"not a loadable ONNX model ({type(exc).__name__}: {exc})", self.path) from None
+        self.provider = started(self._session, chosen, self.path, "LPIPS model")
         inputs = self._session.get_inputs()
         if len(inputs) != 2:
             raise InputError(f"an LPIPS model needs two image inputs, this one has {len(inputs)}", self.path)
@@ -201,12 +207,13 @@ class LpipsModel:
         return os.path.basename(self.path)
 
     def describe(self) -> dict:
-        """{"file", "sha256", "inputs", "output"} for the results."""
+        """{"file", "sha256", "inputs", "output", "provider"} for the results."""
         return {
             "file": self.file_name,
             "sha256": self.sha256,
             "inputs": list(self.input_names),
             "output": self.output_name,
+            "provider": self.provider,
         }
 
     def distance(self, a, b) -> float:

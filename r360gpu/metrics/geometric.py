@@ -1,4 +1,4 @@
-"""Geometric axis: acc_depth per view and over views (PROTOCOL.md, eq. acc_depth).
+"""Geometric axis: acc_depth per view and over views (paper eq. acc_depth; docs/protocol.md).
 
 ``acc_depth^v = |changed ∩ M| / |M|`` with ``changed = dD > xi_depth^v`` and
 ``xi_depth^v`` from GHT on the 256-bin histogram of dD over the whole image.
@@ -101,12 +101,12 @@ def acc_depth_view(
     """acc_depth^v of one view.
 
     d_pre, d_post: float32 (H, W) depth (z-distance), 0 = no coverage; numpy
-        arrays or :class:`~r360gpu.kernels.depth_change.DeviceDepth` (float mode).
+        arrays or `DeviceDepth` (float mode).
     mask: (H, W) target mask M^v, non-zero = target.
     compat: None/False (paper mode), True or "public", or "public-default":
         the public scripts' missing-depth rule and 8-bit thresholding
-        (:func:`~r360gpu.metrics.compat.public_changed`) on these arrays.  Pass
-        uint8 depths read with :func:`~r360gpu.metrics.compat.read_depth_public`
+        (`public_changed`) on these arrays.  Pass
+        uint8 depths read with `read_depth_public`
         to reproduce the scripts exactly.
     """
     m = np.asarray(mask) != 0

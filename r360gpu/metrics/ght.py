@@ -2,7 +2,7 @@
 
 Barron, "A Generalization of Otsu's Method and Minimum Error Thresholding",
 ECCV 2020.  The geometric axis thresholds the per-view histogram of |ΔD| with
-GHT (PROTOCOL.md, "Geometric axis"); the GPU kernel builds the histogram and
+GHT (docs/protocol.md, "Geometric"); the GPU kernel builds the histogram and
 this module picks the split.
 
 Conventions

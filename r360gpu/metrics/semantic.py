@@ -1,4 +1,4 @@
-"""Semantic axis: IoU_drop and acc_seg (paper eq. gsam_iou, eq. acc_seg; PROTOCOL.md).
+"""Semantic axis: IoU_drop and acc_seg (paper eq. gsam_iou, eq. acc_seg; docs/protocol.md).
 
 Per view ``v`` the semantic probe's instances on I_pre and on I_post are merged
 into one predicted mask each (the union of the instances; no instance -> an

@@ -1,5 +1,5 @@
 """Structural axis: sim_SAM and s_str (paper eq. sim_sam_matching, eq. sim_sam,
-eq. sim_sam_overall, eq. structural_axis; PROTOCOL.md).
+eq. sim_sam_overall, eq. structural_axis; docs/protocol.md).
 
 Per view ``v`` a prompt-free probe (SAM-style automatic masks) gives a mask
 set on each of the two renderings compared:
@@ -37,7 +37,7 @@ We follow the paper.  Where the public reference code
   set is empty, so the paper's 1 (both empty) and 0 (one empty) cases never
   reach its mean; its ``... else 0.0`` branch for both-empty sets is dead code
   after that skip;
-* it retains with ``IoU >= 0.1`` (as here and in PROTOCOL.md), while the
+* it retains with ``IoU >= 0.1`` (as here and in the protocol's ``RETAIN_IOU``), while the
   paper's text says the overlap "exceeds 0.1";
 * it resizes SAM masks to the target mask's size with nearest-neighbour
   interpolation and binarises the target PNG at > 128; here mask stacks

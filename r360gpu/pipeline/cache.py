@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..errors import InputError
 from ..util import code_id
 
 CACHE_DIR = ".r360cache"
@@ -210,9 +211,10 @@ def fingerprint(bundle, sources, digests: dict | None = None) -> str | None:
         if s is not None and getattr(s, "kind", None) == "device":
             return None
         h.update(json.dumps(None if s is None else s.describe(), sort_keys=True, default=str).encode())
-        if getattr(s, "in_memory", False):
-            # the description holds the count, not the values: two edits of the same size must not share results
-            h.update(s.gaussians.content_digest().encode())
+        # the description holds the path and count, not the values: two edits of the same size must not
+        # share results, whether the Gaussians are in memory or a file edited in place
+        for part in _content(s, bundle.views):
+            h.update(part.encode())
         h.update(repr(getattr(s, "background", None)).encode())
     for v in bundle.views:
         cam = (bundle.cameras or {}).get(v)
@@ -223,6 +225,36 @@ def fingerprint(bundle, sources, digests: dict | None = None) -> str | None:
         h.update(np.ascontiguousarray(m).tobytes() if isinstance(m, np.ndarray) else str(m).encode())
     _update_target(h, getattr(bundle, "target", None))
     return h.hexdigest()
+
+
+def _content(source, views) -> list[str]:
+    """Digests of what an opened source holds: its Gaussians' values (in memory), its splat file's
+    bytes, or its renderings' bytes at ``views`` (a missing file hashed as missing)."""
+    from ..util.filehash import content_digest
+
+    def of(path) -> str:
+        try:
+            return content_digest(path)
+        except OSError:
+            return f"missing {path}"
+
+    if source is None:
+        return []
+    if getattr(source, "in_memory", False):
+        return [source.gaussians.content_digest()]
+    if getattr(source, "kind", None) == "scene":
+        return [of(source.path)]
+    reader = getattr(source, "reader", None)
+    if reader is None:
+        return []
+    out = []
+    for v in views:
+        for lookup in (reader.rgb_path, reader.depth_path) if reader.has_depth else (reader.rgb_path,):
+            try:
+                out.append(of(lookup(v)))
+            except InputError:
+                out.append(f"no file for {v}")
+    return out
 
 
 def _update_target(h, spec) -> None:

@@ -191,6 +191,7 @@ class ChunkExecutor:
         self.sent_views: list = []   # (scene, view) of every view sent out, in order
         self.nodes: dict = {}        # node id -> tasks run there
         self.adapters: set = set()   # adapters the tasks ran on
+        self.gpus: set = set()       # "given GPU G -> adapter (how)" of workers that were given one
         self.tasks = 0
 
     @staticmethod
@@ -228,6 +229,8 @@ class ChunkExecutor:
         for stage, s in result["timing"].items():
             run.timer.add_seconds(stage, s)
         self.nodes[result["node"]] = self.nodes.get(result["node"], 0) + 1
+        if result.get("gpu"):
+            self.gpus.add(result["gpu"])
         if result["adapter"] not in self.adapters:
             self.adapters.add(result["adapter"])
             here = run.ctx.describe().get("name", "?")
@@ -352,7 +355,7 @@ class RayExecutor(ChunkExecutor):
     def describe(self) -> dict:
         """What ran where (goes into the results' timing, which a comparison of runs leaves out)."""
         return {"kind": "ray", "address": self.options.address, "tasks": self.tasks, "nodes": len(self.nodes),
-                "views_sent": len(self.sent_views), "adapters": sorted(self.adapters)}
+                "views_sent": len(self.sent_views), "adapters": sorted(self.adapters), "gpus": sorted(self.gpus)}
 
 
 class TaskProgress:
@@ -393,6 +396,7 @@ def score_task(common: dict, views: list) -> dict:
     import platform
 
     from ..gpu import get_context
+    from ..gpu.assign import worker_adapter
     from ..util.code_id import version_id
     from .run import Timer
 
@@ -401,10 +405,23 @@ def score_task(common: dict, views: list) -> dict:
     if common["version"] != version_id():  # the release and a digest of the code under it
         raise InputError(f"node {node} runs r360gpu {version_id()} but the driver runs {common['version']}; "
                          "install the same version on every node")
-    ctx = get_context(common["adapter"])
     timer = Timer()
     with warning_log.collecting(None), warning_log.where(scene=common["bundle"].name):
-        return _score_task(common, views, ctx, timer, node)
+        placement = worker_adapter(common["adapter"], ray_ids=_ray_gpu_ids())
+        if placement is not None and placement.warning:
+            warning_log.warn(placement.warning)
+        ctx = get_context(common["adapter"] if placement is None or placement.choice is None else placement.choice)
+        result = _score_task(common, views, ctx, timer, node)  # its warnings: the placement's too
+        result["gpu"] = None if placement is None else placement.describe(result["adapter"])
+        return result
+
+
+def _ray_gpu_ids() -> list:
+    """The GPU ids Ray gave this task ([] outside a Ray task)."""
+    ray = sys.modules.get("ray")  # a Ray worker has it; a worker process does not import it
+    if ray is None or not ray.is_initialized():
+        return []
+    return list(ray.get_gpu_ids())
 
 
 def _score_task(common, views, ctx, timer, node) -> dict:

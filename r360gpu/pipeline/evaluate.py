@@ -35,9 +35,9 @@ def evaluate(
 ) -> dict:
     """Score one or more scene bundles; returns the results document (a dict).
 
-    bundles: bundle folders, :class:`~r360gpu.bundle.Bundle` objects, or
+    bundles: bundle folders, `Bundle` objects, or
         scenes built from in-memory objects with
-        :func:`~r360gpu.bundle.scene_from_objects` (Gaussians, or renders and
+        `scene_from_objects` (Gaussians, or renders and
         depths already on the device).
     out: output folder: results.json, results.csv, tables.md/.tex, pictures,
         plots and report.html are written there, as ``r360gpu score`` does,
@@ -50,11 +50,11 @@ def evaluate(
         ``wgpu.GPUDevice``.
     force: recompute everything (the cache under ``out`` is cleared first).
     executor: None or "serial" (views scored here, overlapped), "ray"
-        (uncached views scored as Ray tasks, :mod:`.distributed`; needs the
-        ``r360gpu[ray]`` extra), a :class:`~.distributed.RayExecutor`, or a
-        :class:`~.processes.ProcessExecutor` (worker processes on this machine).
+        (uncached views scored as Ray tasks, `.distributed`; needs the
+        ``r360gpu[ray]`` extra), a `RayExecutor`, or a
+        `ProcessExecutor` (worker processes on this machine).
     ray_address: with executor="ray": "local" (default), "auto" or a cluster address.
-    kept: renders made before (:class:`~r360gpu.render.kept.KeptRenders`, as
+    kept: renders made before (`KeptRenders`, as
         ``r360gpu demo`` keeps the generator's reference renders), used where
         they are exactly what would be rendered; emptied when the run ends.
     """

@@ -15,17 +15,22 @@ class EvaluateOptions:
     xis: acc_seg thresholds reported (0.3 is s_sem).
     compat: None/False (paper mode), "public" (True means it) or
         "public-default": score as the public scripts do (see
-        :mod:`r360gpu.aggregate.compat`).
-    ght: GHT parameters (a :class:`~r360gpu.metrics.geometric.GhtParams`; a
+        `r360gpu.aggregate.compat`).
+    ght: GHT parameters (a `GhtParams`; a
         dict with its fields is accepted and converted).
     reference_free: True forces s_str = 1 - sim(pre, post) even with a
         reference; None follows each bundle's option.
     depth: "expected" or "median" depth; None follows each bundle.
     views: glob patterns selecting views by name, case-sensitive
-        (:func:`r360gpu.bundle.views.matching`; None: the bundle's views);
-        applied once per scene, where it is loaded (:func:`~.evaluate.evaluate`).
+        (`r360gpu.bundle.views.matching`; None: the bundle's views);
+        applied once per scene, where it is loaded (`evaluate`).
     boundary: run the mask-boundary sweep (E15..D15).
     lpips_model: path of an LPIPS ONNX model (None: LPIPS not computed).
+    probe_device: the onnxruntime execution provider of LPIPS (and, on the
+        command line, of the learned probes): "auto" (default: a GPU provider
+        for the renderer's GPU when onnxruntime has one, else the CPU),
+        "cpu", "cuda", "tensorrt", "webgpu", "directml", "coreml"
+        (`r360gpu.probes.providers`).
     pictures: write a contact sheet per (method, view) and plots.
     fit_views: views of the pre rendering a fitted probe learns from.
     controls: also score the controls of each scene (the unedited pre
@@ -42,6 +47,7 @@ class EvaluateOptions:
     views: tuple | None = None
     boundary: bool = True
     lpips_model: str | None = None
+    probe_device: str = "auto"
     pictures: bool = True
     fit_views: int = 8
     controls: bool = True
@@ -58,8 +64,14 @@ class EvaluateOptions:
     def __post_init__(self):
         from ..metrics.compat import check_compat
 
+        from ..errors import InputError
+
         self.compat = check_compat(self.compat)
         if isinstance(self.ght, dict):
+            unknown = sorted(set(self.ght) - set(GhtParams().as_dict()))
+            if unknown:
+                raise InputError(f"ght: unknown parameter(s) {', '.join(map(str, unknown))} "
+                                 f"(known: {', '.join(GhtParams().as_dict())})")
             self.ght = GhtParams(**self.ght)
         self._check()
 
@@ -67,6 +79,7 @@ class EvaluateOptions:
         """InputError for an option no run can use: the checks of the CLI flags and of the library,
         made when the options are built, before any view is scored."""
         import math
+        import os
         from numbers import Integral, Real
 
         from ..errors import InputError
@@ -81,6 +94,33 @@ class EvaluateOptions:
                                  ("fit_views", self.fit_views, 1), ("seed (--seed)", self.seed, 0)):
             if isinstance(value, bool) or not isinstance(value, Integral) or value < low:
                 raise InputError(f"{flag} must be an integer >= {low}, got {value!r}")
+        if isinstance(self.orbit, bool) or not isinstance(self.orbit, Integral) or self.orbit < 0:
+            raise InputError(f"orbit (--orbit) must be a whole number of cameras >= 0, got {self.orbit!r}")
+        for flag, value in (("boundary (--no-boundary)", self.boundary), ("pictures (--no-pictures)", self.pictures),
+                            ("controls (--no-controls)", self.controls), ("antialiased (--antialiased)",
+                                                                         self.antialiased),
+                            ("residuals (--residuals)", self.residuals)):
+            if not isinstance(value, bool):
+                raise InputError(f"{flag} must be True or False, got {value!r}")
+        if self.reference_free is not None and not isinstance(self.reference_free, bool):
+            raise InputError(f"reference_free (--reference-free) must be None, True or False, "
+                             f"got {self.reference_free!r}")
+        if self.lpips_model is not None and not (isinstance(self.lpips_model, (str, os.PathLike))
+                                                 and str(self.lpips_model).strip()):
+            raise InputError(f"lpips_model (--lpips) must be the path of an ONNX model, got {self.lpips_model!r}")
+        ght = self.ght
+        if not isinstance(ght, GhtParams):
+            raise InputError(f"ght must be a GhtParams or a dict of its fields, got {type(ght).__name__}")
+        for name, value in ght.as_dict().items():
+            if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value) or value < 0:
+                raise InputError(f"ght.{name} must be a finite number >= 0, got {value!r}")
+        if ght.omega > 1:
+            raise InputError(f"ght.omega must lie in [0, 1], got {ght.omega!r}")
+        from ..probes.providers import choose, plan
+
+        choose(self.probe_device)  # an unknown name
+        if self.lpips_model and self.probe_device != "auto":
+            plan(self.probe_device)  # a provider asked for by name that onnxruntime lacks
         from .residuals import check_prune
 
         check_prune(self.prune_residuals)
@@ -102,6 +142,8 @@ class EvaluateOptions:
         d = asdict(self)  # the GhtParams becomes {"nu", "tau", "kappa", "omega"}
         for k in ("pictures", "n_boot", "n_perm", "seed", "controls", "orbit", "residuals", "prune_residuals"):
             d.pop(k)
+        if not self.lpips_model:
+            d.pop("probe_device")  # then it changes no per-view value (the probes' providers are in their keys)
         d["xis"] = [float(x) for x in self.xis]
         d["views"] = None if self.views is None else list(self.views)
         return d

@@ -13,7 +13,10 @@ task function and bookkeeping it shares):
 * the views the view cache lacks are cut into chunks of consecutive views
   (ceil(views / (2 x workers)), at most 16, or ``chunk``), each scored by a
   worker with :func:`~.distributed.score_task`: the worker opens its own GPU
-  device (once, on its first task) and scores the chunk without any cache;
+  device (once, on its first task) and scores the chunk without any cache.
+  On a machine with two or more GPUs (or CUDA_VISIBLE_DEVICES naming them),
+  the workers take them round-robin, one GPU each while there are as many
+  GPUs as workers (:mod:`r360gpu.gpu.assign`);
 * as chunks finish, their pictures and then their cells are written into
   ``--out`` exactly where a serial run writes them, so an interrupted run
   resumes from the view cache.
@@ -60,35 +63,51 @@ def _interrupts_ignored():
         signal.signal(signal.SIGINT, old)
 
 
-def _worker_start(threads: int) -> None:
+def _worker_start(threads: int, slots: list, counter) -> None:
     """In each worker, before its first task: Ctrl-C (sent to the whole process group) is the
     driver's to handle (it stops the workers itself, so a worker prints no traceback of its own);
     OpenCV's and a CPU Vulkan driver's thread pools get the worker's share of the cores
-    (``threads``), not every core each, unless the environment already sizes lavapipe's."""
+    (``threads``), not every core each, unless the environment already sizes lavapipe's.  With
+    GPUs to spread over (``slots``, :func:`~r360gpu.gpu.assign.worker_slots`), the k-th worker to
+    start (``counter``, shared) takes slot k mod len(slots) as its CUDA_VISIBLE_DEVICES, which its
+    tasks map to a wgpu adapter (:func:`~r360gpu.gpu.assign.worker_adapter`) and CUDA honours."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # already so when the driver started it (_interrupts_ignored)
+    if slots:
+        with counter.get_lock():
+            k = counter.value
+            counter.value += 1
+        os.environ["CUDA_VISIBLE_DEVICES"] = slots[k % len(slots)]
     os.environ.setdefault("LP_NUM_THREADS", str(threads))  # read when the worker opens its device
     import cv2
 
     cv2.setNumThreads(threads)
 
 
+def check_workers(workers) -> int:
+    """``workers`` unless it is not a whole number >= 1 (InputError): the one check of ``--processes``
+    and of :class:`ProcessExecutor`."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(f"--processes must be at least 1, got {workers!r} (a whole number of worker "
+                         f"processes, or 'auto')")
+    return workers
+
+
 class ProcessExecutor(ChunkExecutor):
     """Scores the uncached views of each scene in ``workers`` processes (module docstring).
 
     chunk: views per task (None: ceil(views / (2 x workers)), at most 16);
-    adapter, on_task: as :class:`~.distributed.ChunkExecutor`.  The pool is
+    adapter, on_task: as `ChunkExecutor`.  The pool is
     started on the first scene with views to score and kept for the next
-    scenes; :meth:`close` stops it.
+    scenes; `close` stops it.
     """
 
     kind = "worker-process"
 
     def __init__(self, workers: int, *, chunk: int | None = None, adapter: str | None = None, log=print,
                  on_task=None):
-        if not isinstance(workers, int) or workers < 1:
-            raise InputError(f"--processes must be at least 1, got {workers!r}")
-        if chunk is not None and chunk < 1:
-            raise InputError(f"the chunk size must be at least 1, got {chunk}")
+        check_workers(workers)
+        if chunk is not None and (isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1):
+            raise InputError(f"the chunk size must be at least 1, got {chunk!r} (a whole number of views)")
         super().__init__(adapter=adapter, log=log, on_task=on_task)
         self.workers = workers
         self.chunk = chunk
@@ -99,9 +118,13 @@ class ProcessExecutor(ChunkExecutor):
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
+            from ..gpu.assign import worker_slots
+
             threads = max(1, (os.cpu_count() or 1) // self.workers)
-            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                             initializer=_worker_start, initargs=(threads,))
+            spawn = multiprocessing.get_context("spawn")
+            slots = worker_slots(self.adapter)  # the GPUs the workers take round-robin
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=spawn, initializer=_worker_start,
+                                             initargs=(threads, slots, spawn.Value("i", 0)))
         return self._pool
 
     def close(self) -> None:
@@ -163,4 +186,4 @@ class ProcessExecutor(ChunkExecutor):
     def describe(self) -> dict:
         """What ran where (goes into the results' timing, which a comparison of runs leaves out)."""
         return {"kind": "processes", "workers": self.workers, "tasks": self.tasks,
-                "views_sent": len(self.sent_views), "adapters": sorted(self.adapters)}
+                "views_sent": len(self.sent_views), "adapters": sorted(self.adapters), "gpus": sorted(self.gpus)}

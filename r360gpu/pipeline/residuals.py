@@ -22,13 +22,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bundle.names import DERIVED_SUFFIXES
 from ..errors import InputError
 from .orbit import _gaussians, _is_scene
 
 #: Indices of the highest residuals recorded per method.
 TOP = 100
-#: The what-if entry of method M is named M + PRUNED.
-PRUNED = "+pruned"
+#: The what-if entry of method M is named M + PRUNED (a name no method may take: bundle.names).
+PRUNED = DERIVED_SUFFIXES[0]
 #: The what-if of a method none of whose Gaussians has a residual (no view flags evidence).
 NOTHING_TO_PRUNE = "not scored: no Gaussian has a residual (no view flags evidence)"
 
@@ -44,11 +45,28 @@ def check_prune(q) -> None:
                          f"fraction in (0, 1), got {q!r}")
 
 
+def asked_count(q, n: int) -> int:
+    """Gaussians ``--prune-residuals q`` asks to remove from a method of ``n``: ``q`` itself (a count)
+    or round(q n), at least 1 (a fraction)."""
+    return int(q) if isinstance(q, Integral) else max(1, int(round(float(q) * n)))
+
+
 def prune_count(q, n: int) -> int:
-    """Gaussians removed from a method of ``n``: ``q`` itself (a count) or round(q n) (a fraction),
-    at least 1 and at most n (and never more than have a residual, :func:`pruned_bundle`)."""
-    k = int(q) if isinstance(q, Integral) else int(round(float(q) * n))
-    return max(1, min(int(n), k))
+    """Gaussians removed from a method of ``n``: `asked_count`, at most n (and never more than
+    have a residual, `pruned_bundle`)."""
+    return max(1, min(int(n), asked_count(q, n)))
+
+
+def why_fewer(asked: int, n: int, n_residual: int) -> str | None:
+    """Why a what-if removes fewer Gaussians than asked (None when it removes them all): a Gaussian
+    with residual 0 carries no evidence (it is never blended inside the target of a flagged view in
+    front of the surface behind it), so it is not pruned; nor can more than the method has be."""
+    if min(asked, n_residual, n) == asked:
+        return None
+    if n_residual < min(asked, n):
+        return (f"only {n_residual} Gaussians have a residual above 0 "
+                f"(the rest add nothing inside the target of a flagged view)")
+    return f"the method has only {n} Gaussians"
 
 
 def _masks(bundle, cams) -> list:
@@ -105,17 +123,20 @@ def scene_residuals(bundle, scene_res: dict, out, *, ctx=None, xis=(0.3,), warn=
         g, options = _gaussians(spec)
         r = residuals(g, cams, masks, flagged, behind=behind, ctx=ctx, options=options)
         values[m] = r
-        entry[m] = {"flagged_views": flagged, "top": top_residuals(r, TOP).tolist(),
+        # rows of the method's file as written (the loader may have dropped invalid ones)
+        entry[m] = {"flagged_views": flagged, "top": g.rows[top_residuals(r, TOP)].tolist(),
                     "max": float(r.max()) if len(r) else 0.0, "gate": gate}
         if out is not None:
-            write_residual_ply(Path(out) / "residuals" / bundle.name / f"{m}.ply", g, r)
+            write_residual_ply(Path(out) / "residuals" / bundle.name / f"{m}.ply", g, r,
+                               source=getattr(spec, "path", None))
             entry[m]["file"] = str(Path("residuals") / bundle.name / f"{m}.ply")
     return dict(sorted(entry.items(), key=lambda kv: list(bundle.methods).index(kv[0]))), values
 
 
 def pruned_bundle(bundle, values: dict, q, out):
     """(bundle whose methods are ``METHOD+pruned``: each splat method of ``values`` without its top
-    residual Gaussians, {name: {"method", "removed", "of"}}).  The pruned scenes are written as
+    residual Gaussians, {name: {"method", "removed", "of", "asked"[, "fewer"]}}: "fewer" says why
+    fewer than asked were removed).  The pruned scenes are written as
     ``residuals/SCENE/METHOD+pruned.ply`` under ``out`` (kept in memory when ``out`` is None)."""
     from ..io import Gaussians
     from ..io.inria_ply import save_ply
@@ -126,7 +147,9 @@ def pruned_bundle(bundle, values: dict, q, out):
         spec = bundle.methods[m]
         g, _ = _gaussians(spec)
         # only Gaussians with some residual are residual Gaussians: none when no view flags evidence
-        k = min(prune_count(q, g.n), int(np.count_nonzero(np.asarray(r) > 0)))
+        n_residual = int(np.count_nonzero(np.asarray(r) > 0))
+        asked = asked_count(q, g.n)
+        k = min(prune_count(q, g.n), n_residual)
         if k == 0:
             info[m + PRUNED] = {"method": m, "removed": 0, "of": int(g.n), "note": NOTHING_TO_PRUNE}
             continue
@@ -141,7 +164,10 @@ def pruned_bundle(bundle, values: dict, q, out):
             path.parent.mkdir(parents=True, exist_ok=True)
             save_ply(path, pruned)
             methods[name] = replace(spec, path=path)
-        info[name] = {"method": m, "removed": int(k), "of": int(g.n)}
+        info[name] = {"method": m, "removed": int(k), "of": int(g.n), "asked": asked}
+        fewer = why_fewer(asked, int(g.n), n_residual)
+        if fewer is not None:
+            info[name]["fewer"] = fewer
         if out is not None and not isinstance(spec, Gaussians):
             info[name]["file"] = str(Path("residuals") / bundle.name / f"{name}.ply")
     pres = {m + PRUNED: s for m, s in bundle.method_pres.items() if m in values}

@@ -92,6 +92,7 @@ class SceneRun:
         from ..bundle import is_from_objects
         from ..bundle.views import require_target
         from ..metrics.fidelity import LpipsModel
+        from ..probes.providers import choose
         from .cache import fingerprint
 
         self.bundle, self.opts, self.ctx = bundle, opts, ctx
@@ -103,6 +104,7 @@ class SceneRun:
         self.mode = "reference_free" if ref_free else "reference"
         self._open_sources()
         self.target_record = None
+        loaded = bundle  # the key is made of what was loaded: the target's masks are rendered from it
         if getattr(bundle, "target", None) is not None:  # [target]: a mask for every view (r360gpu.lift)
             from ..lift.resolve import resolve_target
 
@@ -115,15 +117,16 @@ class SceneRun:
         require_target(self.views, self.mask, bundle.masks)
         # The digests the key is made of, kept to check, before a view's cells are stored, that the
         # bytes decoded for it are these (cache.changed_inputs: hash while reading, util.filehash).
-        self.file_digests = None if is_from_objects(bundle) else bundle.file_digests()
+        self.file_digests = None if is_from_objects(loaded) else loaded.file_digests()
         self._view_readers: dict = {}
-        self.fingerprint = fingerprint(bundle, [*self.pres.values(), self.reference, *self.methods.values()],
+        self.fingerprint = fingerprint(loaded, [*self.pres.values(), self.reference, *self.methods.values()],
                                        digests=self.file_digests)
         # the driver checks that pre's cameras see its splats (workers score what the driver accepted);
         # a what-if's cameras are the capture's, already checked, or derived from them (the orbit)
         self.frame_check = self.check_frames(cache) if fit and check_frames else {}
         self._open_probes(sem_probes, str_probes, cache, fit)
-        self.lpips = LpipsModel(opts.lpips_model) if opts.lpips_model and self.reference is not None else None
+        self.lpips = (LpipsModel(opts.lpips_model, choose(opts.probe_device, ctx.adapter_info))
+                      if opts.lpips_model and self.reference is not None else None)
 
     def _open_sources(self) -> None:
         """The pre sources, the reference, the methods and the controls, opened (timed as "load")."""

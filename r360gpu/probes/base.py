@@ -3,19 +3,19 @@
 Two kinds of probe exist (paper Sec. 3):
 
 * a *semantic* probe maps (RGB rendering, category prompt) to instance masks
-  with scores (:class:`SemanticPrediction`); the semantic axis uses the union
+  with scores (`SemanticPrediction`); the semantic axis uses the union
   of the instances;
 * a *structural* probe maps an RGB rendering to an unordered set of masks
-  (:class:`MaskSet`), e.g. SAM automatic masks.
+  (`MaskSet`), e.g. SAM automatic masks.
 
-Probes are batched over views (:class:`ProbeView`).  A view is identified by
+Probes are batched over views (`ProbeView`).  A view is identified by
 its name (the image file stem, shared by the pre / post / ref renderings of
 one pose) and says which rendering it is, so that probes reading precomputed
 masks can find the right file; model probes only look at the pixels.
 
 Every probe reports ``describe()``: its name, kind, model file hashes and
 parameters.  That dictionary goes into the results and, as the probe's full
-configuration, into the on-disk cache key (:mod:`r360gpu.probes.cache`).
+configuration, into the on-disk cache key (`r360gpu.probes.cache`).
 
 Several probes may serve one axis; every result records the name of the probe
 that produced it (``probe``) so later stages can combine or compare them.
@@ -44,7 +44,7 @@ __all__ = [
     "check_results",
 ]
 
-#: Names of the three renderings of a pose (PROTOCOL.md: I_pre, I_post, I_ref).
+#: Names of the three renderings of a pose (docs/protocol.md: I_pre, I_post, I_ref).
 RENDERINGS = ("pre", "post", "ref")
 
 
@@ -78,7 +78,7 @@ class ProbeView:
     name: view identifier, the image file stem (e.g. ``"00012"``).
     image: RGB rendering, (H, W, 3), uint8 0..255 or float 0..1; None when only
         precomputed masks are used and no rendering is at hand.
-    rendering: which rendering this is, one of :data:`RENDERINGS`, or None
+    rendering: which rendering this is, one of `RENDERINGS`, or None
         when unknown (then precomputed probes cannot be used).
     size: (H, W) in pixels; taken from ``image`` when omitted.  Imported masks
         of another size are resized to it.

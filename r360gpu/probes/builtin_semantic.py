@@ -307,8 +307,8 @@ def _posterior(target_hist: np.ndarray, background_hist: np.ndarray, params: App
 class BuiltinAppearanceProbe(SemanticProbe):
     """Weight-free semantic probe: where a rendering still looks like the target (module docstring).
 
-    params: :class:`AppearanceParams` (defaults when None).  Call :meth:`fit`
-    once per scene before :meth:`predict`.
+    params: `AppearanceParams` (defaults when None).  Call `fit`
+    once per scene before `predict`.
     """
 
     learns_from_scene = True
@@ -322,19 +322,19 @@ class BuiltinAppearanceProbe(SemanticProbe):
         return "builtin-appearance"
 
     def fit(self, pre_images: Sequence, masks: Sequence) -> "BuiltinAppearanceProbe":
-        """Learn the scene's target appearance (:func:`fit_appearance`); returns self."""
+        """Learn the scene's target appearance (`fit_appearance`); returns self."""
         self.model = fit_appearance(pre_images, masks, self.config)
         return self
 
     def params(self) -> dict:
-        """The parameters plus ``model_sha256`` (None before :meth:`fit`)."""
+        """The parameters plus ``model_sha256`` (None before `fit`)."""
         values = asdict(self.config)
         values["model_sha256"] = None if self.model is None else self.model.sha256
         return values
 
     def describe(self) -> dict:
         """Base description plus ``weight_free``, ``limitations``, ``prompt_use`` and
-        the fit's pixel counts (``fit``: None before :meth:`fit`)."""
+        the fit's pixel counts (``fit``: None before `fit`)."""
         out = super().describe()
         out["weight_free"] = True
         out["limitations"] = SEMANTIC_LIMITATIONS

@@ -556,7 +556,7 @@ def _select(labels: np.ndarray, params: StructuralParams) -> np.ndarray:
 class BuiltinStructuralProbe(StructuralProbe):
     """Weight-free prompt-free mask sets from classical segmentation (module docstring).
 
-    params: :class:`StructuralParams` (default: graph-based segmentation).
+    params: `StructuralParams` (default: graph-based segmentation).
     """
 
     def __init__(self, params: StructuralParams | None = None):

@@ -510,6 +510,7 @@ class GroundedSamProbe(SemanticProbe):
             "sam": self.sam.describe_models(),
             "mask_selection": "single-mask token, else highest predicted IoU; logits > 0",
             "provider": self.sam.provider,
+            "dino_provider": self.dino.model.provider,
         }
 
     def model_hashes(self) -> dict[str, str]:

@@ -1,10 +1,10 @@
 """onnxruntime sessions for the model probes, and the SAM / SAM2 encoder-decoder pair.
 
 Execution providers (``device``): ``"cpu"`` (default), ``"cuda"``,
-``"directml"``, ``"coreml"`` -- each only when the installed onnxruntime
-build has it (``onnxruntime.get_available_providers()``) -- or ``"auto"``
-(the first of cuda, directml, coreml that is available, else cpu).  The CPU
-provider always backs the chosen one for operators it lacks.
+``"tensorrt"``, ``"webgpu"``, ``"directml"``, ``"coreml"`` or ``"auto"``
+(:mod:`r360gpu.probes.providers`: what auto takes, what happens when a
+provider is missing or cannot start).  The CPU provider always backs the
+chosen one for operators it lacks.
 
 Supported SAM exports (detected from the models' input / output names and
 shapes; anything else is an InputError listing what was found):
@@ -61,7 +61,6 @@ from __future__ import annotations
 import hashlib
 import os
 import threading
-import warnings
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,7 +68,7 @@ from typing import NoReturn
 
 import numpy as np
 
-from r360gpu.errors import InputError, R360Warning
+from r360gpu.errors import InputError
 from r360gpu.probes.base import file_sha256
 from r360gpu.probes.preprocess import (
     as_rgb01,
@@ -79,6 +78,7 @@ from r360gpu.probes.preprocess import (
     sam_logits_to_image,
     sam_resized_image,
 )
+from r360gpu.probes.providers import DEVICES, available_providers, open_session, plan, providers_for, started
 
 __all__ = [
     "DEVICES",
@@ -93,15 +93,6 @@ __all__ = [
     "SamModels",
     "EMBEDDINGS",
 ]
-
-#: device name -> onnxruntime execution provider.
-DEVICES = {
-    "cpu": "CPUExecutionProvider",
-    "cuda": "CUDAExecutionProvider",
-    "directml": "DmlExecutionProvider",
-    "coreml": "CoreMLExecutionProvider",
-}
-_AUTO_ORDER = ("cuda", "directml", "coreml")
 
 _NP_TYPES = {
     "tensor(float)": np.float32,
@@ -129,41 +120,6 @@ _SAM2_DECODER_INPUTS = frozenset(
 _SAM2_FEATURES = ("image_embed", "high_res_feats_0", "high_res_feats_1")
 # What SamModels reads from a SAM decoder that has low-resolution logits.
 _SAM_DECODER_READS = ("iou_predictions", "low_res_masks")
-
-
-def _ort():
-    import onnxruntime
-
-    return onnxruntime
-
-
-def available_providers() -> list[str]:
-    """Execution providers of the installed onnxruntime build."""
-    return list(_ort().get_available_providers())
-
-
-def providers_for(device: str = "cpu") -> list[str]:
-    """onnxruntime provider list for a device name (see module docstring).
-
-    Raises InputError for an unknown device or one the installed
-    onnxruntime lacks, naming the available providers.
-    """
-    name = str(device).strip().lower()
-    available = available_providers()
-    if name == "auto":
-        for candidate in _AUTO_ORDER:
-            if DEVICES[candidate] in available:
-                return [DEVICES[candidate], DEVICES["cpu"]]
-        return [DEVICES["cpu"]]
-    if name not in DEVICES:
-        raise InputError(f"unknown device {device!r}; use one of {sorted(DEVICES)} or 'auto'")
-    provider = DEVICES[name]
-    if provider not in available:
-        raise InputError(
-            f"device {name!r} needs onnxruntime's {provider}, which the installed onnxruntime lacks "
-            f"(available: {', '.join(available)})"
-        )
-    return [provider] if name == "cpu" else [provider, DEVICES["cpu"]]
 
 
 @dataclass(frozen=True)
@@ -324,22 +280,14 @@ class OnnxModel:
         self.outputs_read = None if outputs_read is None else tuple(outputs_read)
         if not self.path.is_file():
             raise InputError(f"{role} model file does not exist", self.path)
-        providers = providers_for(device)
-        self._providers = providers
+        self._plan = plan(device)
         #: The serialised graph the session runs when it is not the file's (a pruned copy), else None.
         self.model_bytes = None if self.outputs_read is None else pruned_model_bytes(self.path, self.outputs_read)
         try:
             self.session = self.open_session(self.model_bytes or str(self.path))
         except Exception as exc:  # noqa: BLE001 - onnxruntime raises several unrelated types
             raise InputError(f"cannot load the {role} as an ONNX model ({_first_line(exc)})", self.path) from None
-        active = self.session.get_providers()
-        if providers[0] not in active:
-            warnings.warn(
-                f"{self.path}: onnxruntime could not start {providers[0]} for the {role}; running on {active[0]}",
-                R360Warning,
-                stacklevel=2,
-            )
-        self.provider = active[0]
+        self.provider = started(self.session, self._plan, self.path, role)
         self.inputs = {i.name: TensorInfo(i.name, tuple(i.shape), i.type) for i in self.session.get_inputs()}
         self.outputs = {o.name: TensorInfo(o.name, tuple(o.shape), o.type) for o in self.session.get_outputs()}
         self._digests: dict[str, str] | None = None
@@ -347,10 +295,11 @@ class OnnxModel:
     def open_session(self, source: str | bytes):
         """An onnxruntime session on ``source`` (a path or a serialised model) with this model's
         providers and options."""
-        ort = _ort()
-        options = ort.SessionOptions()
+        import onnxruntime
+
+        options = onnxruntime.SessionOptions()
         options.log_severity_level = 3
-        return ort.InferenceSession(source, sess_options=options, providers=self._providers)
+        return open_session(source, options, self._plan)
 
     def __reduce__(self):
         # A session cannot be pickled: another process (a Ray worker) opens the
@@ -665,8 +614,10 @@ class SamModels:
     # -- public API ----------------------------------------------------------
     @property
     def provider(self) -> str:
-        """The execution provider the decoder runs on."""
-        return self.decoder.provider
+        """The execution provider the encoder and decoder run on ("encoder: A, decoder: B" when
+        one of them could not start the provider asked for and the other could)."""
+        enc, dec = self.encoder.provider, self.decoder.provider
+        return enc if enc == dec else f"encoder: {enc}, decoder: {dec}"
 
     def digests(self) -> dict[str, str]:
         """ "encoder:<file>" / "decoder:<file>" -> SHA-256 of every model file."""

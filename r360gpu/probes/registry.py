@@ -46,7 +46,9 @@ masks on the structural axis; what was chosen and why is returned for the
 console and results.json.
 
 Keys may use '-' or '_'.  Values cannot contain ','.  device is one of
-cpu (default), cuda, directml, coreml, auto.  Booleans: true/false, yes/no,
+cpu, cuda, tensorrt, webgpu, directml, coreml, auto
+(:mod:`r360gpu.probes.providers`); without it, the ``device`` given to
+:func:`parse_probe_spec` / :func:`probe_for_axis` (``--probe-device``), else cpu.  Booleans: true/false, yes/no,
 1/0.  Any problem is an InputError naming the spec.
 """
 
@@ -84,7 +86,7 @@ DEFAULT_PROBES = {"semantic": "builtin-appearance", "structural": "builtin-hiera
 PROBE_SPEC_HELP = (
     "probe name builtin (the axis default), "
     + ", ".join(BUILTIN_PROBES)
-    + "; or probe spec KIND:BODY -- sam:encoder=PATH,decoder=PATH[,device=cpu|cuda|directml|coreml|auto][,AMG params]; "
+    + "; or probe spec KIND:BODY -- sam:encoder=PATH,decoder=PATH[,device=auto|cpu|cuda|tensorrt|webgpu|directml|coreml][,AMG params]; "
     "grounded:dino=PATH,tokenizer=tokenizer.json|vocab.txt,sam-encoder=PATH,sam-decoder=PATH"
     "[,box_threshold=0.35,text_threshold=0.25,resize=800/1333|1200x800]; "
     "gsam2-json:DIR, png:DIR, sam-json:DIR (DIR with pre/post/ref or before/after sub-folders) "
@@ -125,11 +127,12 @@ def default_probes() -> tuple[list[Probe], list[Probe]]:
     return [builtin_probe(DEFAULT_PROBES["semantic"])], [builtin_probe(DEFAULT_PROBES["structural"])]
 
 
-def probe_for_axis(spec: str, axis: str) -> Probe:
+def probe_for_axis(spec: str, axis: str, device: str = "cpu") -> Probe:
     """The probe a command-line spec names for one axis ("semantic" or "structural").
 
     ``builtin`` is the axis default; a built-in name or a ``KIND:BODY`` spec
-    must give a probe of that axis (else InputError naming the spec).
+    must give a probe of that axis (else InputError naming the spec).  device:
+    the onnxruntime device of a learned probe whose spec gives none.
     """
     if axis not in DEFAULT_PROBES:
         raise ValueError(f"axis must be one of {sorted(DEFAULT_PROBES)}, got {axis!r}")
@@ -140,14 +143,15 @@ def probe_for_axis(spec: str, axis: str) -> Probe:
         if BUILTIN_PROBES[name][0] != axis:
             raise InputError(f"probe spec {spec!r} is a {BUILTIN_PROBES[name][0]} probe, not a {axis} one")
         return builtin_probe(name)
-    probe = parse_probe_spec(spec)
+    probe = parse_probe_spec(spec, device)
     if probe.kind != axis:
         raise InputError(f"probe spec {spec!r} gives a {probe.kind} probe, but --{axis}-probe needs a {axis} one")
     return probe
 
 
-def parse_probe_spec(spec: str) -> Probe:
-    """The probe a spec describes (see the module docstring)."""
+def parse_probe_spec(spec: str, device: str = "cpu") -> Probe:
+    """The probe a spec describes (see the module docstring); device: a learned probe's
+    onnxruntime device when the spec gives none."""
     text = str(spec).strip()
     kind, sep, body = text.partition(":")
     kind = kind.strip().lower()
@@ -156,9 +160,9 @@ def parse_probe_spec(spec: str) -> Probe:
     if not body.strip():
         raise InputError(f"probe spec {spec!r}: nothing after '{kind}:'")
     if kind == "sam":
-        return _sam(spec, _options(spec, body))
+        return _sam(spec, _options(spec, body), device)
     if kind == "grounded":
-        return _grounded(spec, _options(spec, body))
+        return _grounded(spec, _options(spec, body), device)
     return _precomputed(spec, kind, body)
 
 
@@ -230,21 +234,21 @@ def _dataclass_kwargs(spec: str, opts: dict[str, str], cls) -> dict:
     return kwargs
 
 
-def _sam(spec: str, opts: dict[str, str]) -> Probe:
+def _sam(spec: str, opts: dict[str, str], device: str) -> Probe:
     from r360gpu.probes.sam_amg import AmgParams, SamAmgProbe
 
     encoder, decoder = _take_required(spec, opts, ("encoder", "decoder"))
-    device = opts.pop("device", "cpu") or "cpu"
+    device = opts.pop("device", None) or device
     name = opts.pop("name", None) or None
     params = AmgParams(**_dataclass_kwargs(spec, opts, AmgParams))
     return SamAmgProbe(encoder, decoder, params=params, device=device, name=name)
 
 
-def _grounded(spec: str, opts: dict[str, str]) -> Probe:
+def _grounded(spec: str, opts: dict[str, str], device: str) -> Probe:
     from r360gpu.probes.grounded import GroundedSamProbe, GroundingParams
 
     dino, tokenizer, encoder, decoder = _take_required(spec, opts, ("dino", "tokenizer", "sam_encoder", "sam_decoder"))
-    device = opts.pop("device", "cpu") or "cpu"
+    device = opts.pop("device", None) or device
     name = opts.pop("name", None) or None
     params = GroundingParams(**_dataclass_kwargs(spec, opts, GroundingParams))
     return GroundedSamProbe(dino, tokenizer, encoder, decoder, params=params, device=device, name=name)

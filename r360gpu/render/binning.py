@@ -25,6 +25,12 @@ from .shader_pipelines import pipeline
 from .scan import exclusive_scan
 from .scratch import Scratch
 
+#: Invocations per workgroup of render_bin.wgsl's passes and render_ranges.wgsl (the shaders state them;
+#: read once, not per recorded pass).
+COUNT_WG = workgroup_threads("render_bin", "count")
+EMIT_WG = workgroup_threads("render_bin", "emit")
+RANGES_WG = workgroup_threads("render_ranges")
+
 
 @dataclass(frozen=True)
 class TileWindow:
@@ -95,23 +101,25 @@ def record_counts(ctx: GpuContext, enc, proj, order, n: int, tiles_x: int, windo
     ctx.dispatch(enc, pipeline(ctx, "render_bin", "count"),
                  [params, BufferRange(order, 0, counts.size), _per_gaussian(proj.rect, n), counts, None, None,
                   _per_gaussian(proj.pos_op, n), _per_gaussian(proj.conic, n)],
-                 ctx.grid(-(-n // workgroup_threads("render_bin", "count"))))
+                 ctx.grid(-(-n // COUNT_WG)))
     total = exclusive_scan(ctx, enc, counts, n, scratch, "bin.scan")
     return counts, total
 
 
 def record_emit(ctx: GpuContext, enc, proj, order, offsets: BufferRange, n: int, tiles_x: int,
                 window: TileWindow, scratch: Scratch):
-    """Record the emission of the window's ``window.keys`` (exact) keys; returns (keys, vals) buffers."""
+    """Record the emission of the window's ``window.keys`` (exact) keys; returns (keys, vals) buffers.
+
+    The key lists are bound whole (``ctx.span``): their bind groups stay the same from frame to frame."""
     k = window.keys
     keys = scratch.get("bin.keys", k * 4)
     vals = scratch.get("bin.vals", k * 4)
     params = uniform(ctx, "render_bin", n=n, tiles_x=tiles_x, tile_begin=window.begin, tile_end=window.end)
     ctx.dispatch(enc, pipeline(ctx, "render_bin", "emit"),
                  [params, BufferRange(order, 0, offsets.size), _per_gaussian(proj.rect, n), offsets,
-                  BufferRange(keys, 0, k * 4), BufferRange(vals, 0, k * 4),
+                  ctx.span(keys, 0, k * 4), ctx.span(vals, 0, k * 4),
                   _per_gaussian(proj.pos_op, n), _per_gaussian(proj.conic, n)],
-                 ctx.grid(-(-n // workgroup_threads("render_bin", "emit"))))
+                 ctx.grid(-(-n // EMIT_WG)))
     return keys, vals
 
 
@@ -121,6 +129,6 @@ def record_ranges(ctx: GpuContext, enc, keys, num_keys: int, num_tiles: int, scr
     enc.clear_buffer(ranges.buffer, 0, ranges.size)
     if num_keys > 0:
         ctx.dispatch(enc, pipeline(ctx, "render_ranges"),
-                     [uniform(ctx, "render_ranges", n=num_keys), BufferRange(keys, 0, num_keys * 4), ranges],
-                     ctx.grid(-(-num_keys // workgroup_threads("render_ranges"))))
+                     [uniform(ctx, "render_ranges", n=num_keys), ctx.span(keys, 0, num_keys * 4), ranges],
+                     ctx.grid(-(-num_keys // RANGES_WG)))
     return ranges

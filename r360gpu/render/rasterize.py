@@ -18,6 +18,8 @@ from .shader_pipelines import pipeline
 
 #: Plane order in the output buffer.
 PLANES = ("r", "g", "b", "alpha", "depth", "median_depth")
+#: Invocations per workgroup of render_interleave.wgsl (the shader states it).
+INTERLEAVE_WG = workgroup_threads("render_interleave")
 
 
 def plane_stride(width: int, height: int) -> int:
@@ -56,7 +58,7 @@ def record_rasterize(ctx: GpuContext, enc, lists: TileLists, band: Band, *, widt
     proj = lists.proj
     ctx.dispatch(
         enc, pipeline(ctx, "render_rasterize"),
-        [params, lists.ranges, BufferRange(lists.vals, 0, max(4, lists.num_keys * 4)),
+        [params, lists.ranges, ctx.span(lists.vals, 0, max(4, lists.num_keys * 4)),
          BufferRange(proj.pos_op, 0, per_gaussian), BufferRange(proj.conic, 0, per_gaussian),
          BufferRange(proj.rgb, 0, per_gaussian), *plane_windows(band.image, band.stride), work],
         ctx.grid(num_tiles),
@@ -84,7 +86,7 @@ def image_to_numpy(ctx: GpuContext, image, width: int, height: int, stride: int)
     six planes, the colour interleaved and the other planes copied out on the host.
     """
     pixels = width * height
-    wg = workgroup_threads("render_interleave")
+    wg = INTERLEAVE_WG
     if (ctx.kernel_backend("render_interleave") == "cpu" or 3 * pixels * 4 > ctx.max_binding_bytes
             or pixels > wg * ctx.max_workgroups**2):
         p = planes_to_numpy(ctx, image, width, height, stride)

@@ -9,10 +9,30 @@ keys need several windows (more than one storage binding of them) does each
 further window wait for its own count.  Reading the image back to numpy
 (rasterize.image_to_numpy: one read, or two on GPU adapters) is the only other
 wait (none for :meth:`Renderer.render_device`).
+
+The sorts are exact: the depth sort
+orders the N Gaussians once by the float bits of their depth (32 bits;
+positive floats order like their bits), binning emits each Gaussian's keys in
+that order, and the tile sort is a stable radix sort of the K keys by the tile
+id's ``ceil(log2(tiles))`` bits alone, so each tile's list is front to back
+with ties in index order: the oracle's order (tests/test_render_recording.py).
+One sort of 32-bit keys packing tile id and quantised depth (VkSplat, luma.gl)
+would sort the K keys by 32 bits instead of N by 32 and K by the tile bits:
+less work only where K < 2N up to 65,536 tiles (K is 6.4N for 1M Gaussians
+at 1080p), and Gaussians whose depths share a bucket would blend in index
+order (bench/bench_render_sort.py times both).
+
+Host recording is done once per frame shape, not per frame: wgpu cannot
+replay a command buffer, but a frame records its passes with the bind groups
+and uniform buffers of the frame before (`r360gpu.gpu.recording.FrameCache`;
+uniforms rewritten in place where the camera or a key count changed them),
+on the same scratch buffers and pipelines, so a frame of the same shape creates
+no device objects.
 """
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Iterable, Iterator
 
@@ -20,8 +40,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..gpu.context import GpuContext, get_context
-from ..gpu.shaders import workgroup_threads
-from .binning import TileLists, TileWindow, plan_windows, record_counts, record_emit, record_ranges
+from ..gpu.recording import FrameCache
+from .binning import COUNT_WG, RANGES_WG, TileLists, TileWindow, plan_windows, record_counts, record_emit, record_ranges
 from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA, TILE, RenderOptions
 from .project import WG as PROJECT_WG, Projected, camera_arrays, project, tile_grid
 from .rasterize import PLANES, Band, image_to_numpy, plane_stride, planes_to_numpy, record_rasterize
@@ -115,6 +135,10 @@ class Renderer:
         ``options`` gives them as one object (keywords given override it)
     timed : wait after every stage and record its wall time in :attr:`stats`
     count_work : read back the rasteriser's work counters into :attr:`stats`
+
+    ``frames`` is the `FrameCache` (`r360gpu.gpu.recording`) every view is recorded
+    with; its ``counts`` say how many bind groups and uniform buffers were created
+    and reused.
     """
 
     def __init__(self, scene, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0),
@@ -135,9 +159,11 @@ class Renderer:
         # Depth and tile sorts in numpy on CPU adapters: the same permutation for less CPU (sort.host_sort).
         self._host_sort = self.ctx.kernel_backend("sort") == "cpu"
         self.scratch = Scratch(self.ctx)
+        self.frames = FrameCache()
+        self._in_frame = False
         self.stats = RenderStats()
         limit = self.ctx.max_binding_bytes
-        if self.scene.n * 16 > limit or self.scene.n > min(PROJECT_WG, workgroup_threads("render_bin", "count")) * self.ctx.max_workgroups**2:
+        if self.scene.n * 16 > limit or self.scene.n > min(PROJECT_WG, COUNT_WG) * self.ctx.max_workgroups**2:
             raise InputError(
                 f"scene has {self.scene.n} Gaussians; this device's {limit}-byte storage bindings "
                 f"hold at most {limit // 16}"
@@ -155,6 +181,20 @@ class Renderer:
         self.stats.times[stage] = self.stats.times.get(stage, 0.0) + (now - t0)
         return now
 
+    @contextmanager
+    def _frame(self):
+        """Record one frame with :attr:`frames` (what the frame before created is reused)."""
+        if self._in_frame:
+            yield
+            return
+        self.frames.begin_frame()
+        self._in_frame = True
+        try:
+            with self.ctx.recording(self.frames):
+                yield
+        finally:
+            self._in_frame = False
+
     # -- one view -----------------------------------------------------------
     def render_device(self, camera, image=None) -> DeviceRender:
         """Render ``camera`` into a device buffer (a new one unless ``image`` is given).
@@ -162,6 +202,10 @@ class Renderer:
         The image must fit one buffer whose planes each fit one storage
         binding (see :meth:`band_rows`); :meth:`render` has no such limit.
         """
+        with self._frame():
+            return self._render_device(camera, image)
+
+    def _render_device(self, camera, image) -> DeviceRender:
         cam = self._camera(camera)
         width, height = cam["width"], cam["height"]
         if self.band_rows(cam) < height:
@@ -261,7 +305,7 @@ class Renderer:
 
     def _key_capacity(self) -> int:
         """Most keys one window may hold: one binding, and one dispatch of one thread per key."""
-        return min(self.ctx.max_binding_bytes // 4, workgroup_threads("render_ranges") * self.ctx.max_workgroups**2)
+        return min(self.ctx.max_binding_bytes // 4, RANGES_WG * self.ctx.max_workgroups**2)
 
     def _one_dispatch(self, num_tiles: int) -> bool:
         """Whether a window of ``num_tiles`` tiles fits one rasteriser dispatch (one workgroup per
@@ -333,12 +377,16 @@ class Renderer:
         pixel for pixel as one pass would: every band uses the same projection
         and depth order, and a tile's pixels depend on nothing outside it.
         """
+        with self._frame():
+            return self._render(camera)
+
+    def _render(self, camera) -> Render:
         cam = self._camera(camera)
         width, height = cam["width"], cam["height"]
         rows = self.band_rows(cam)
         if rows >= height:
             image = self.scratch.get("render.image", plane_stride(width, height) * len(PLANES) * 4)
-            return self.render_device(camera, image=image).to_numpy(self.ctx)
+            return self._render_device(camera, image).to_numpy(self.ctx)
         out = _host_image(cam)
         stride = plane_stride(width, rows)
         image = self.scratch.get("render.image", stride * len(PLANES) * 4)
@@ -357,6 +405,7 @@ class Renderer:
     def release(self) -> None:
         """Free the scene and every intermediate buffer now."""
         self.scene.release()
+        self.frames.clear()
         self.scratch.release()
 
 
@@ -391,13 +440,13 @@ def _available_memory() -> int | None:
 def render(scene, camera, *, ctx: GpuContext | None = None, background=(0.0, 0.0, 0.0), output: str = "numpy",
            near: float = NEAR_PLANE, antialiased: bool = False, no_coverage_alpha: float = NO_COVERAGE_ALPHA,
            principal_point: str = "camera"):
-    """Render one view of ``scene`` (a :class:`~r360gpu.io.gaussians.Gaussians`).
+    """Render one view of ``scene`` (a `Gaussians`).
 
-    camera: a :class:`~r360gpu.io.camera.Camera` (world-to-camera R, t; fx, fy,
-    cx, cy; width, height).  output: "numpy" -> :class:`Render`; "device" ->
-    :class:`DeviceRender` (buffers stay on ``ctx``'s device).  near,
+    camera: a `Camera` (world-to-camera R, t; fx, fy,
+    cx, cy; width, height).  output: "numpy" -> `Render`; "device" ->
+    `DeviceRender` (buffers stay on ``ctx``'s device).  near,
     antialiased, no_coverage_alpha, principal_point: the conventions of
-    :class:`~r360gpu.render.conventions.RenderOptions`.
+    `RenderOptions`.
     """
     if output not in ("numpy", "device"):
         raise InputError(f"output must be 'numpy' or 'device', got {output!r}")

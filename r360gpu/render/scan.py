@@ -25,10 +25,11 @@ def exclusive_scan(ctx: GpuContext, enc, data, n: int, scratch: Scratch, tag: st
     the grand total (valid once ``enc`` has been submitted).  Sums wrap modulo
     2**32; callers keep totals below that.
     """
+    # whole scratch buffers bound (ctx.span): the bind groups stay the same while n changes
     if isinstance(data, BufferRange):
-        window = BufferRange(data.buffer, data.offset, max(4, n * 4))
+        window = ctx.span(data.buffer, data.offset, max(4, n * 4))
     else:
-        window = BufferRange(data, 0, max(4, n * 4))
+        window = ctx.span(data, 0, max(4, n * 4))
     if n * 4 > ctx.max_binding_bytes or n > BLOCK * ctx.max_workgroups**2:
         raise ValueError(f"scan of {n} elements exceeds one storage binding ({ctx.max_binding_bytes} bytes) "
                          "or one dispatch")
@@ -36,7 +37,7 @@ def exclusive_scan(ctx: GpuContext, enc, data, n: int, scratch: Scratch, tag: st
     pending = []
     while True:
         num_blocks = max(1, -(-n // BLOCK))
-        sums = scratch.window(f"{tag}.L{level}", num_blocks * 4)
+        sums = ctx.span(scratch.get(f"{tag}.L{level}", num_blocks * 4), 0, num_blocks * 4)
         params = uniform(ctx, "prefix_sum", n=n, num_blocks=num_blocks)
         if n > 0:
             ctx.dispatch(enc, pipeline(ctx, "prefix_sum", "scan_blocks"), [params, window, sums], ctx.grid(num_blocks))

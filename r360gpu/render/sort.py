@@ -108,7 +108,10 @@ def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scr
     hist_bytes = radix * total_blocks * 4
     if hist_bytes > ctx.max_binding_bytes:
         raise ValueError(f"radix sort of {n} elements needs a {hist_bytes}-byte histogram binding")
-    hist = scratch.window(f"{tag}.hist", hist_bytes)
+    # Bindings of the whole scratch buffers where one window holds the input (ctx.span), so the tile
+    # sort's bind groups stay the same while its key count changes from frame to frame.
+    hist = ctx.span(scratch.get(f"{tag}.hist", hist_bytes), 0, hist_bytes)
+    span = ctx.span if len(windows) == 1 else BufferRange
     src = (keys, vals)
     dst = (scratch.get(f"{tag}.keys", n * 4), scratch.get(f"{tag}.vals", n * 4))
     pipe_hist = pipeline(ctx, shader, "histogram")
@@ -121,7 +124,7 @@ def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scr
                              out_base=0, out_count=0, num_blocks=nb, **digit)
             ctx.dispatch(
                 enc, pipe_hist,
-                [params, BufferRange(src[0], start * 4, count * 4), None, None, None, hist],
+                [params, span(src[0], start * 4, count * 4), None, None, None, hist],
                 ctx.grid(nb),
             )
         exclusive_scan(ctx, enc, hist, radix * total_blocks, scratch, f"{tag}.hscan")
@@ -134,10 +137,10 @@ def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scr
                     enc, pipe_scatter,
                     [
                         params,
-                        BufferRange(src[0], start * 4, count * 4),
-                        BufferRange(src[1], start * 4, count * 4),
-                        BufferRange(dst[0], out_start * 4, out_count * 4),
-                        BufferRange(dst[1], out_start * 4, out_count * 4),
+                        span(src[0], start * 4, count * 4),
+                        span(src[1], start * 4, count * 4),
+                        span(dst[0], out_start * 4, out_count * 4),
+                        span(dst[1], out_start * 4, out_count * 4),
                         hist,
                     ],
                     ctx.grid(nb),

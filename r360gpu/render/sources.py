@@ -113,16 +113,16 @@ class RendersSource:
 class DeviceViewsSource:
     """Renders another GPU pipeline already holds on the device, one per view.
 
-    ``views`` maps a view name to a :class:`~r360gpu.render.DeviceRender`
+    ``views`` maps a view name to a `DeviceRender`
     (this renderer's device output, or any buffer in that plane layout) or to
     a pair ``(rgb, depth)`` with ``rgb`` float (H, W, 3) in [0, 1] and
-    ``depth`` a :class:`~r360gpu.kernels.depth_change.DeviceDepth` or a
+    ``depth`` a `DeviceDepth` or a
     float32 array.  Depth stays on the device: the geometric axis reads it
     there.  RGB comes to the host, because the probes run on the CPU.
 
     ``ctx``: the context of the device holding the buffers.  Without it, the
     source takes the context of the run it is scored in
-    (:func:`r360gpu.evaluate` binds its own, e.g. the one around
+    (`r360gpu.evaluate` binds its own, e.g. the one around
     ``device=``), so it need not be given twice.
     """
 

@@ -235,8 +235,12 @@ def report_html(results: dict, out_dir: str | os.PathLike, *, max_views: int | N
         h.append(f'<p class="notes">{esc(n)}</p>')
     tables, table_notes = build_results_tables(results)
     reliability = next((t for t in tables if t.key == "reliability"), None)
+    unsure = ((results.get("aggregate") or {}).get("notes") or {}).get("reliability")
     if reliability is not None:  # how sure the ranking is, next to the ranking itself
         h.append('<h3>How sure is the ranking</h3>' + table_html(reliability))
+    elif unsure:  # too few scenes: said in words, instead of intervals that look more certain than they are
+        h.append(f'<h3>How sure is the ranking</h3><p class="notes">{esc(unsure)}</p>')
+        table_notes = [n for n in table_notes if n != unsure]
     h.append(verdicts_html(results))
     h.append(worst_views_html(results, out, rows, problems))
     h.append(controls_html(results))

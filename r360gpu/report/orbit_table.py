@@ -70,3 +70,27 @@ def orbit_table(results: dict) -> Table | None:
         notes=tuple(notes),
         label_columns=2,
     )
+
+
+def orbit_lines(results: dict) -> list[str]:
+    """Console lines: per scene how many orbit poses were scored (and why the others were dropped),
+    then per method the axes at the capture views and from the orbit, as in `orbit_table`."""
+    lines = []
+    for s, entry in results.get("scenes", {}).items():
+        orbit = entry.get("orbit")
+        if orbit is None:
+            continue
+        dropped = orbit.get("dropped") or {}
+        lines.append(f"  {s}: {orbit.get('kept', 0)} of {orbit.get('requested', 0)} poses scored"
+                     + (" (dropped: " + ", ".join(f"{k} {v}" for k, v in sorted(dropped.items())) + ")"
+                        if dropped else ""))
+        for m, capture in entry.get("methods", {}).items():
+            if m in orbit.get("methods", {}):
+                around = orbit["methods"][m]["axes"]
+                vals = "  ".join(f"{LABELS[a]} {_fmt(capture['axes'].get(a))} -> {_fmt(around.get(a))}"
+                                 for a in COLUMNS)
+                lines.append(f"  {s} / {m}: {vals}")
+            else:
+                lines.append(f"  {s} / {m}: {orbit.get('no_orbit', {}).get(m) or orbit.get('note') or 'no orbit'}")
+    head = "orbit around the target (capture -> orbit; a separate scene entry, never ranked):"
+    return [head] + lines if lines else []

@@ -89,9 +89,13 @@ def summary_lines(results: dict) -> list[str]:
         if flagged:
             where = "; ".join(f"{a} in {', '.join(s)}" for a, s in results["validity"].items() if s)
             lines.append(f"  ! axis not 'ok' (weak or blind probe) in some scene: {where}")
+    lines += ranking_certainty_lines(results)
     lines += control_lines(results)
+    from .orbit_table import orbit_lines
     from .pruned_table import pruned_lines
 
+    lines += target_lines(results)
+    lines += orbit_lines(results)  # score --orbit N: each method from all around the target, never ranked
     lines += pruned_lines(results)  # score --prune-residuals: the unranked what-ifs beside their methods
     lines += expectation_lines(results)
     lines += no_depth_lines(results)
@@ -107,6 +111,48 @@ def summary_lines(results: dict) -> list[str]:
                      f"per stage, summed over threads (stages overlap): {stages}")
     for note in results.get("notes", []):
         lines.append(f"note: {note}")
+    return lines
+
+
+def target_lines(results: dict) -> list[str]:
+    """Per scene with a lifted ``[target]``: how many of pre's Gaussians it is and what it came from
+    (its masks' views, its indices or its box), and for how many views its masks were rendered."""
+    lines = []
+    for scene, s in results.get("scenes", {}).items():
+        t = s.get("target")
+        if not t:
+            continue
+        of = f" of {t['of']}" if t.get("of") is not None else ""
+        source = {"indices": "its indices", "box": "its box"}.get(t.get("source"), "its masks")
+        if t.get("lifted_from") and t.get("source") == "masks":
+            source = f"the masks of views {', '.join(t['lifted_from'])}"
+        n_rendered = len(t.get("rendered") or [])
+        n_views = n_rendered + len(t.get("given") or [])
+        lines.append(f"{scene}: [target] lifted onto {t.get('gaussians')}{of} Gaussians of pre (from {source}); "
+                     f"masks rendered for {n_rendered} of {n_views} views")
+    return lines
+
+
+def ranking_certainty_lines(results: dict) -> list[str]:
+    """How sure the ranking is, as report.html's first screen says it: per method the mean RQS over
+    scenes, its bootstrap interval and P(beats best); with too few scenes, the sentence saying so."""
+    agg = results.get("aggregate") or {}
+    rel = agg.get("reliability")
+    if not rel:
+        why = (agg.get("notes") or {}).get("reliability")
+        return [f"how sure is the ranking: {why}"] if why else []
+    best = agg.get("reliability_best", "best")
+    level = (agg.get("settings") or {}).get("ci_level")
+    ci = f"{level:.0%} CI" if isinstance(level, (int, float)) else "CI"
+    lines = ["how sure is the ranking (scene-macro mean RQS, paired scene bootstrap):",
+             f"  {'method':<18}{'mean':>8}  {ci:<18}P(beats {best})"]
+
+    def f(x):
+        return f"{x:.3f}" if isinstance(x, (int, float)) else "-"
+
+    for m, r in rel.items():
+        interval = f"[{f(r.get('ci_low'))}, {f(r.get('ci_high'))}]"
+        lines.append(f"  {m:<18}{f(r.get('mean')):>8}  {interval:<18}{f(r.get('p_beats_best'))}")
     return lines
 
 

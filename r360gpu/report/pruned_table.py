@@ -44,6 +44,8 @@ def pruned_table(results: dict) -> Table | None:
                  f"Gaussians (score --prune-residuals); a {WHAT_IF}: it enters no other table, aggregate or rank.")
     for s, e in results.get("scenes", {}).items():
         notes += [f"{s} / {name}: {p['note']}." for name, p in (e.get("pruned") or {}).items() if "note" in p]
+        notes += [f"{s} / {name}: {p['removed']} of {p['asked']} asked removed: {p['fewer']}."
+                  for name, p in (e.get("pruned") or {}).items() if "fewer" in p]
     return Table(
         key="pruned",
         title="Methods without their top residual Gaussians (what-if).",
@@ -60,7 +62,8 @@ def pruned_lines(results: dict) -> list[str]:
     lines = []
     for s, m, axes, name, p in _pairs(results):
         vals = "  ".join(f"{LABELS[a]} {_fmt(axes.get(a))} -> {_fmt(p['axes'].get(a))}" for a in COLUMNS)
-        lines.append(f"  {s} / {name} ({p['removed']} of {p['of']} Gaussians removed): {vals}")
+        asked = f"; {p['asked']} asked: {p['fewer']}" if "fewer" in p else ""
+        lines.append(f"  {s} / {name} ({p['removed']} of {p['of']} Gaussians removed{asked}): {vals}")
     for s, e in results.get("scenes", {}).items():
         lines += [f"  {s} / {name}: {p['note']}" for name, p in (e.get("pruned") or {}).items() if "note" in p]
     return [f"pruned residuals ({WHAT_IF}):"] + lines if lines else []

@@ -237,9 +237,9 @@ def reliability_table(result: dict) -> Table:
         title="Reliability of the ranking across scenes (scene-macro mean RQS).",
         header=header,
         rows=rows,
-        notes=("sd over scenes with ddof=1; 95% CI = mean +- 1.96 sd / sqrt(scenes).",
-               f"P(beats {best}): paired scene-level bootstrap"
-               + (f" ({n_boot} resamples)." if n_boot else ".")),
+        notes=("sd over scenes with ddof=1; 95% CI: percentile interval of the paired scene-level bootstrap "
+               "(the paper prints mean +- 1.96 sd / sqrt(scenes)).",
+               f"P(beats {best}): the same bootstrap" + (f" ({n_boot} resamples)." if n_boot else ".")),
     )
 
 
@@ -279,7 +279,7 @@ def build_tables(result: dict) -> tuple[list[Table], list[str]]:
         result: the dict from :func:`r360gpu.aggregate.aggregate_tables`.
 
     Returns:
-        (tables in display order, notes such as "reliability omitted: ...").
+        (tables in display order, notes such as "too few scenes to rank with confidence (...)").
     """
     builders: list[tuple[str | None, Callable[[dict], Table]]] = [
         (None, rqs_table), (None, overall_table), (None, scene_macro_table), (None, rank_table),

@@ -80,6 +80,9 @@ class ResidualHighlight:
             results = app.results
             if r is None and results is not None and name in getattr(results, "residuals", {}):
                 r = ply_residual(results.residuals[name])
+            g = layer.gaussians
+            if r is not None and len(r) == g.n_file and g.n_file != g.n:  # one residual per row of the file
+                r = r[g.rows]
             if r is not None and len(r) != layer.gaussians.n:
                 app.notify(f"{name}: {len(r)} residuals for {layer.gaussians.n} Gaussians; not shown")
                 r = None

@@ -1,0 +1,262 @@
+"""A hostile corpus on the [target] surface: each case a bundle (or objects) a user might bring, and
+the one outcome it must have: a clear one-line error naming the file, the same from ``r360gpu check``
+and ``r360gpu score`` (check OK means score accepts the target), or a recorded warning."""
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from r360gpu import cli
+from r360gpu.bundle import load_bundle
+from r360gpu.errors import InputError
+from r360gpu.io import load_gaussians, load_mask
+from r360gpu.synthetic import generate_benchmark
+
+ARGS = dict(seed=0, n_views=4, width=64, height=48, detail=0.25)
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory, ctx):
+    root = tmp_path_factory.mktemp("hostile")
+    return generate_benchmark(root, scenes=("room",), methods=("clean",), ctx=ctx, **ARGS)[0]
+
+
+def variant(folder, dst, table: str, given=(), mask=None):
+    """A copy of the bundle without top-level masks, with the [target] ``table``; ``given`` views'
+    masks are copied to given/ (or replaced by ``mask(view, (H, W) bool)``, bytes or an array)."""
+    shutil.copytree(folder, dst)
+    text = (dst / "scene.toml").read_text().replace('masks = "masks"\n', "")
+    (dst / "given").mkdir()
+    for v in given:
+        target = dst / "given" / f"{v}.png"
+        if mask is None:
+            shutil.copy(dst / "masks" / f"{v}.png", target)
+        else:
+            out = mask(v, load_mask(dst / "masks" / f"{v}.png"))
+            if isinstance(out, bytes):
+                target.write_bytes(out)
+            else:
+                from PIL import Image
+
+                Image.fromarray(out.astype(np.uint8) * 255).save(target)
+    (dst / "scene.toml").write_text(text + "\n[target]\n" + table + "\n")
+    return dst
+
+
+def shown_views(folder):
+    views = sorted(p.stem for p in (folder / "masks").glob("*.png"))
+    return [v for v in views if load_mask(folder / "masks" / f"{v}.png").any()]
+
+
+def _n_pre(folder):
+    return load_gaussians(load_bundle(folder).pre.path).n
+
+
+# name -> (build(folder, dst) -> bundle path, expected problem text, the file the line names)
+def _npy(arr):
+    def build(folder, dst):
+        b = variant(folder, dst, 'indices = "target.npy"')
+        np.save(b / "target.npy", arr(_n_pre(folder)))
+        return b
+    return build
+
+
+def _table(table, given=False, mask=None):
+    def build(folder, dst):
+        return variant(folder, dst, table, shown_views(folder) if given else (), mask)
+    return build
+
+
+def _truncated_png(v, m) -> bytes:
+    """A PNG whose header reads (so the mask's size checks out) but whose pixels cannot be decoded."""
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(m.astype(np.uint8) * 255).save(buf, format="PNG")
+    data = buf.getvalue()
+    return data[: data.index(b"IDAT") + 12]
+
+
+CASES = {
+    "indices file missing": (_table('indices = "nowhere.npy"'), "no such file", "nowhere.npy"),
+    "indices out of range": (_npy(lambda n: np.array([0, n + 5])), "outside 0..", "target.npy"),
+    "indices as text": (_npy(lambda n: np.array(["1", "2"])), "integers or booleans", "target.npy"),
+    "indices a 0/1 mask saved as integers": (_npy(lambda n: (np.arange(n) % 7 == 0).astype(np.int64)),
+                                             "each 0 or 1", "target.npy"),
+    "indices a 2-D array": (_npy(lambda n: np.array([[1, 2], [3, 4]])), "flat (1-D)", "target.npy"),
+    "indices every Gaussian": (_npy(lambda n: np.arange(n)), "every one of pre's", "target.npy"),
+    "indices a wrong-length bool mask": (_npy(lambda n: np.ones(n - 1, bool)), "one entry per Gaussian", "target.npy"),
+    "empty box": (_table("box = { min = [0, 0, 0], max = [0, 1, 1] }"), "no volume", "scene.toml"),
+    "zero-size box": (_table("box = { centre = [0, 0, 0], size = [1, 0, 1] }"), "no volume", "scene.toml"),
+    "box away from the scene": (_table("box = { min = [900, 900, 900], max = [901, 901, 901] }"),
+                                "no Gaussian centre lies in the target box", "scene.toml"),
+    "box in the wrong units": (_table("box = { min = [-1e4, -1e4, -1e4], max = [1e4, 1e4, 1e4] }"),
+                               "every one of pre's", "scene.toml"),
+    "box rotation as text": (_table('box = { centre = [0, 0, 0], size = [1, 1, 1], rotation = "identity" }'),
+                             "rotation must be", "scene.toml"),
+    "box rotation ragged": (_table("box = { centre = [0, 0, 0], size = [1, 1, 1], "
+                                   "rotation = [[1, 0, 0], [0, 1], [0, 0, 1]] }"), "rotation must be", "scene.toml"),
+    "undecodable mask": (_table('masks = "given"', given=True, mask=_truncated_png),
+                         "given", "given/"),
+    "all-empty masks": (_table('masks = "given"', given=True, mask=lambda v, m: np.zeros_like(m)),
+                        "no given target mask shows the target", "scene.toml"),
+    "all-full masks": (_table('masks = "given"', given=True, mask=lambda v, m: np.ones_like(m)),
+                       "target at every pixel", "scene.toml"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_check_and_score_refuse_alike(bench, tmp_path, capsys, case):
+    build, text, file = CASES[case]
+    b = build(bench, tmp_path / "b")
+    assert cli.main(["check", str(b)]) == 2
+    out = capsys.readouterr().out
+    assert any(text in ln and file in ln for ln in out.splitlines()), out
+    assert cli.main(["score", str(b), "--out", str(tmp_path / "out"), "--no-pictures", "--no-controls",
+                     "--n-boot", "10", "--n-perm", "10"]) == 2
+    err = capsys.readouterr().err  # one line, or a bundle's list of problems (one line each)
+    assert "Traceback" not in err and any(text in ln and file in ln for ln in err.splitlines()), err
+    assert not (tmp_path / "out" / "results.json").exists()
+
+
+def test_one_full_mask_among_others_is_warned(bench, tmp_path, capsys):
+    shown = shown_views(bench)
+    full = shown[0]
+    b = variant(bench, tmp_path / "b", 'masks = "given"', shown,
+                mask=lambda v, m: np.ones_like(m) if v == full else m)
+    assert cli.main(["check", str(b)]) == 0
+    out = capsys.readouterr()
+    assert f"given/{full}.png: the target mask is target at every pixel" in out.out + out.err
+
+
+def test_a_target_of_most_of_the_scene_is_warned_and_recorded(bench, tmp_path, capsys):
+    import json
+
+    b = _npy(lambda n: np.arange(int(0.8 * n)))(bench, tmp_path / "b")
+    assert cli.main(["check", str(b)]) == 0
+    out = capsys.readouterr()
+    assert "target.npy: the target (indices) is" in out.out + out.err and "most of the scene" in out.out + out.err
+    assert cli.main(["score", str(b), "--out", str(tmp_path / "out"), "--no-pictures", "--no-controls",
+                     "--no-boundary", "--n-boot", "10", "--n-perm", "10", "--quiet"]) == 0
+    warned = json.loads((tmp_path / "out" / "results.json").read_text())["warnings"]
+    assert any("most of the scene" in json.dumps(w) and "target.npy" in json.dumps(w) for w in warned), warned
+
+
+OBJECT_CASES = {
+    "indices a string": ({"indices": "12"}, "got a str"),
+    "indices a set": ({"indices": {1, 2}}, "got a set"),
+    "indices ragged": ({"indices": [[1, 2], [3]]}, "ragged"),
+    "indices objects": ({"indices": [None, 1]}, "integers or booleans"),
+    "box rotation text": ({"box": {"centre": [0, 0, 0], "size": [1, 1, 1], "rotation": "I"}}, "rotation must be"),
+    "box rotation ragged": ({"box": {"centre": [0, 0, 0], "size": [1, 1, 1], "rotation": [[1, 0, 0], [0, 1]]}},
+                            "rotation must be"),
+    "mask text": ({"masks": {"VIEW": "mask.png"}}, "must be an (H, W) array"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(OBJECT_CASES))
+def test_scene_from_objects_refuses_values_numpy_cannot_take(bench, case):
+    import r360gpu
+
+    target, text = OBJECT_CASES[case]
+    b = load_bundle(bench)
+    if "masks" in target:
+        target = {"masks": {b.views[0]: target["masks"]["VIEW"]}}
+    pre = load_gaussians(b.pre.path)
+    with pytest.raises(InputError) as e:
+        r360gpu.scene_from_objects("room", "sofa", {}, pre, {"clean": pre}, cameras=b.cameras, target=target)
+    assert text in str(e.value) and "\n" not in str(e.value)
+
+
+# --- options: each bad value refused when EvaluateOptions is built, and by the CLI (exit 2, one line)
+
+OPTION_CASES = [  # (EvaluateOptions keyword, bad value, CLI arguments or None, text of the error)
+    ("orbit", -2, ["--orbit", "-2"], "orbit (--orbit)"),
+    ("orbit", 2.5, ["--orbit", "2.5"], "orbit"),
+    ("orbit", "4", None, "orbit (--orbit)"),
+    ("orbit", True, None, "orbit (--orbit)"),
+    ("residuals", "yes", None, "residuals (--residuals)"),
+    ("prune_residuals", 0, ["--prune-residuals", "0"], "prune_residuals (--prune-residuals)"),
+    ("prune_residuals", 1.5, ["--prune-residuals", "1.5"], "prune_residuals (--prune-residuals)"),
+    ("prune_residuals", "10", ["--prune-residuals", "ten"], "prune"),
+    ("boundary", 1, None, "boundary"),
+    ("pictures", None, None, "pictures"),
+    ("controls", "no", None, "controls"),
+    ("antialiased", 0, None, "antialiased"),
+    ("reference_free", "yes", None, "reference_free"),
+    ("lpips_model", 3, None, "lpips_model"),
+    ("ght", {"nu": -1.0}, None, "ght.nu"),
+    ("ght", {"omega": 2.0}, None, "ght.omega"),
+    ("ght", {"mu": 1.0}, None, "unknown parameter"),
+    ("ght", "default", None, "ght must be"),
+    ("xis", (0.3, 1.5), ["--xi", "0.3,1.5"], "xi"),
+    ("n_boot", 0, ["--n-boot", "0"], "n_boot"),
+    ("seed", -1, ["--seed", "-1"], "seed"),
+    ("depth", "mean", None, "depth"),
+]
+
+
+@pytest.mark.parametrize("key, value, argv, text", OPTION_CASES)
+def test_every_option_is_checked_when_built_and_by_the_cli(bench, tmp_path, capsys, key, value, argv, text):
+    from r360gpu.pipeline import EvaluateOptions
+
+    with pytest.raises(InputError, match=text.replace("(", r"\(").replace(")", r"\)")) as e:
+        EvaluateOptions(**{key: value})
+    assert "\n" not in str(e.value)
+    if argv is None:
+        return
+    out = tmp_path / "out"
+    try:
+        rc = cli.main(["score", str(bench), "--out", str(out), "--no-pictures", *argv])
+    except SystemExit as exit_:  # argparse refuses what its own type cannot read: usage and one error line
+        rc = exit_.code
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith(("r360gpu: error", "usage"))
+           or "error:" in ln]
+    assert rc == 2 and not out.exists()
+    assert sum("error" in ln for ln in err) == 1, err
+
+
+@pytest.mark.parametrize("workers", [0, -3, 2.5, "4", True])
+def test_process_counts_are_checked_by_one_function(workers):
+    from r360gpu.pipeline.processes import ProcessExecutor
+
+    with pytest.raises(InputError, match="--processes must be at least 1"):
+        ProcessExecutor(workers)
+
+
+# --- names: a method may not take the name of another method's derived output
+
+@pytest.mark.parametrize("names, refused", [
+    (("clean", "clean+pruned"), True),
+    (("clean", "CLEAN+Pruned"), True),      # equal ignoring case: the same file on macOS and Windows
+    (("clean+pruned",), False),             # no method 'clean': its own what-if is clean+pruned+pruned
+    (("clean", "clean+pruned2"), False),
+])
+def test_a_method_named_like_anothers_pruned_what_if_is_refused(bench, tmp_path, capsys, names, refused):
+    import r360gpu
+
+    b = tmp_path / "b"
+    shutil.copytree(bench, b)
+    text = (b / "scene.toml").read_text()
+    for name in names:
+        if name != "clean":
+            text += f'\n[methods."{name}"]\nscene = "methods/clean.ply"\n'
+    if "clean" not in names:
+        text = text.replace("[methods.clean]", "[methods.other]").replace("[expected.clean]", "[expected.other]")
+    (b / "scene.toml").write_text(text)
+    rc = cli.main(["check", str(b)])
+    out = capsys.readouterr().out
+    assert rc == (2 if refused else 0), out
+    assert ("pruned what-if" in out) == refused
+    pre = load_gaussians(load_bundle(bench).pre.path)
+    call = lambda: r360gpu.scene_from_objects("room", "sofa", {}, pre, {n: pre for n in names},  # noqa: E731
+                                              cameras=load_bundle(bench).cameras, target={"indices": [0, 1, 2]})
+    if refused:
+        with pytest.raises(InputError, match="pruned what-if"):
+            call()
+    else:
+        call()
