@@ -10,7 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from r360gpu.io import Camera, random_gaussians, save_colmap, save_ply, save_splat
+from r360gpu.io import Camera, Gaussians, random_gaussians, save_colmap, save_ply, save_splat
 
 W, H = 16, 12
 VIEWS = ("view_00", "view_01", "view_02")
@@ -24,6 +24,18 @@ def mask_image(width: int = W, height: int = H) -> np.ndarray:
     m = np.zeros((height, width), np.uint8)
     m[height // 4: height // 2, width // 4: width // 2] = 255
     return m
+
+
+def target_object(z: float = 3.0) -> Gaussians:
+    """The object the masks mark, as pre holds it: one opaque Gaussian per mask pixel, at depth
+    ``z`` in front of :func:`camera` (the frame check refuses a pre that does not cover its target)."""
+    rows, cols = np.nonzero(mask_image())
+    px = z / 20.0  # one pixel at depth z, for camera()'s focal length
+    means = np.stack([(cols + 0.5 - W / 2) * px, (rows + 0.5 - H / 2) * px, np.zeros(rows.size)], axis=1)
+    n = len(means)
+    sh = np.zeros((n, 4, 3))
+    sh[:, 0] = 0.5
+    return Gaussians(means, np.full((n, 3), 0.6 * px), np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.full(n, 0.99), sh)
 
 
 def write_mask(path: Path, width: int = W, height: int = H) -> Path:
@@ -86,7 +98,7 @@ def make_bundle(root: Path, toml: str = SCENE_TOML, views=VIEWS) -> Path:
     save_colmap(root / "cameras", [camera(f"{v}.jpg") for v in views])
     for v in views:
         write_mask(root / "masks" / f"{v}.png")
-    save_ply(root / "pre.ply", random_gaussians(40, sh_degree=1, seed=1))
+    save_ply(root / "pre.ply", Gaussians.concat([random_gaussians(40, sh_degree=1, seed=1), target_object()]))
     save_splat(root / "ref.splat", random_gaussians(30, sh_degree=0, seed=2))
     (root / "methods").mkdir(exist_ok=True)
     save_ply(root / "methods" / "clean.ply", random_gaussians(35, sh_degree=1, seed=3))

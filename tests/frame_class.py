@@ -68,13 +68,19 @@ def nerfstudio_transform(cameras) -> np.ndarray:
     return np.diag([scale, scale, scale, 1.0]) @ orient @ a4
 
 
-def random_similarity(rng: np.random.Generator, *, centres, radius: float) -> np.ndarray:
+def random_similarity(rng: np.random.Generator, *, centres, radius: float, scales=(0.2, 5.0),
+                      any_rotation: bool = False) -> np.ndarray:
     """4x4: a random similarity over a wide range: a rotation by 0-180 degrees about a random axis
-    and a scale in [1/5, 5] (log-uniform) about one of ``centres`` (the world origin, the object,
-    the cameras' centroid, in turn at random), then a shift of up to 1.5 ``radius`` in a random
-    direction."""
-    r = rotation(rng.normal(size=3), rng.uniform(0.0, np.pi))
-    s = float(np.exp(rng.uniform(np.log(0.2), np.log(5.0))))
+    (with ``any_rotation``, uniform over all rotations) and a scale in ``scales`` (log-uniform)
+    about one of ``centres`` (the world origin, the object, the cameras' centroid, in turn at
+    random), then a shift of up to 1.5 ``radius`` in a random direction."""
+    if any_rotation:  # a uniform unit quaternion
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        r = rotation(q[1:], 2.0 * np.arccos(min(1.0, abs(q[0])))) if np.linalg.norm(q[1:]) > 1e-12 else np.eye(3)
+    else:
+        r = rotation(rng.normal(size=3), rng.uniform(0.0, np.pi))
+    s = float(np.exp(rng.uniform(np.log(scales[0]), np.log(scales[1]))))
     c = np.asarray(centres[rng.integers(len(centres))], np.float64)
     shift = rng.normal(size=3)
     shift *= rng.uniform(0.0, 1.5) * radius / np.linalg.norm(shift)

@@ -1,14 +1,15 @@
 """The frame check on the whole class of frame mismatches, generated (r360gpu.metrics.frame_check).
 
-The splats of both demo scenes (the synthetic room and garden, small) are moved by similarity
-transforms: gsplat's normalize_world_space recomputed from the cameras (with and without its
-up-side-down turn), nerfstudio's dataparser transform, and random similarities over a wide range
-(rotations 0-180 degrees, scales 1/5-5 about the origin, the object or the cameras, shifts up to
-1.5 orbit radii).  Scored with the cameras as they are, a case is *mismatched* when the moved
-object's silhouette overlaps its target masks by an IoU under 0.5 at the checked views (median):
-the masks then do not mark the object, and every such case must be flagged.  The same moved
-splats with the cameras moved into their frame (what ``frame = ...`` / ``--frame`` does), and the
-scenes as they are, are correctly framed and must not be."""
+The splats of both demo scenes (the synthetic room and garden, small) are seen through cameras
+moved by similarity transforms, not declared: gsplat's normalize_world_space recomputed from the
+cameras (with and without its up-side-down turn), nerfstudio's dataparser transform, and random
+similarities (rotations uniform over all rotations, scales 0.1-10 about the origin, the object or
+the cameras, shifts up to 1.5 orbit radii).  A case is *wrong* when the moved object's silhouette
+overlaps its target masks by an IoU under 0.5 at the checked views (median): the masks then do
+not mark the object, and the run must not go on as if they did.  The same moved splats with the
+cameras moved into their frame (what ``frame = ...`` / ``--frame`` does), and the scenes as they
+are, are correctly framed and must be "ok".  bench/frame_check_scenes.py draws 50 per scene and
+adds the PlayCanvas scans (docs/your-scene.md, "The check")."""
 from __future__ import annotations
 
 import numpy as np
@@ -21,7 +22,7 @@ from r360gpu.render.sources import SceneSource
 from r360gpu.synthetic import make_scene
 from r360gpu.synthetic.masks import target_masks
 
-N_RANDOM = 24
+N_RANDOM = 8
 IOU_MISMATCH = 0.5
 
 
@@ -70,46 +71,63 @@ def _cases(scene):
     centres = [np.zeros(3), scene.target.means.mean(axis=0), np.mean([c.center for c in scene.cameras], axis=0)]
     radius = float(np.median([np.linalg.norm(c.center - centres[1]) for c in scene.cameras]))
     rng = np.random.default_rng(2026)
-    cases += [(f"random {k}", random_similarity(rng, centres=centres, radius=radius)) for k in range(N_RANDOM)]
+    cases += [(f"random {k}", random_similarity(rng, centres=centres, radius=radius, scales=(0.1, 10.0),
+                                                any_rotation=True)) for k in range(N_RANDOM)]
     return cases
 
 
-def test_every_mismatch_is_flagged_and_no_correct_frame_is(demo_scene, ctx):
+def test_wrong_frames_are_refused_and_correct_ones_are_not(demo_scene, ctx):
     scene = demo_scene[0]
     assert _verdict(scene.pre, None, demo_scene, ctx).level == "ok"
-    flagged, missed, unlabelled, false_alarms, correct, mismatched = [], [], [], [], [], []
-    for k, (label, m) in enumerate(_cases(scene)):
+    verdicts, still_fits, correct = [], [], []
+    for label, m in _cases(scene):
         frame = Frame.from_matrix(m, label)
         moved = moved_gaussians(scene.pre, frame)
-        v = _verdict(moved, None, demo_scene, ctx)
+        wrong = _verdict(moved, None, demo_scene, ctx)  # the splats moved, the cameras as they are
         iou = _object_iou(moved_gaussians(scene.target, frame), demo_scene, ctx)
-        if iou < IOU_MISMATCH:
-            (flagged if v.level != "ok" else missed).append((label, iou, v.agreement))
-            if v.agreement is not None:
-                mismatched.append(v.agreement)
-        else:
-            unlabelled.append((label, iou, v.level))
-        if k < 3 + N_RANDOM // 4:  # the trainers' frames and some random ones, with the cameras moved too
-            right = _verdict(moved, frame, demo_scene, ctx)
-            (correct if right.level == "ok" else false_alarms).append((label, right.agreement))
-    print(f"\n{scene.name}: {len(flagged)} mismatches flagged, {len(missed)} missed, {len(unlabelled)} with the "
-          f"object still under the masks (IoU >= {IOU_MISMATCH}, not asserted): {unlabelled}; correctly framed "
-          f"agreement {[round(a, 2) for _, a in correct]}, mismatched agreement up to "
-          f"{max(mismatched, default=float('nan')):.2f}")
-    assert not missed, f"mismatches the check let pass: {missed}"
-    assert not false_alarms, f"correctly framed scenes flagged: {false_alarms}"
-    assert len(flagged) >= N_RANDOM // 2  # the class is mostly mismatched: the test sees it
+        (verdicts if iou < IOU_MISMATCH else still_fits).append((label, wrong.level, wrong.cones, wrong.step))
+        correct.append((label, _verdict(moved, frame, demo_scene, ctx).level))  # the frame declared
+    print(f"\n{scene.name}: wrong frames {verdicts}; object still under its masks (not asserted) {still_fits}")
+    assert all(level == "ok" for _, level in correct), f"correctly framed scenes flagged: {correct}"
+    assert not [v for v in verdicts if v[1] == "ok"], f"wrong frames passed as ok: {verdicts}"
+    # a wrong frame escapes refusal only into the note, where the outline is flat (module docstring)
+    assert all(step < frame_check.STEP_NOTE for _, level, _, step in verdicts if level == "note"), verdicts
+    assert sum(level == "refuse" for _, level, _, _ in verdicts) >= 0.9 * len(verdicts)
+    assert len(verdicts) >= N_RANDOM // 2  # the class is mostly wrong: the test sees it
 
 
-def test_the_agreement_warning_names_what_it_saw(demo_scene, ctx):
-    """gsplat's normalised world scored with the unmoved cameras: a warning naming the cause and
-    the remedy, the numbers kept in the verdict (results.json frame_check)."""
+def test_the_refusal_names_what_it_saw_and_the_fix(demo_scene, ctx):
+    """gsplat's normalised world scored with the unmoved cameras: refused, naming the cause and
+    the remedy, the numbers kept in the verdict."""
     scene = demo_scene[0]
     pts = scene.pre.means[np.random.default_rng(0).choice(scene.pre.n, 3000, replace=False)]
     frame = Frame.from_matrix(gsplat_transform(scene.cameras, pts), "gsplat")
     v = _verdict(moved_gaussians(scene.pre, frame), None, demo_scene, ctx)
-    assert v.level == "warn"
+    assert v.level == "refuse"
     back = frame_check.FrameVerdict.from_dict(v.to_dict())
     assert back == v
     msg = frame_check.mismatch_message(v, source="ply", frame=None, cameras="colmap")
-    assert "different world frames" in msg and "--frame gsplat" in msg
+    assert "different world frames" in msg and "--frame gsplat" in msg and "dataparser_transforms.json" in msg
+
+
+def test_a_flat_outline_is_a_quiet_note_in_results_json(tmp_path, ctx):
+    """The room framed right with its masks drawn 3 pixels wide of the sofa: the outline has little
+    depth step, the cones agree.  Scored as usual; results.json keeps the note under frame_check,
+    with no warning and no frame advice."""
+    import cv2
+
+    from r360gpu.pipeline import EvaluateOptions, evaluate
+    from r360gpu.synthetic import write_bundle
+
+    scene = make_scene("room", seed=0, n_views=5, width=96, height=72, detail=0.1)
+    folder = write_bundle(scene, tmp_path / "room", methods=["clean"], ctx=ctx)
+    for png in sorted((folder / "masks").glob("*.png")):
+        m = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(png), cv2.dilate(m, np.ones((7, 7), np.uint8)))
+    res = evaluate(folder, options=EvaluateOptions(n_boot=50, n_perm=20, boundary=False, pictures=False,
+                                                   controls=False), ctx=ctx, progress=False)
+    check = res["scenes"]["room"]["frame_check"]["pre"]
+    assert check["level"] == "note" and check["step"] < frame_check.STEP_NOTE
+    assert check["cones"] >= frame_check.CONES_MIN and "little depth step" in check["note"]
+    assert not [w for w in res["warnings"] if "frame" in w["message"]]
+    assert res["scenes"]["room"]["methods"]["clean"]["axes"]["rqs"] is not None

@@ -100,12 +100,11 @@ def test_gsplat_normalised_scene_is_scored_with_frame_gsplat(synthetic, plain, t
     for k in ("s_sem", "s_geo", "s_str", "iou_pre"):
         assert _axes(res)[k] == pytest.approx(_axes(plain[1])[k], abs=0.02), k
     assert not [w for w in res["warnings"] if "world frames" in w["message"]]
-    # the same PLYs with the cameras as they are: warned about, naming the cause
+    # the same PLYs with the cameras as they are: the cameras miss the splats, refused naming the fix
     _toml(folder, "results/ply/point_cloud_29999.ply", "results/clean.ply", cameras="colmap")
-    res = evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
-    assert res["scenes"]["room"]["frame_check"]["pre"]["level"] == "warn"
-    warned = [w["message"] for w in res["warnings"] if "different world frames" in w["message"]]
-    assert warned and 'frame = "gsplat"' in warned[0] and "--frame gsplat" in warned[0]
+    with pytest.raises(InputError, match="different world frames") as refused:
+        evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    assert 'frame = "gsplat"' in str(refused.value) and "--frame gsplat" in str(refused.value)
     # the remedy from the command line: --frame gsplat, for check and score alike
     capsys.readouterr()
     assert main(["check", str(folder), "--frame", "gsplat"]) == 0
@@ -174,16 +173,14 @@ def test_nerfstudio_layout_applies_dataparser_transforms_beside_the_export(synth
     for k in ("s_sem", "s_geo", "s_str"):
         assert _axes(res)[k] == pytest.approx(_axes(plain[1])[k], abs=0.02), k
     # "frame = cameras" switches the file off: the cameras (inside the room) see walls at the wrong
-    # places, and mostly not the target: scored, with the likely cause on the console and in results.json
+    # places, and mostly not the target: refused, one line naming the cause and the fix
     (folder / "scene.toml").write_text((folder / "scene.toml").read_text().replace(
         'masks = "masks"\n', 'masks = "masks"\nframe = "cameras"\n'))
     capsys.readouterr()
-    assert main(["score", str(folder), "--out", str(tmp_path / "out2"), *FAST]) == 0
+    assert main(["score", str(folder), "--out", str(tmp_path / "out2"), *FAST]) == 2
     err = capsys.readouterr().err
-    assert "renders little where the target masks are" in err and "dataparser_transforms" in err
-    res = json.loads((tmp_path / "out2" / "results.json").read_text())
-    assert res["scenes"]["room"]["frame_check"]["pre"]["level"] == "warn"
-    assert [w for w in res["warnings"] if "different world frames" in w["message"]]
+    assert "scene room: pre (" in err and "dataparser_transforms" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "out2" / "results.json").exists()
 
 
 def test_inria_output_folder_scored_as_the_walkthrough_says(synthetic, tmp_path, ctx):

@@ -13,8 +13,9 @@ from r360gpu.io import Camera, load_cameras, save_colmap, save_transforms_json
 from r360gpu.io.colmap_points import read_points3d, save_points3d
 from r360gpu.io.frames import Frame, gsplat_frame, gsplat_normalization, nerfstudio_frame, resolve_frame
 from r360gpu.io.rotation import quat_to_rotmat
-from r360gpu.metrics.frame_check import (AGREEMENT_MIN, FrameVerdict, backprojected, check_views, cone_agreement,
-                                         frame_verdict, mismatch_message, outline_step, view_coverage)
+from r360gpu.metrics.frame_check import (CONES_MIN, STEP_NOTE, FrameVerdict, ViewCoverage, backprojected, check_views,
+                                         cone_agreement, frame_verdict, mismatch_message, note_message, outline_step,
+                                         view_coverage)
 
 
 def look_at(centre, target=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), name="v", w=40, h=30) -> Camera:
@@ -229,15 +230,29 @@ def _cov(alpha_fill, target_fill, n=4):
 
 
 def test_frame_verdicts():
+    """The cameras miss the splats (refuse) only by the target's coverage or the cones; an empty
+    image around a covered target is an object scan framed right; a low outline step is a note."""
     assert frame_verdict(_cov(1.0, 1.0)).level == "ok"
     assert frame_verdict(_cov(0.0, 0.0)).level == "refuse"
-    assert frame_verdict(_cov(0.05, 1.0)).level == "warn"          # mostly empty images
-    assert frame_verdict(_cov(0.9, 0.25)).level == "warn"          # the target falls where pre renders little
-    assert frame_verdict(_cov(0.0, 0.0)[:2] + _cov(1.0, 1.0)[:2]).level == "warn"
+    assert frame_verdict(_cov(0.05, 1.0)).level == "ok"            # an object on an empty background
+    assert frame_verdict(_cov(0.9, 0.25)).level == "refuse"        # the target falls where pre renders little
+    assert frame_verdict(_cov(0.0, 0.0)[:2] + _cov(1.0, 1.0)[:2]).level == "refuse"  # half the views
+    assert frame_verdict(_cov(0.0, 0.0)[:1] + _cov(1.0, 1.0)[:3]).level == "ok"
     assert frame_verdict([]).level == "ok"
     faint = [view_coverage(f"v{i}", np.full((8, 8), 0.3, np.float32), np.ones((8, 8), bool)) for i in range(3)]
     assert faint[0].coverage == 0.0 and faint[0].touched == 1.0
-    assert frame_verdict(faint).level == "warn"  # drawn, but nowhere solid: not "renders nothing"
+    assert frame_verdict(faint).level == "refuse"  # drawn, but nowhere solid under the target
+    assert "covers less than" in mismatch_message(frame_verdict(faint), source="p", frame=None, cameras=None)
+    covered = _cov(1.0, 1.0)
+    assert frame_verdict(covered, cones=CONES_MIN - 0.01).level == "refuse"
+    assert frame_verdict(covered, cones=CONES_MIN).level == "ok"
+    stepped = [ViewCoverage(c.view, c.coverage, c.target, c.touched, s) for c, s in zip(covered, (0.0, 0.1, 0.9, 0.9))]
+    assert frame_verdict(stepped, cones=1.0).level == "ok" and frame_verdict(stepped).step == 0.5
+    flat = [ViewCoverage(c.view, c.coverage, c.target, c.touched, STEP_NOTE / 2) for c in covered]
+    assert frame_verdict(flat, cones=1.0).level == "note"
+    assert frame_verdict(flat, cones=0.5).level == "refuse"  # missing the splats outranks the note
+    note = note_message(frame_verdict(flat, cones=1.0))
+    assert "little depth step" in note and "frame" not in note.replace("frame check", "")
     v = frame_verdict(_cov(0.0, 0.0))
     assert FrameVerdict.from_dict(json.loads(json.dumps(v.to_dict()))) == v
     msg = mismatch_message(v, source="pre.ply", frame=None, cameras="cameras")
@@ -332,6 +347,30 @@ def test_cone_agreement_is_high_where_the_masks_cones_meet_and_low_elsewhere():
     assert cone_agreement(behind) is None  # fewer than MIN_PIXELS points in any other image
 
 
+def test_cone_agreement_ignores_points_hidden_in_the_other_view():
+    """A point behind pre's surface in view j (an occluder in front of the target there) says
+    nothing about j's mask, which marks only the target's visible pixels."""
+    views = _cube_views()
+    cam0, pts0, mask0 = views[0]
+    cam1, pts1, mask1 = views[1]
+    # view 1's mask loses its right three quarters (an occluder), and its depth shows the occluder 1 unit in front
+    mid = int(np.percentile(np.nonzero(mask1)[1], 25))
+    occluded = mask1.copy()
+    occluded[:, mid:] = False
+    depth1 = np.full(mask1.shape, 10.0)  # the backdrop, behind the cube (about 4 units away)
+    depth1[:, mid:] = 2.0
+    plain = [(cam0, pts0, mask0), (cam1, pts1, occluded)]
+    assert cone_agreement(plain) < 0.8  # the hidden part counted against the mask
+    seen = [(cam0, pts0, mask0, None), (cam1, pts1, occluded, depth1)]
+    assert cone_agreement(seen) == 1.0
+    # no pair with a point seen: the hidden points count after all (opposite sides of an object)
+    everywhere = [(cam0, pts0, mask0, np.full(mask0.shape, 1.0)), (cam1, pts1, occluded, np.full(mask1.shape, 1.0))]
+    assert cone_agreement(everywhere) == cone_agreement(plain)
+    # a point *in front of* the surface is not hidden: shifted off the masks, it still counts
+    off = [(c, p, m, np.full(m.shape, 10.0)) for c, p, m in _cube_views((0.0, 0.0, 1.5))]
+    assert cone_agreement(off) == 0.0
+
+
 def test_backprojection_inverts_the_camera():
     cam = look_at((3.0, 1.0, 1.0), w=80, h=60)
     rows, cols = np.mgrid[0:60, 0:80]
@@ -348,7 +387,7 @@ def test_backprojection_inverts_the_camera():
 
 def test_check_views_flags_a_mask_off_the_object():
     """An object in front of a wall seen by two cameras: its masks fit (ok); the masks of a
-    world moved 1.5 units aside do not (warn, with the agreement in the message)."""
+    world moved 1.5 units aside do not (refused, with the cone agreement in the message)."""
     cams = [look_at((4.0, 0.0, 0.0), name="a", w=80, h=60), look_at((0.0, 4.0, 0.0), name="b", w=80, h=60)]
 
     def views(offset):
@@ -372,11 +411,11 @@ def test_check_views_flags_a_mask_off_the_object():
         return out
 
     ok = check_views(views((0.0, 0.0, 0.0)))
-    assert ok.level == "ok" and ok.agreement > AGREEMENT_MIN and ok.cones == 1.0
+    assert ok.level == "ok" and ok.cones == 1.0 and ok.step > STEP_NOTE
     off = check_views(views((1.5, -1.5, 0.0)))
-    assert off.level == "warn" and off.agreement < AGREEMENT_MIN
+    assert off.level == "refuse" and off.cones < CONES_MIN
     msg = mismatch_message(off, source="pre.ply", frame="nerfstudio x", cameras=None)
-    assert "renders no object where the target masks are" in msg and "moved by nerfstudio x" in msg
-    assert f"agreement {off.agreement:.2f}" in msg
+    assert "away from where their viewing cones meet" in msg and "moved by nerfstudio x" in msg
+    assert f"cone agreement {off.cones:.2f}" in msg
     one = check_views(views((0.0, 0.0, 0.0))[:1])
-    assert one.cones is None and one.agreement is None and one.level == "ok"  # one view: coverage only
+    assert one.cones is None and one.level == "ok"  # one view: coverage only

@@ -106,6 +106,8 @@ def test_orbit_results_sit_beside_the_capture_axes(scored):
     assert orbit["requested"] == 12 and orbit["kept"] + sum(orbit["dropped"].values()) == 12 and orbit["kept"] >= 4
     assert set(orbit["dropped"]) <= {"inside geometry", "target occluded"}
     assert all(v.startswith("orbit_") for v in orbit["views"]) and orbit["no_orbit"] == {}
+    # the frame check runs on the capture's cameras only: the orbit's poses are derived from them
+    assert s["frame_check"]["pre"]["level"] == "ok" and "frame_check" not in orbit
     for m in ("clean", "backside"):
         a = orbit["methods"][m]["axes"]
         assert a["rqs"] is not None and 0 <= a["rqs"] <= 1

@@ -160,7 +160,9 @@ def _evaluate(loaded, call: _Call, cache: RunCache, sink: PictureSink) -> dict:
 
     def open_what_if(b, o) -> SceneRun:  # a scene seen elsewhere (orbit) or a method changed (pruned)
         sem, stru, _ = scene_probes(b, probes[0], probes[1], compat=o.compat, defaults=probes[2])
-        return SceneRun(b, o, ctx, sem, stru, cache=cache, timer=timer)
+        # no frame check: a what-if sees through the capture's cameras (checked with the scene) or poses
+        # derived from them (the orbit)
+        return SceneRun(b, o, ctx, sem, stru, cache=cache, timer=timer, check_frames=False)
 
     quiet = PictureSink(None, False)  # the what-ifs have no contact sheets
     scenes, plots = _ScenesAhead(loaded, open_run), _PlotsAhead(enabled=out is not None)

@@ -88,7 +88,7 @@ class SceneRun:
     """The opened sources, masks and probes of one scene (see the module docstring)."""
 
     def __init__(self, bundle, opts, ctx, sem_probes, str_probes, *, cache, timer: Timer, fit: bool = True,
-                 kept=None):
+                 kept=None, check_frames: bool = True):
         from ..bundle import is_from_objects
         from ..bundle.views import require_target
         from ..metrics.fidelity import LpipsModel
@@ -121,8 +121,9 @@ class SceneRun:
         self._view_readers: dict = {}
         self.fingerprint = fingerprint(loaded, [*self.pres.values(), self.reference, *self.methods.values()],
                                        digests=self.file_digests)
-        # the driver checks that pre's cameras see its splats (workers score what the driver accepted)
-        self.frame_check = self.check_frames(cache) if fit else {}
+        # the driver checks that pre's cameras see its splats (workers score what the driver accepted);
+        # a what-if's cameras are the capture's, already checked, or derived from them (the orbit)
+        self.frame_check = self.check_frames(cache) if fit and check_frames else {}
         self._open_probes(sem_probes, str_probes, cache, fit)
         self.lpips = (LpipsModel(opts.lpips_model, choose(opts.probe_device, ctx.adapter_info))
                       if opts.lpips_model and self.reference is not None else None)
@@ -276,10 +277,11 @@ class SceneRun:
 
     def check_frames(self, cache) -> dict:
         """Render each splat-scene pre source at a few evaluation views with a target and check
-        that it covers the image and the target (:mod:`r360gpu.metrics.frame_check`): an
-        InputError when it renders nothing there, a warning when it renders little; the renders
-        are kept for scoring.  The verdict is cached with the bundle's fingerprint (a rerun
-        renders nothing for it).  Returns {pre name: verdict dict} of the sources checked."""
+        that its cameras see it (:mod:`r360gpu.metrics.frame_check`): an InputError when they
+        miss the splats, a note kept in the verdict when the target's outline has little depth
+        step; the renders are kept for scoring.  The verdict is cached with the bundle's
+        fingerprint (a rerun renders nothing for it).  Returns {pre name: verdict dict} of the
+        sources checked."""
         from ..metrics import frame_check
         from ..render.sources import host_depth
         from .cache import digest
@@ -308,15 +310,13 @@ class SceneRun:
                 if self.fingerprint is not None:
                     cache.store_fit(key, verdict.to_dict(), "frames")
             out[name] = verdict.to_dict()
-            if verdict.level == "ok":
-                continue
-            frame = getattr(src, "frame", None)
-            message = frame_check.mismatch_message(
-                verdict, source=str(src.path), frame=None if frame is None else frame.origin,
-                cameras=None if self.bundle.cameras_path is None else str(self.bundle.cameras_path))
-            if verdict.level == "refuse":
-                raise InputError(f"scene {self.bundle.name}: {message}")
-            warning_log.warn(message, scene=self.bundle.name, file=str(src.path))
+            if verdict.level == "note":
+                out[name]["note"] = frame_check.note_message(verdict)
+            elif verdict.missed:
+                frame = getattr(src, "frame", None)
+                raise InputError(f"scene {self.bundle.name}: " + frame_check.mismatch_message(
+                    verdict, source=str(src.path), frame=None if frame is None else frame.origin,
+                    cameras=None if self.bundle.cameras_path is None else str(self.bundle.cameras_path)))
         return out
 
     def describe_sources(self) -> dict:
