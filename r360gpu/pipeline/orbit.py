@@ -47,6 +47,12 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
     info: {"requested", "kept", "dropped": {reason: count}, "no_orbit": {method: why}} plus
     "note" when no orbit is possible.
     """
+    return _orbit(bundle, n, ctx=ctx, warn=warn)[:2]
+
+
+def _orbit(bundle, n: int, *, ctx=None, warn=None):
+    """(orbit bundle or None, info, (pre's Gaussians, LiftedTarget) or None): :func:`orbit_bundle` and
+    the target it lifted."""
     from ..bundle.model import Bundle
     from ..io.frames import depth_in_cameras, in_frame, points_in_cameras
     from ..lift.masks import TargetMaskRenderer
@@ -57,14 +63,14 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
     info: dict = {"requested": int(n), "kept": 0, "dropped": {}, "no_orbit": {}}
     if not _is_scene(bundle.pre) or not bundle.cameras:
         info["note"] = "no orbit: pre is renderings only (or has no cameras)"
-        return None, info
+        return None, info, None
     for m, spec in bundle.methods.items():
         if not _is_scene(spec):
             info["no_orbit"][m] = RENDERINGS_ONLY
     methods = {m: s for m, s in bundle.methods.items() if m not in info["no_orbit"]}
     if not methods:
         info["note"] = "no orbit: every method is renderings only"
-        return None, info
+        return None, info, None
     g, options, frame = _gaussians(bundle.pre)
     lifted = scene_target(bundle, g, ctx=ctx, options=options, frame=frame, warn=warn)
     # the poses live in the cameras' world, as the evaluation views do; each source sees them in its frame
@@ -95,7 +101,7 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
              + ", ".join(f"{k}: {v}" for k, v in sorted(info["dropped"].items())) + ")")
     if not kept:
         info["note"] = "no orbit: every pose was dropped"
-        return None, info
+        return None, info, (g, lifted)
     reference = bundle.reference if bundle.reference is not None and _is_scene(bundle.reference) else None
     if bundle.reference is not None and reference is None:
         info["note"] = "reference is renderings only: the orbit is scored reference-free"
@@ -104,20 +110,30 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
                    cameras={c.name: c for c in kept}, masks=masks, pre=bundle.pre, reference=reference,
                    methods=methods, options=bundle.options, layout="objects",
                    method_pres={m: s for m, s in bundle.method_pres.items() if m in methods and _is_scene(s)})
-    return orbit, info
+    return orbit, info, (g, lifted)
 
 
-def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None) -> dict:
+def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None, out=None) -> dict:
     """The ``scenes.S.orbit`` entry: the orbit bundle scored like a scene, with ``info`` merged in.
 
     open_run(bundle, opts) opens a SceneRun; evaluate_scene(run) scores it (the pipeline's own).
+    out: the output folder (None: nothing written), where the kept poses' cameras.json and target
+    masks, and the lifted target, go (:mod:`r360gpu.pipeline.reusable`; paths under "files").
     """
+    from .reusable import write_orbit, write_target
+
     try:
-        orbit, info = orbit_bundle(bundle, opts.orbit, ctx=ctx, warn=warn)
+        orbit, info, lifted = _orbit(bundle, opts.orbit, ctx=ctx, warn=warn)
     except InputError as e:
         if warn is not None:
             warn(f"orbit: {e.problem}")
         return {"requested": int(opts.orbit), "kept": 0, "note": f"no orbit: {e.problem}"}
+    if out is not None and lifted is not None:
+        files = info["files"] = {}
+        if getattr(bundle, "target", None) is None:  # a [target]'s lift is written with the scene's
+            files["target"] = write_target(out, bundle.name, *lifted, {}, source=getattr(bundle.pre, "path", None))
+        if orbit is not None:
+            files.update(write_orbit(out, bundle.name, [orbit.cameras[v] for v in orbit.views], orbit.masks))
     if orbit is None:
         return info
     # views=None: the orbit's views are its own cameras, and its cache key names no capture selection
