@@ -129,3 +129,26 @@ def test_orbit_verdicts_are_marked_as_the_captures_are(run):
     text = render_markdown(t)
     assert "† g orbit: s_geo blind, s_str weak" in text and "g capture" not in text
     assert any("at the orbit s_geo blind, s_str weak" in line for line in orbit_lines(doc))
+
+
+def test_indices_and_labels_are_rows_of_the_file_as_written(tmp_path):
+    """A loader that dropped rows: the indices name the file's rows, the PLY has every row (a
+    dropped one labelled 0), so either can be given back as ``[target] indices``."""
+    from r360gpu.io import Gaussians
+    from r360gpu.io.gaussians import random_gaussians
+    from r360gpu.io.inria_ply import TARGET
+    from r360gpu.io.ply import read_ply
+    from r360gpu.lift.target import load_indices
+    from r360gpu.pipeline.reusable import write_target
+
+    g0 = random_gaussians(8, sh_degree=0, seed=1)
+    rows = np.array([0, 2, 3, 5, 6, 7, 9, 11])  # a file of 12 rows, 4 dropped
+    g = Gaussians(g0.means, g0.scales, g0.quats, g0.opacities, g0.sh, file_rows=rows, file_count=12)
+    target = np.zeros(8, bool)
+    target[[1, 4, 7]] = True
+    files = write_target(tmp_path, "s", g, target, {})
+    assert np.load(tmp_path / files["indices"]).tolist() == [2, 6, 11]
+    vert = read_ply(tmp_path / files["ply"]).arrays["vertex"]
+    assert len(vert) == 12 and np.flatnonzero(vert[TARGET]).tolist() == [2, 6, 11]
+    for path in (files["indices"], files["ply"]):
+        assert np.array_equal(load_indices(tmp_path / path, 12, rows=rows).target, target)
