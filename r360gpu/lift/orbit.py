@@ -12,7 +12,7 @@ so the band follows the capture's horizon whatever the world's axes (:func:`capt
 :func:`keep_pose` says whether a pose can be scored: not when the camera sits
 inside geometry (something covers most of the image at less than
 :data:`INSIDE_DEPTH` of the distance to the target) and not when the target
-is not seen in pre (its mask over pre holds less than :data:`MIN_VISIBLE` of
+is not seen in pre (its mask over pre holds less than `MIN_VISIBLE` of
 the target's own silhouette, or nothing): "never seen" when that side of the
 target is mostly Gaussians no evaluation view saw, else "target occluded".
 """
@@ -29,14 +29,14 @@ INSIDE_DEPTH = 0.25
 INSIDE_COVER = 0.5
 #: A pose sees the target when its mask over pre keeps at least this share of the target's own silhouette.
 MIN_VISIBLE = 0.5
-#: An orbit camera may sit this share farther out than the capture's farthest camera its way (:func:`_reach`).
+#: An orbit camera may sit this share farther out than the capture's farthest camera its way (`_reach`).
 BOUNDS_MARGIN = 0.1
-#: Horizontal directions checked for a capture all around the target (:func:`capture_reach`).
+#: Horizontal directions checked for a capture all around the target (`capture_reach`).
 _SURROUND_DIRECTIONS = 72
 #: A target Gaussian was seen by the capture when its compositing weight over the evaluation views
 #: (pre rendered there, occluders included) reaches this (pixels' worth of alpha x transmittance).
 SEEN_WEIGHT = 0.05
-#: The reasons a pose is dropped (:func:`keep_pose`).
+#: The reasons a pose is dropped (`keep_pose`).
 INSIDE, NEVER_SEEN, OCCLUDED = "inside geometry", "never seen", "target occluded"
 _GOLDEN = np.pi * (3.0 - np.sqrt(5.0))
 
@@ -85,7 +85,7 @@ def capture_reach(centre, cameras, up) -> np.ndarray | None:
 def _reach(d: np.ndarray, radius: float, up: np.ndarray, offsets) -> float:
     """How far from the centre along unit ``d`` a camera may sit: ``radius``, capped where its
     horizontal distance would pass the capture's farthest camera that way (widened by
-    :data:`BOUNDS_MARGIN`; offsets: :func:`capture_reach`, None: not capped)."""
+    `BOUNDS_MARGIN`; offsets: `capture_reach`, None: not capped)."""
     h = d - (d @ up) * up
     hn = float(np.linalg.norm(h))
     if offsets is None or hn < 1e-9:
@@ -103,7 +103,7 @@ def orbit_cameras(centre, cameras, n: int, *, prefix: str = "orbit", radius: flo
     distance to ``centre``; elevation: (lo, hi) degrees above the capture's
     horizon (None: the span of the evaluation cameras'); azimuth: (from, to)
     degrees around ``up``, 0 being the first evaluation camera's direction.
-    When the capture surrounds the target (:func:`capture_reach`), a camera
+    When the capture surrounds the target (`capture_reach`), a camera
     is brought nearer where it would pass the capture's farthest camera its
     way, so poses stay in the room.
     Returns a list of Camera with the median-focal evaluation camera's fx,
@@ -166,7 +166,7 @@ def keep_pose(pre_alpha: np.ndarray, pre_depth: np.ndarray, mask: np.ndarray, si
     over pre (H, W) bool; silhouette: the target rendered alone, alpha >= 0.5
     (H, W) bool; distance: camera to target centre; seen_share: the share of
     the target's silhouette there made by Gaussians the capture saw
-    (:func:`seen_share`; None: not known).  A pose that does not see the
+    (`seen_share`; None: not known).  A pose that does not see the
     target is "never seen" when its side of the target is mostly Gaussians no
     evaluation view saw (pre there is unconstrained by the capture, and so is
     what seems to hide it), else "target occluded".
@@ -183,7 +183,7 @@ def keep_pose(pre_alpha: np.ndarray, pre_depth: np.ndarray, mask: np.ndarray, si
 def seen_share(weights: np.ndarray, seen: np.ndarray) -> float | None:
     """The share of a pose's target silhouette made by Gaussians the capture saw: ``weights`` (K,)
     each target Gaussian's compositing weight rendered alone at the pose, ``seen`` (K,) bool
-    (weight over the evaluation views >= :data:`SEEN_WEIGHT`); None when the silhouette is empty."""
+    (weight over the evaluation views >= `SEEN_WEIGHT`); None when the silhouette is empty."""
     w = np.asarray(weights, np.float64)
     total = float(w.sum())
     return float(w[np.asarray(seen, bool)].sum()) / total if total > 0 else None
@@ -191,7 +191,7 @@ def seen_share(weights: np.ndarray, seen: np.ndarray) -> float | None:
 
 def captured(gaussians, target: np.ndarray, cameras, *, ctx=None, options=None, frame=None) -> np.ndarray:
     """(K,) bool over the K target Gaussians of ``gaussians`` (``target`` (N,) bool): seen by some
-    evaluation camera, i.e. compositing weight >= :data:`SEEN_WEIGHT` over ``cameras`` with pre
+    evaluation camera, i.e. compositing weight >= `SEEN_WEIGHT` over ``cameras`` with pre
     rendered there (occluders included), each camera moved into ``frame``."""
     from ..io.frames import in_frame
     from .device import MaskLifter

@@ -118,7 +118,7 @@ def resolve_target(bundle, pre, *, ctx=None, warn=None):
 
 
 def resolve_lifted(bundle, pre, *, ctx=None, warn=None):
-    """(bundle, record, LiftedTarget): :func:`resolve_target` and the target it lifted."""
+    """(bundle, record, LiftedTarget): `resolve_target` and the target it lifted."""
     if getattr(pre, "gaussians", None) is None:
         raise InputError(f"scene {bundle.name!r}: [target] needs pre as a splat scene")
     options = getattr(pre, "render_options", None)

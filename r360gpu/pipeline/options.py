@@ -165,7 +165,7 @@ class EvaluateOptions:
                              f"from + 360, got {az!r}")
 
     def orbit_shape(self) -> dict:
-        """The keywords of :func:`~r360gpu.lift.orbit.orbit_cameras` these options give."""
+        """The keywords of `r360gpu.lift.orbit.orbit_cameras` these options give."""
         return {"radius": float(self.orbit_radius),
                 "elevation": None if self.orbit_elevation is None else tuple(map(float, self.orbit_elevation)),
                 "azimuth": tuple(map(float, self.orbit_azimuth))}

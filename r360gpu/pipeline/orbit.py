@@ -46,7 +46,7 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
     """(orbit bundle or None, info) for ``bundle`` (its masks already resolved).
 
     orbit_shape: {"radius", "elevation", "azimuth"} for
-    :func:`~r360gpu.lift.orbit.orbit_cameras` (None: its defaults).
+    `r360gpu.lift.orbit.orbit_cameras` (None: its defaults).
 
     info: {"requested", "kept", "dropped": {reason: count}, "no_orbit": {method: why}} plus
     "note" when no orbit is possible.
@@ -55,7 +55,7 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
 
 
 def _orbit(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
-    """(orbit bundle or None, info, (pre's Gaussians, LiftedTarget) or None): :func:`orbit_bundle` and
+    """(orbit bundle or None, info, (pre's Gaussians, LiftedTarget) or None): `orbit_bundle` and
     the target it lifted."""
     from ..bundle.model import Bundle
     from ..io.frames import depth_in_cameras, in_frame, points_in_cameras
@@ -137,7 +137,7 @@ def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None, 
 
     open_run(bundle, opts) opens a SceneRun; evaluate_scene(run) scores it (the pipeline's own).
     out: the output folder (None: nothing written), where the kept poses' cameras.json and target
-    masks, and the lifted target, go (:mod:`r360gpu.pipeline.reusable`; paths under "files").
+    masks, and the lifted target, go (`r360gpu.pipeline.reusable`; paths under "files").
     """
     from .reusable import write_orbit, write_target
 

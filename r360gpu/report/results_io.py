@@ -249,7 +249,7 @@ def results_csv_rows(results: dict) -> tuple[list[str], list[list[str]]]:
 
     Columns, in order:
 
-    * ``scene, method, view``, then ``kind`` (:data:`KINDS`: "capture", "orbit" or "pruned") when
+    * ``scene, method, view``, then ``kind`` (`KINDS`: "capture", "orbit" or "pruned") when
       the run has orbit or pruned rows (``--orbit``, ``--prune-residuals``; without it every row is
       a capture view's);
     * ``empty_target``: the target mask of the view is empty (from any reading);
