@@ -46,6 +46,15 @@ def add_scoring_options(p) -> None:
     g.add_argument("--orbit", type=int, default=0, metavar="N",
                    help="also score N cameras around the lifted target (splat scenes; results under "
                         "scenes.S.orbit, never mixed into the capture-view axes)")
+    g.add_argument("--orbit-radius", type=float, default=1.0, metavar="X",
+                   help="the orbit's radius as a multiple of the capture cameras' median distance to the target "
+                        "(default 1; poses that would leave the capture's bounds are brought nearer)")
+    g.add_argument("--orbit-elevation", type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                   help="the orbit's elevations in degrees above the capture's horizon (default: the span of "
+                        "the capture cameras')")
+    g.add_argument("--orbit-azimuth", type=float, nargs=2, default=(0.0, 360.0), metavar=("FROM", "TO"),
+                   help="the orbit's azimuths in degrees around the capture's up, 0 toward the first capture "
+                        "camera (default 0 360: all the way round)")
     g.add_argument("--residuals", action="store_true",
                    help="write residuals/SCENE/METHOD.ply: each splat method's Gaussians with a 'residual' "
                         "property (their weight in the target region of the views that flag evidence)")
@@ -207,6 +216,9 @@ def options_from_args(args):
         seed=args.seed,
         antialiased=getattr(args, "antialiased", False),
         orbit=getattr(args, "orbit", 0),
+        orbit_radius=getattr(args, "orbit_radius", 1.0),
+        orbit_elevation=tuple(args.orbit_elevation) if getattr(args, "orbit_elevation", None) else None,
+        orbit_azimuth=tuple(getattr(args, "orbit_azimuth", (0.0, 360.0))),
         residuals=getattr(args, "residuals", False) or getattr(args, "prune_residuals", None) is not None,
         prune_residuals=getattr(args, "prune_residuals", None),
     )

@@ -36,6 +36,8 @@ _OPTIONAL = ["nx", "ny", "nz"]
 #: The vertex property r360gpu's residual PLYs add (:func:`r360gpu.lift.residuals.write_residual_ply`);
 #: read back without a warning, and not part of the Gaussians.
 RESIDUAL = "residual"
+#: The vertex property of r360gpu's lifted-target PLYs (1: the Gaussian is the target); read back likewise.
+TARGET = "target"
 _F_REST = re.compile(r"f_rest_(\d+)$")
 _VALID_REST_COUNTS = {0: 0, 9: 1, 24: 2, 45: 3}
 
@@ -83,7 +85,7 @@ def gaussians_from_inria_ply(ply: PlyData) -> Gaussians:
     rest_idx = check_inria_header(ply)
     el = ply.element("vertex")
     names = el.property_names()
-    _warn_ignored(ply, known=set(_REQUIRED) | set(_OPTIONAL) | {f"f_rest_{i}" for i in rest_idx} | {RESIDUAL})
+    _warn_ignored(ply, known=set(_REQUIRED) | set(_OPTIONAL) | {f"f_rest_{i}" for i in rest_idx} | {RESIDUAL, TARGET})
 
     v = ply.arrays["vertex"]
     n = el.count
@@ -157,3 +159,36 @@ def vertex_records(gaussians: Gaussians) -> np.ndarray:
         rec[f"rot_{i}"] = g.quats[:, i]
     rec["rot_3"] = g.quats[:, 3]
     return rec
+
+
+def write_labelled_ply(path: str | os.PathLike, gaussians: Gaussians, prop: str, values: np.ndarray,
+                       missing, dtype: str, *, source=None) -> None:
+    """Write ``gaussians`` as an INRIA 3DGS PLY (atomically) with the vertex property ``prop`` holding
+    ``values`` (N,) as ``dtype``, one vertex per row of the file they were read from.
+
+    ``source`` (the file's path), when it is an INRIA PLY of as many rows, is copied vertex for vertex
+    with every property it has (a ``my_label`` stays; an old ``prop`` is replaced); otherwise the
+    Gaussians' own properties.  A row the loader dropped (invalid values, `Gaussians.rows`) keeps its
+    place with ``prop`` = ``missing`` (and, when not copied, NaN properties).
+    """
+    from numpy.lib import recfunctions
+
+    v = np.asarray(values)
+    if v.shape != (gaussians.n,):
+        raise ValueError(f"{prop} has shape {v.shape}, the scene {gaussians.n} Gaussians")
+    full = np.full(gaussians.n_file, missing, dtype)
+    full[gaussians.rows] = v
+    vert = None
+    if source is not None and str(source).lower().endswith(".ply") and os.path.isfile(source):
+        ply = read_ply(source)
+        if is_inria_ply(ply) and len(ply.arrays["vertex"]) == gaussians.n_file:
+            vert = ply.arrays["vertex"]
+            if prop in (vert.dtype.names or ()):  # a labelled PLY given again: this run's values
+                vert = recfunctions.drop_fields(vert, prop, usemask=False)
+    if vert is None:
+        own = vertex_records(gaussians)
+        vert = np.full(gaussians.n_file, np.nan, own.dtype)
+        vert[gaussians.rows] = own
+    vert = recfunctions.append_fields(vert, prop, full, dtypes=dtype, usemask=False)
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    write_ply(path, [("vertex", vert)])

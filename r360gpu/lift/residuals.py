@@ -179,29 +179,8 @@ def write_residual_ply(path: str | os.PathLike, gaussians, residual: np.ndarray,
     Gaussians' own properties.  A row the loader dropped (invalid values, `Gaussians.rows`)
     keeps its place with residual NaN (and, when not copied, NaN properties).
     """
-    from numpy.lib import recfunctions
-
-    from ..io.inria_ply import RESIDUAL, is_inria_ply, vertex_records
-    from ..io.ply import read_ply, write_ply
+    from ..io.inria_ply import RESIDUAL, write_labelled_ply
 
     path = Path(path)
-    r = np.asarray(residual, np.float32)
-    if r.shape != (gaussians.n,):
-        raise ValueError(f"residual has shape {r.shape}, the scene {gaussians.n} Gaussians")
-    full = np.full(gaussians.n_file, np.nan, np.float32)
-    full[gaussians.rows] = r
-    vert = None
-    if source is not None and Path(source).suffix.lower() == ".ply" and Path(source).is_file():
-        ply = read_ply(source)
-        if is_inria_ply(ply) and len(ply.arrays["vertex"]) == gaussians.n_file:
-            vert = ply.arrays["vertex"]
-            if RESIDUAL in (vert.dtype.names or ()):  # a residual PLY scored again: this run's residual
-                vert = recfunctions.drop_fields(vert, RESIDUAL, usemask=False)
-    if vert is None:
-        own = vertex_records(gaussians)
-        vert = np.full(gaussians.n_file, np.nan, own.dtype)
-        vert[gaussians.rows] = own
-    vert = recfunctions.append_fields(vert, RESIDUAL, full, dtypes="<f4", usemask=False)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_ply(path, [("vertex", vert)])
+    write_labelled_ply(path, gaussians, RESIDUAL, np.asarray(residual, np.float32), np.nan, "<f4", source=source)
     return path

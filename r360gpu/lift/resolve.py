@@ -114,6 +114,11 @@ def resolve_target(bundle, pre, *, ctx=None, warn=None):
     {"source", "gaussians", "of", "given", "rendered", "lifted_from"} for results.json ("gaussians" of
     pre's "of" Gaussians are the target).
     """
+    return resolve_lifted(bundle, pre, ctx=ctx, warn=warn)[:2]
+
+
+def resolve_lifted(bundle, pre, *, ctx=None, warn=None):
+    """(bundle, record, LiftedTarget): `resolve_target` and the target it lifted."""
     if getattr(pre, "gaussians", None) is None:
         raise InputError(f"scene {bundle.name!r}: [target] needs pre as a splat scene")
     options = getattr(pre, "render_options", None)
@@ -131,7 +136,7 @@ def resolve_target(bundle, pre, *, ctx=None, warn=None):
     record = {"source": lifted.source, "gaussians": int(lifted.target.sum()), "of": int(pre.gaussians.n),
               "given": sorted(v for v in bundle.views if v in given), "rendered": todo,
               "lifted_from": list(lifted.views)}
-    return replace(bundle, masks=masks), record
+    return replace(bundle, masks=masks), record, lifted
 
 
 def scene_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn=None):

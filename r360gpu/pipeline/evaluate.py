@@ -177,6 +177,7 @@ def _evaluate(loaded, call: _Call, cache: RunCache, sink: PictureSink) -> dict:
                 finally:
                     run.release()
             with warning_log.where(scene=bundle.name):
+                _reusable_target(run, scene_res, call.out)
                 _what_ifs(run.bundle, scene_res, call, open_what_if,
                           lambda r, pictures=True: evaluate_scene(r, cache, sink if pictures else quiet, progress,
                                                                   what_if=True))
@@ -209,7 +210,8 @@ def _what_ifs(bundle, scene_res: dict, call: _Call, open_what_if, score) -> None
     if opts.orbit:  # --orbit N: the scene from all around (pipeline.orbit)
         from .orbit import score_orbit
 
-        scene_res["orbit"] = score_orbit(bundle, opts, open_what_if, score, ctx=ctx, warn=warning_log.warn)
+        scene_res["orbit"] = score_orbit(bundle, opts, open_what_if, score, ctx=ctx, warn=warning_log.warn,
+                                         out=call.out)
     if opts.residuals or opts.prune_residuals:  # the Gaussians behind the evidence (pipeline.residuals)
         from .residuals import scene_residuals, score_pruned
 
@@ -218,6 +220,18 @@ def _what_ifs(bundle, scene_res: dict, call: _Call, open_what_if, score) -> None
         if opts.prune_residuals:  # the what-ifs have no contact sheets
             scene_res["pruned"] = score_pruned(bundle, values, opts, open_what_if,
                                                lambda r: score(r, pictures=False), call.out)
+
+
+def _reusable_target(run, scene_res: dict, out) -> None:
+    """A ``[target]``'s lifted set and rendered masks written under ``out`` (pipeline.reusable), their
+    paths under scenes.S.target.files."""
+    if out is None or run.target_lifted is None or "target" not in scene_res:
+        return
+    from .reusable import write_target
+
+    rendered = {v: run.bundle.masks[v] for v in scene_res["target"]["rendered"]}
+    scene_res["target"]["files"] = write_target(out, run.bundle.name, run.pre.gaussians, run.target_lifted.target,
+                                                rendered, source=getattr(run.bundle.pre, "path", None))
 
 
 def _say_probes(run: SceneRun, log) -> None:

@@ -56,6 +56,12 @@ class EvaluateOptions:
     seed: int = 0
     antialiased: bool = False  # render every splat scene in the antialiased mode (score --antialiased)
     orbit: int = 0  # score --orbit N: N more cameras around the target, results under scenes.S.orbit (.orbit)
+    # --orbit-radius X: the orbit's radius, a multiple of the capture cameras' median distance to the target
+    orbit_radius: float = 1.0
+    # --orbit-elevation LO HI: degrees above the capture's horizon (None: the capture cameras' span)
+    orbit_elevation: tuple | None = None
+    # --orbit-azimuth FROM TO: degrees around the capture's up, 0 toward the first capture camera
+    orbit_azimuth: tuple = (0.0, 360.0)
     residuals: bool = False  # score --residuals: residuals/SCENE/METHOD.ply per splat method (.residuals)
     # score --prune-residuals Q: each splat method re-scored without its top-Q residual Gaussians, as an
     # unranked METHOD+pruned under scenes.S.pruned (.residuals); implies residuals
@@ -96,6 +102,7 @@ class EvaluateOptions:
                 raise InputError(f"{flag} must be an integer >= {low}, got {value!r}")
         if isinstance(self.orbit, bool) or not isinstance(self.orbit, Integral) or self.orbit < 0:
             raise InputError(f"orbit (--orbit) must be a whole number of cameras >= 0, got {self.orbit!r}")
+        self._check_orbit_shape()
         for flag, value in (("boundary (--no-boundary)", self.boundary), ("pictures (--no-pictures)", self.pictures),
                             ("controls (--no-controls)", self.controls), ("antialiased (--antialiased)",
                                                                          self.antialiased),
@@ -132,6 +139,37 @@ class EvaluateOptions:
                 raise InputError(f"views (--views) must be a non-empty list of view names or patterns, "
                                  f"got {self.views!r}")
 
+    def _check_orbit_shape(self) -> None:
+        """InputError unless the orbit's radius, elevations and azimuths can place cameras."""
+        import math
+        from numbers import Real
+
+        from ..errors import InputError
+
+        def number(x) -> bool:
+            return not isinstance(x, bool) and isinstance(x, Real) and math.isfinite(x)
+
+        def pair(value) -> bool:
+            return isinstance(value, (list, tuple)) and len(value) == 2 and all(map(number, value))
+
+        if not number(self.orbit_radius) or self.orbit_radius <= 0:
+            raise InputError(f"orbit_radius (--orbit-radius) must be a number > 0 (a multiple of the capture's "
+                             f"distance to the target), got {self.orbit_radius!r}")
+        el = self.orbit_elevation
+        if el is not None and not (pair(el) and -90 <= el[0] <= el[1] <= 90):
+            raise InputError(f"orbit_elevation (--orbit-elevation) must be None or degrees (lo, hi) with "
+                             f"-90 <= lo <= hi <= 90, got {el!r}")
+        az = self.orbit_azimuth
+        if not (pair(az) and az[0] < az[1] <= az[0] + 360):
+            raise InputError(f"orbit_azimuth (--orbit-azimuth) must be degrees (from, to) with from < to <= "
+                             f"from + 360, got {az!r}")
+
+    def orbit_shape(self) -> dict:
+        """The keywords of `r360gpu.lift.orbit.orbit_cameras` these options give."""
+        return {"radius": float(self.orbit_radius),
+                "elevation": None if self.orbit_elevation is None else tuple(map(float, self.orbit_elevation)),
+                "azimuth": tuple(map(float, self.orbit_azimuth))}
+
     def scoring_key(self) -> dict:
         """The options that change per-view values (part of the view cache key).
 
@@ -140,7 +178,8 @@ class EvaluateOptions:
         per-view value.
         """
         d = asdict(self)  # the GhtParams becomes {"nu", "tau", "kappa", "omega"}
-        for k in ("pictures", "n_boot", "n_perm", "seed", "controls", "orbit", "residuals", "prune_residuals"):
+        for k in ("pictures", "n_boot", "n_perm", "seed", "controls", "orbit", "orbit_radius", "orbit_elevation",
+                  "orbit_azimuth", "residuals", "prune_residuals"):
             d.pop(k)
         if not self.lpips_model:
             d.pop("probe_device")  # then it changes no per-view value (the probes' providers are in their keys)

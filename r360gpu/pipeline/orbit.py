@@ -3,7 +3,8 @@
 For a scene whose pre is a splat scene with cameras: the target is lifted
 (:mod:`r360gpu.lift`), N cameras are placed around it
 (:func:`r360gpu.lift.orbit.orbit_cameras`), poses inside geometry or with the
-target occluded in pre are dropped (counted by reason), and pre, the
+target unseen in pre are dropped (counted by reason: "inside geometry", "never seen" by the
+capture, "target occluded"), and pre, the
 reference and every splat method are rendered there and scored with the
 same probes, the masks being the lifted target's.  The result is a scene
 entry of its own (axes, RQS, views) that goes under ``scenes.S.orbit``,
@@ -41,61 +42,85 @@ def _gaussians(spec):
             frame_of(spec))
 
 
-def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
+def orbit_bundle(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
     """(orbit bundle or None, info) for ``bundle`` (its masks already resolved).
+
+    orbit_shape: {"radius", "elevation", "azimuth"} for
+    `r360gpu.lift.orbit.orbit_cameras` (None: its defaults).
 
     info: {"requested", "kept", "dropped": {reason: count}, "no_orbit": {method: why}} plus
     "note" when no orbit is possible.
     """
+    return _orbit(bundle, n, ctx=ctx, warn=warn, orbit_shape=orbit_shape)[:2]
+
+
+def _orbit(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
+    """(orbit bundle or None, info, (pre's Gaussians, LiftedTarget) or None): `orbit_bundle` and
+    the target it lifted."""
     from ..bundle.model import Bundle
     from ..io.frames import depth_in_cameras, in_frame, points_in_cameras
     from ..lift.masks import TargetMaskRenderer
-    from ..lift.orbit import keep_pose, orbit_cameras
+    from ..lift.device import MaskLifter
+    from ..lift.orbit import OCCLUDED, captured, keep_pose, orbit_cameras, seen_share
     from ..lift.resolve import scene_target
     from ..render import Renderer
 
     info: dict = {"requested": int(n), "kept": 0, "dropped": {}, "no_orbit": {}}
+    if orbit_shape:
+        info["shape"] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in orbit_shape.items()}
     if not _is_scene(bundle.pre) or not bundle.cameras:
         info["note"] = "no orbit: pre is renderings only (or has no cameras)"
-        return None, info
+        return None, info, None
     for m, spec in bundle.methods.items():
         if not _is_scene(spec):
             info["no_orbit"][m] = RENDERINGS_ONLY
     methods = {m: s for m, s in bundle.methods.items() if m not in info["no_orbit"]}
     if not methods:
         info["note"] = "no orbit: every method is renderings only"
-        return None, info
+        return None, info, None
     g, options, frame = _gaussians(bundle.pre)
     lifted = scene_target(bundle, g, ctx=ctx, options=options, frame=frame, warn=warn)
     # the poses live in the cameras' world, as the evaluation views do; each source sees them in its frame
     centre, _ = lifted.extent(points_in_cameras(frame, g.means))
-    cams = orbit_cameras(centre, [bundle.cameras[v] for v in bundle.views if v in bundle.cameras], n)
+    given = [bundle.cameras[v] for v in bundle.views if v in bundle.cameras]
+    shape = orbit_shape or {}
+    cams = orbit_cameras(centre, given, n, **shape)
     pre_r = Renderer(g, ctx=ctx, options=options)
     alone = Renderer(g.subset(lifted.target), ctx=ctx, options=options)
     masks_r = TargetMaskRenderer(g, lifted.target, ctx=ctx, options=options, frame=frame)
+    side, by_capture = None, None  # the target's side a pose sees, and what the capture saw: when asked
     kept, masks = [], {}
     try:
         for cam in cams:
             seen = in_frame(frame, cam)
             pre = pre_r.render(seen)
             mask = masks_r.mask(cam)
-            why = keep_pose(pre.alpha, depth_in_cameras(frame, pre.median_depth), mask,
-                            alone.render(seen).alpha >= 0.5, float(np.linalg.norm(cam.center - centre)))
+            args = (pre.alpha, depth_in_cameras(frame, pre.median_depth), mask, alone.render(seen).alpha >= 0.5,
+                    float(np.linalg.norm(cam.center - centre)))
+            why = keep_pose(*args)
+            if why == OCCLUDED:  # or is this side of the target one no given view saw?
+                if side is None:
+                    by_capture = captured(g, lifted.target, given, ctx=ctx, options=options, frame=frame)
+                    side = MaskLifter(g.subset(lifted.target), ctx=ctx, options=options)
+                side.reset()
+                side.add_view(seen, np.ones((cam.height, cam.width), np.float32))
+                why = keep_pose(*args, seen_share=seen_share(side.weights()[0], by_capture))
             if why is None:
                 kept.append(cam)
                 masks[cam.name] = mask
             else:
                 info["dropped"][why] = info["dropped"].get(why, 0) + 1
     finally:
-        for r in (pre_r, alone, masks_r):
-            r.release()
+        for r in (pre_r, alone, masks_r, side):
+            if r is not None:
+                r.release()
     info["kept"] = len(kept)
     if info["dropped"] and warn is not None:
         warn(f"orbit: {sum(info['dropped'].values())} of {n} poses dropped ("
              + ", ".join(f"{k}: {v}" for k, v in sorted(info["dropped"].items())) + ")")
     if not kept:
         info["note"] = "no orbit: every pose was dropped"
-        return None, info
+        return None, info, (g, lifted)
     reference = bundle.reference if bundle.reference is not None and _is_scene(bundle.reference) else None
     if bundle.reference is not None and reference is None:
         info["note"] = "reference is renderings only: the orbit is scored reference-free"
@@ -104,20 +129,30 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None):
                    cameras={c.name: c for c in kept}, masks=masks, pre=bundle.pre, reference=reference,
                    methods=methods, options=bundle.options, layout="objects",
                    method_pres={m: s for m, s in bundle.method_pres.items() if m in methods and _is_scene(s)})
-    return orbit, info
+    return orbit, info, (g, lifted)
 
 
-def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None) -> dict:
+def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None, out=None) -> dict:
     """The ``scenes.S.orbit`` entry: the orbit bundle scored like a scene, with ``info`` merged in.
 
     open_run(bundle, opts) opens a SceneRun; evaluate_scene(run) scores it (the pipeline's own).
+    out: the output folder (None: nothing written), where the kept poses' cameras.json and target
+    masks, and the lifted target, go (`r360gpu.pipeline.reusable`; paths under "files").
     """
+    from .reusable import write_orbit, write_target
+
     try:
-        orbit, info = orbit_bundle(bundle, opts.orbit, ctx=ctx, warn=warn)
+        orbit, info, lifted = _orbit(bundle, opts.orbit, ctx=ctx, warn=warn, orbit_shape=opts.orbit_shape())
     except InputError as e:
         if warn is not None:
             warn(f"orbit: {e.problem}")
         return {"requested": int(opts.orbit), "kept": 0, "note": f"no orbit: {e.problem}"}
+    if out is not None and lifted is not None:
+        files = info["files"] = {}
+        if getattr(bundle, "target", None) is None:  # a [target]'s lift is written with the scene's
+            files["target"] = write_target(out, bundle.name, lifted[0], lifted[1].target, {}, source=getattr(bundle.pre, "path", None))
+        if orbit is not None:
+            files.update(write_orbit(out, bundle.name, [orbit.cameras[v] for v in orbit.views], orbit.masks))
     if orbit is None:
         return info
     # views=None: the orbit's views are its own cameras, and its cache key names no capture selection

@@ -103,13 +103,14 @@ class SceneRun:
                                                 else bundle.options.reference_free)
         self.mode = "reference_free" if ref_free else "reference"
         self._open_sources()
-        self.target_record = None
+        self.target_record = self.target_lifted = None
         loaded = bundle  # the key is made of what was loaded: the target's masks are rendered from it
         if getattr(bundle, "target", None) is not None:  # [target]: a mask for every view (r360gpu.lift)
-            from ..lift.resolve import resolve_target
+            from ..lift.resolve import resolve_lifted
 
             t0 = time.perf_counter()
-            bundle, self.target_record = resolve_target(bundle, self.pre, ctx=ctx, warn=warning_log.warn)
+            bundle, self.target_record, self.target_lifted = resolve_lifted(bundle, self.pre, ctx=ctx,
+                                                                            warn=warning_log.warn)
             self.bundle = bundle
             timer.add("target", t0)
         self._masks: dict = {}

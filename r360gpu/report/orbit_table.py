@@ -21,6 +21,17 @@ def _fmt(x) -> str:
     return "—" if x is None else f"{x:.3f}"
 
 
+def _marked(text: str, verdict) -> str:
+    """``text`` with a dagger when the axis' probe check there is not "ok" (weak or blind)."""
+    return text + "†" if verdict not in (None, "ok") and text != "—" else text
+
+
+def doubts(entry: dict) -> str:
+    """The not-ok verdicts of a scene entry (the capture's or the orbit's own controls), as
+    "s_str weak, s_sem blind" ("" when every axis is ok or unchecked)."""
+    return ", ".join(f"{a} {v}" for a, v in (entry.get("validity") or {}).items() if v not in (None, "ok"))
+
+
 def worst_views(orbit: dict, method: str, xis, k: int = WORST_VIEWS) -> list[tuple[str, float]]:
     """The ``k`` orbit views of ``method`` with the lowest single-view RQS, as (view, rqs)."""
     from ..aggregate.results import method_axes
@@ -44,10 +55,11 @@ def orbit_table(results: dict) -> Table | None:
     for s in scenes:
         entry, orbit = results["scenes"][s], results["scenes"][s]["orbit"]
         for m, axes in entry["methods"].items():
-            capture = [_fmt(axes["axes"].get(a)) for a in COLUMNS]
+            checked, around_checked = entry.get("validity") or {}, orbit.get("validity") or {}
+            capture = [_marked(_fmt(axes["axes"].get(a)), checked.get(a)) for a in COLUMNS]
             if m in orbit.get("methods", {}):
                 o = orbit["methods"][m]["axes"]
-                around = [_fmt(o.get(a)) for a in COLUMNS]
+                around = [_marked(_fmt(o.get(a)), around_checked.get(a)) for a in COLUMNS]
                 worst = worst_views(orbit, m, xis)
                 if worst:
                     notes.append(f"{s} / {m}: worst orbit views " + ", ".join(f"{v} (RQS {r:.3f})" for v, r in worst))
@@ -59,6 +71,10 @@ def orbit_table(results: dict) -> Table | None:
         notes.append(f"{s}: {orbit.get('kept', 0)} of {orbit.get('requested', 0)} orbit poses scored"
                      + (" (dropped: " + ", ".join(f"{k} {v}" for k, v in sorted(dropped.items())) + ")"
                         if dropped else ""))
+        for where, e in (("capture", entry), ("orbit", orbit)):
+            if doubts(e):
+                notes.append(f"† {s} {where}: {doubts(e)} (the probe check of its controls): read that axis "
+                             f"there with care")
     notes.append("Orbit cameras ring the lifted target at the capture's distance and elevations; their "
                  "scores are a separate scene entry, never mixed into the capture-view axes or ranks.")
     return Table(
@@ -83,7 +99,7 @@ def orbit_lines(results: dict) -> list[str]:
         dropped = orbit.get("dropped") or {}
         lines.append(f"  {s}: {orbit.get('kept', 0)} of {orbit.get('requested', 0)} poses scored"
                      + (" (dropped: " + ", ".join(f"{k} {v}" for k, v in sorted(dropped.items())) + ")"
-                        if dropped else ""))
+                        if dropped else "") + (f"; at the orbit {doubts(orbit)}" if doubts(orbit) else ""))
         for m, capture in entry.get("methods", {}).items():
             if m in orbit.get("methods", {}):
                 around = orbit["methods"][m]["axes"]

@@ -221,15 +221,27 @@ def _cell(value) -> str:
     return str(value)
 
 
+#: The ``kind`` of a results.csv row: a capture view, an orbit pose (``--orbit``), a pruned what-if
+#: (``--prune-residuals``, method ``M+pruned`` at the capture views).
+KINDS = ("capture", "orbit", "pruned")
+
+
 def _records(results: dict):
-    """(scene, method, view record dict) in display order."""
+    """(scene, method, kind, view record dict) in display order: per scene, the capture's rows, the
+    orbit's (scenes.S.orbit) and the pruned what-ifs' (scenes.S.pruned)."""
     for s in scene_names(results):
+        scene = results["scenes"][s]
         for m in method_names(results):
             entry = method_entry(results, s, m)
-            if entry is None:
-                continue
+            for rec in (entry or {}).get("views") or []:
+                yield s, m, KINDS[0], rec
+        orbit = (scene.get("orbit") or {}).get("methods") or {}
+        for m, entry in orbit.items():
             for rec in entry.get("views") or []:
-                yield s, m, rec
+                yield s, m, KINDS[1], rec
+        for m, entry in (scene.get("pruned") or {}).items():
+            for rec in entry.get("views") or []:
+                yield s, m, KINDS[2], rec
 
 
 def results_csv_rows(results: dict) -> tuple[list[str], list[list[str]]]:
@@ -237,7 +249,9 @@ def results_csv_rows(results: dict) -> tuple[list[str], list[list[str]]]:
 
     Columns, in order:
 
-    * ``scene, method, view``;
+    * ``scene, method, view``, then ``kind`` (`KINDS`: "capture", "orbit" or "pruned") when
+      the run has orbit or pruned rows (``--orbit``, ``--prune-residuals``; without it every row is
+      a capture view's);
     * ``empty_target``: the target mask of the view is empty (from any reading);
     * per semantic probe P (in order of first appearance): ``iou_pre:P``,
       ``iou_post:P``, ``iou_drop:P`` and ``detected@XI:P`` for every stored
@@ -255,13 +269,14 @@ def results_csv_rows(results: dict) -> tuple[list[str], list[list[str]]]:
     read back exactly.
     """
     recs = list(_records(results))
-    sem_probes = _first_seen(p for _, _, r in recs for p in (r.get("semantic") or {}))
-    str_probes = _first_seen(p for _, _, r in recs for p in (r.get("structural") or {}))
+    kinds = any(k != KINDS[0] for _, _, k, _ in recs)
+    sem_probes = _first_seen(p for _, _, _, r in recs for p in (r.get("semantic") or {}))
+    str_probes = _first_seen(p for _, _, _, r in recs for p in (r.get("structural") or {}))
     xis = sorted(
-        {k for _, _, r in recs for sv in (r.get("semantic") or {}).values() for k in (sv.get("detected") or {})},
+        {k for _, _, _, r in recs for sv in (r.get("semantic") or {}).values() for k in (sv.get("detected") or {})},
         key=float,
     )
-    header = ["scene", "method", "view", "empty_target"]
+    header = ["scene", "method", "view", *(["kind"] if kinds else []), "empty_target"]
     for p in sem_probes:
         header += [f"iou_pre:{p}", f"iou_post:{p}", f"iou_drop:{p}"] + [f"detected@{x}:{p}" for x in xis]
     header.append("structural_mode")
@@ -271,7 +286,7 @@ def results_csv_rows(results: dict) -> tuple[list[str], list[list[str]]]:
                "n_no_depth_in_mask", "psnr", "ssim", "lpips", "mse"]
 
     rows = []
-    for scene, method, r in recs:
+    for scene, method, kind, r in recs:
         sem = r.get("semantic") or {}
         st = r.get("structural") or {}
         geo = r.get("geometric") or {}
@@ -280,7 +295,7 @@ def results_csv_rows(results: dict) -> tuple[list[str], list[list[str]]]:
         if geo:
             empties.append(geo.get("n_mask") == 0)
         empty = any(bool(e) for e in empties) if empties else None
-        row = [scene, method, r.get("view", ""), _cell(empty)]
+        row = [scene, method, r.get("view", ""), *([kind] if kinds else []), _cell(empty)]
         for p in sem_probes:
             v = sem.get(p) or {}
             drop = v.get("iou_drop")
