@@ -78,6 +78,18 @@ class BufferRange:
     size: int
 
 
+@dataclass
+class DeviceDepth:
+    """A depth image already on the device: ``height x width`` float32,
+    row-major, starting at byte ``offset`` (a multiple of 4) of ``buffer``
+    (needs the STORAGE and COPY_SRC usages)."""
+
+    buffer: Any
+    height: int
+    width: int
+    offset: int = 0
+
+
 _F32 = struct.Struct("<f")
 _U32 = struct.Struct("<I")
 

@@ -42,7 +42,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from ..gpu.context import BufferRange, GpuContext, get_context
+from ..gpu.context import BufferRange, DeviceDepth, GpuContext, get_context
 from ..gpu.shaders import shader_constants, workgroup_threads
 
 SHADER = "depth_change"
@@ -69,18 +69,6 @@ def histogram_entry(ctx: GpuContext) -> str:
     if forced in ("histo", "histo_private"):
         return forced
     return "histo_private" if ctx.adapter_info.get("adapter_type") == "CPU" else "histo"
-
-
-@dataclass
-class DeviceDepth:
-    """A depth image already on the device: ``height x width`` float32,
-    row-major, starting at byte ``offset`` (a multiple of 4) of ``buffer``
-    (needs the STORAGE and COPY_SRC usages)."""
-
-    buffer: object
-    height: int
-    width: int
-    offset: int = 0
 
 
 @dataclass
