@@ -81,7 +81,7 @@ def method_axes(records: list[ViewRecord], *, xis=XI_SWEEP, boundary: list[dict]
 
 
 def per_view_axes(records, *, xis=XI_SWEEP) -> dict[str, dict]:
-    """{view: :func:`method_axes` of that view's record alone} for a method's per-view records
+    """{view: `method_axes` of that view's record alone} for a method's per-view records
     (`ViewRecord` or their dicts), in their order."""
     out = {}
     for r in records:

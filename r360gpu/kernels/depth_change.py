@@ -46,6 +46,8 @@ from ..gpu.context import BufferRange, DeviceDepth, GpuContext, get_context
 from ..gpu.shaders import shader_constants, workgroup_threads
 
 SHADER = "depth_change"
+#: The WGSL names of the resources the calls here bind, by position (checked at pipeline creation).
+BINDINGS = ("P", "d_pre", "d_post", "delta", "stats", "hist", "m_words", "changed_words", "nd_words")
 _SIZES = shader_constants(SHADER)  # the sizes depth_change.wgsl states
 QV = _SIZES["QV"]  # vec4s per invocation in delta_minmax / histo
 N_BINS = _SIZES["N_BINS"]
@@ -187,7 +189,7 @@ def delta_histograms(d_pre, d_posts, *, ctx: GpuContext | None = None) -> list[D
     init = np.zeros((n, stride // 4), np.uint32)
     init[:, 0] = 0xFFFFFFFF
     stats = ctx.buffer(init, label="depth_stats")
-    pipe = ctx.pipeline(SHADER, "delta_minmax")
+    pipe = ctx.pipeline(SHADER, "delta_minmax", bindings=BINDINGS)
     enc = ctx.encoder()
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)
@@ -208,7 +210,7 @@ def delta_histograms(d_pre, d_posts, *, ctx: GpuContext | None = None) -> list[D
     st = ctx.read(stats, np.uint32, n * stride // 4).reshape(n, -1)
     hist = ctx.buffer(n * stride * 4, label="hist")  # 256 u32 per image, stride-aligned
     entry = histogram_entry(ctx)
-    pipe = ctx.pipeline(SHADER, entry)
+    pipe = ctx.pipeline(SHADER, entry, bindings=BINDINGS)
     enc = ctx.encoder()
     for k, r in enumerate(res):
         r.lo = float(np.uint32(st[k, 0]).view(np.float32))
@@ -333,7 +335,7 @@ def changed_in_masks(stages, mask, ts, *, ctx: GpuContext | None = None) -> list
     n = len(stages)
     stride = _STATS_STRIDE
     stats = ctx.buffer(np.zeros(n * stride // 4, np.uint32), label="changed_stats")
-    pipe = ctx.pipeline(SHADER, "changed")
+    pipe = ctx.pipeline(SHADER, "changed", bindings=BINDINGS)
     pending = []
     enc = ctx.encoder()
     m_bufs = {}

@@ -41,7 +41,7 @@ FLAG_BELOW = 0.5
 
 def flagged_views(view_axes: dict[str, dict]) -> list[str]:
     """The views of ``view_axes`` ({view: that view's axes alone}, as
-    :func:`r360gpu.aggregate.results.per_view_axes` gives them for a method's records) where some
+    `r360gpu.aggregate.results.per_view_axes` gives them for a method's records) where some
     axis flags evidence: the semantic probe fires in M on I_post (s_sem), the depth in M stays pre's
     (acc_depth), or the structure differs (s_str), each below `FLAG_BELOW` on that view alone."""
     return [v for v, axes in view_axes.items()
