@@ -7,6 +7,7 @@ import pytest
 from r360gpu.gpu import shaders
 from r360gpu.gpu.shaders import _bindings_of, check_bindings, shader_bindings
 from r360gpu.kernels import depth_change, mask_iou, ssim
+from r360gpu.viewer import overlays
 
 WGSL = """
 // @group(0) @binding(9) var<storage, read> commented_out: array<u32>;
@@ -42,7 +43,7 @@ def test_a_swapped_binding_is_refused_with_both_names(fake_shader):
         check_bindings("k", ("P", "a_words", "out", "tex", None, "extra"))
 
 
-@pytest.mark.parametrize("module", [depth_change, mask_iou, ssim])
+@pytest.mark.parametrize("module", [depth_change, mask_iou, ssim, overlays])
 def test_the_kernels_bind_what_their_shaders_declare(module):
     check_bindings(module.SHADER, module.BINDINGS)
     assert list(shader_bindings(module.SHADER)) == list(range(len(module.BINDINGS)))
