@@ -82,3 +82,21 @@ def test_a_foreign_folder_is_not_replaced(written, tmp_path, ctx):
     write_layouts(bundle, tmp_path / "again", layouts=["inria"], ctx=ctx)
     assert (tmp_path / "again" / "inria" / "room" / MARKER).is_file()
     assert not list((tmp_path / "again" / "inria").glob(".*"))
+
+
+def test_convert_command(written, tmp_path, capsys):
+    from r360gpu.cli import main
+
+    bundle, layouts = written
+    assert main(["convert", str(bundle), "--out", str(tmp_path), "--layouts", "inria,public"]) == 0
+    out = capsys.readouterr().out
+    assert f"-> {tmp_path / 'inria' / 'room'} (inria)" in out and out.count("(public)") == 2
+    assert load_bundle(tmp_path / "inria" / "room").pre.path.name == "point_cloud.ply"
+    assert not (tmp_path / "gsplat").exists()
+    # a bundle whose splats are in another frame (gsplat's) is refused, nothing written
+    assert main(["convert", str(layouts["gsplat"][0]), "--out", str(tmp_path / "again")]) == 2
+    err = capsys.readouterr().err
+    assert "not a splat file in the cameras' frame" in err and "Traceback" not in err
+    assert not (tmp_path / "again").exists()
+    assert main(["convert", str(bundle), "--out", str(tmp_path), "--layouts", "colmap"]) == 2
+    assert "unknown or no layouts" in capsys.readouterr().err

@@ -37,7 +37,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import tomllib
 from pathlib import Path
 
 import cv2
@@ -71,9 +70,8 @@ def write_layouts(bundle: str | os.PathLike, out: str | os.PathLike, *, layouts=
     for name, spec in sources.items():
         if spec.kind != "scene" or spec.frame is not None:
             raise InputError(f"source {name!r} is not a splat file in the cameras' frame; only such bundles "
-                             "are converted", b.config)
-    config = tomllib.loads(b.config.read_text(encoding="utf-8"))
-    cameras = load_cameras(b.root / config["cameras"])  # every camera, not only the evaluation views
+                             "are converted", b.config or b.root)
+    cameras = load_cameras(b.cameras_path)  # every camera, not only the evaluation views
     splats = {name: load_gaussians(spec.path) for name, spec in sources.items()}
     out = Path(out)
     written: dict[str, list[Path]] = {}
