@@ -77,7 +77,8 @@ def write_layouts(bundle: str | os.PathLike, out: str | os.PathLike, *, layouts=
     written: dict[str, list[Path]] = {}
     for layout in layouts:
         if layout == "public":
-            written[layout] = [_public(b, m, out / "public" / m / f"{b.name}_{b.prompt}", ctx)
+            shared: dict = {}
+            written[layout] = [_public(b, m, out / "public" / m / f"{b.name}_{b.prompt}", ctx, shared)
                                for m in b.methods]
         else:
             writer = {"inria": _inria, "gsplat": _gsplat, "nerfstudio": _nerfstudio}[layout]
@@ -183,9 +184,28 @@ def _nerfstudio(b, cameras, splats, folder: Path) -> None:
                                              near=_near(frame)))
 
 
-def _public(b, method: str, folder: Path, ctx) -> Path:
+def _rendered(b, spec, ctx) -> dict[str, tuple[bytes, np.ndarray]]:
+    """{view: (16-bit RGB PNG bytes, float32 depth)} of a splat source at the bundle's evaluation views."""
     from ..render.sources import open_source
 
+    source = open_source(spec, ctx=ctx, background=b.options.background, depth=b.options.depth)
+    out = {}
+    try:
+        for view in b.views:
+            im = source.images(view, b.cameras[view])
+            rgb = np.round(np.clip(im.rgb, 0.0, 1.0) * 65535.0).astype(np.uint16)
+            ok, png = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+            if not ok:
+                raise RuntimeError("OpenCV could not encode a PNG")
+            out[view] = (png.tobytes(), np.asarray(im.depth, np.float32))
+    finally:
+        if hasattr(source, "release"):
+            source.release()
+    return out
+
+
+def _public(b, method: str, folder: Path, ctx, shared: dict) -> Path:
+    """One method's public folder; ``shared`` keeps pre's and the reference's renders for the next method."""
     def write(tmp: Path) -> None:
         _masks(b, tmp)
         (tmp / "prompt.txt").write_text(b.prompt + "\n")
@@ -193,20 +213,13 @@ def _public(b, method: str, folder: Path, ctx) -> Path:
         if b.reference is not None:
             sides["reference"] = b.reference
         for side, spec in sides.items():
-            source = open_source(spec, ctx=ctx, background=b.options.background, depth=b.options.depth)
-            try:
-                for view in b.views:
-                    im = source.images(view, b.cameras[view])
-                    rgb = np.round(np.clip(im.rgb, 0.0, 1.0) * 65535.0).astype(np.uint16)
-                    path = tmp / "rgb" / side / f"{view}.png"
-                    path.parent.mkdir(parents=True, exist_ok=True)
-                    if not cv2.imwrite(str(path), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
-                        raise InputError("OpenCV could not write the PNG", path)
-                    depth = tmp / "depth" / side / f"{view}.npy"
-                    depth.parent.mkdir(parents=True, exist_ok=True)
-                    np.save(depth, np.asarray(im.depth, np.float32))
-            finally:
-                if hasattr(source, "release"):
-                    source.release()
+            renders = shared.get(side) or _rendered(b, spec, ctx)
+            if side != "after":
+                shared[side] = renders
+            for sub in ("rgb", "depth"):
+                (tmp / sub / side).mkdir(parents=True)
+            for view, (png, depth) in renders.items():
+                (tmp / "rgb" / side / f"{view}.png").write_bytes(png)
+                np.save(tmp / "depth" / side / f"{view}.npy", depth)
 
     return _into(folder, write)
