@@ -10,8 +10,11 @@ things give it away, and both are needed (each alone also fits clean masks):
   the lifted object: its centre's depth is less than the ``w_in``-weighted
   median depth of the lifted Gaussians there (their visible surface) by
   :data:`FRONT_MARGIN` times the lifted object's radius
-  (`LiftedTarget.extent`), about the most a convex object's own front
-  reaches;
+  (`LiftedTarget.extent`): a convex object's own front is at most about
+  0.3 radii ahead of its visible surface, an irregular real one more (on
+  the PlayCanvas biker, masks of the visible target put 3-5% of the lifted
+  weight 0.5 radii ahead, 0.2-1% one radius ahead:
+  ``bench/real_scene_lift.py``);
 * and another given view sees it outside its mask (``w_out`` there at least
   :data:`CONTRADICTED_SHARE` of the ``w_in`` that voted it in), unless it is
   :data:`FAR_FRONT` radii in front, out of the object's reach.
@@ -20,6 +23,10 @@ Background seen through the object's gaps is contradicted too, but lies
 behind it; the object's own rim is in front of nothing.  The masks are
 doubtful when such Gaussians hold at least :data:`MIN_OCCLUDER_SHARE` of the
 lifted target's ``w_in``; the views whose masks voted them in are named.
+
+Only an occluder out of the object's reach is caught: material hugging the
+object (within a radius of its surface, inside the given views' visual hull)
+is what the masks of an object would also cover, and is not told apart.
 """
 from __future__ import annotations
 
@@ -34,9 +41,9 @@ from .target import MIN_WEIGHT, LiftedTarget, _weighted_quantile
 #: this share of the weight inside the mask that voted it in.
 CONTRADICTED_SHARE = 0.25
 #: In front of the object: nearer than its visible surface's median depth by this many object radii.
-FRONT_MARGIN = 0.5
+FRONT_MARGIN = 1.0
 #: ...and by this many, out of the object's reach (no contradiction needed).
-FAR_FRONT = 1.0
+FAR_FRONT = 1.5
 #: The masks are doubtful when the occluder-like Gaussians hold this share of the lifted w_in.
 MIN_OCCLUDER_SHARE = 0.02
 
