@@ -88,11 +88,11 @@ def lifted_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn
              f"give masks of at least {MIN_LIFT_VIEWS} views")
     cams = [bundle.cameras[v] for v in views]
     lifted = lift_target(gaussians, cams, [given[v] for v in views], ctx=ctx, options=options, frame=frame,
-                         per_view=len(views) >= MIN_LIFT_VIEWS)
+                         per_view=warn is not None and len(views) >= MIN_LIFT_VIEWS)
     check_extent(lifted, f"{where}: [target].masks", warn)
     if lifted.w_views is not None:
         occ = find_occluders(gaussians, cams, lifted, frame=frame)
-        if occ.doubtful and warn is not None:
+        if occ.doubtful:
             warn(f"{where}: [target].masks: {occ.message(paths)}")
     return replace(lifted, w_views=None), given  # (V, 2, N) weights are not kept past the check
 
