@@ -34,7 +34,7 @@ ALLOWED: dict[str, set[str]] = {
     "pipeline": {"gpu", "kernels", "io", "bundle", "render", "probes", "metrics", "aggregate", "lift", "report",
                  "util"},
     "lift": {"gpu", "io", "render"},
-    "synthetic": {"io", "render", "util"},
+    "synthetic": {"io", "bundle", "render", "util"},
     "viewer": {"gpu", "kernels", "io", "bundle", "render", "probes", "metrics", "lift", "pipeline", "util"},
     "cli": {"gpu", "kernels", "io", "bundle", "render", "probes", "metrics", "aggregate", "lift", "report",
             "pipeline", "synthetic", "viewer", "util"},

@@ -2,7 +2,8 @@
 
 A fenced block is a sample when its language is ``sh`` or ``python``; output, layouts and file
 formats are ``text`` and ``toml`` blocks.  The samples run in a workspace laid out like a checkout
-after ``./r360 demo``: a small demo (2 views of 96x72) in ``r360-demo/``, the checkout's ``tests/``
+after ``./r360 demo --layouts``: a small demo (2 views of 96x72) in ``r360-demo/``, its scenes also in
+the layouts of docs/your-scene.md under ``r360-demo/layouts/``, the checkout's ``tests/``
 and ``bench/`` beside it, and ``./r360`` standing for the checkout's script with the set-up done
 (the environment is the one running this test).  Two commands differ from a user's run, for time:
 ``./r360 demo`` makes the small demo, and ``./r360 test`` collects the suite instead of running it
@@ -130,7 +131,7 @@ esac
     (ws / "r360").write_text(script)
     (ws / "r360").chmod(0o755)
     env = {**os.environ, "PYTHONPATH": str(ROOT), "XDG_RUNTIME_DIR": os.environ.get("XDG_RUNTIME_DIR", "/tmp")}
-    proc = subprocess.run(["./r360", "demo", "--quiet"], cwd=ws, env=env, capture_output=True, text=True,
+    proc = subprocess.run(["./r360", "demo", "--quiet", "--layouts"], cwd=ws, env=env, capture_output=True, text=True,
                           timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     return ws, env

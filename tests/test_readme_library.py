@@ -1,6 +1,6 @@
 """The scoring samples of docs/library.md, run as written (the code blocks are read from the page).
 
-The second sample's inputs are a pipeline's own; here they are made from a small demo bundle."""
+The second sample makes its inputs (a pipeline's own) from the demo's room; here a small demo bundle."""
 from __future__ import annotations
 
 import re
@@ -52,31 +52,6 @@ def test_bundles_on_disk_sample(scenes, monkeypatch):
 def test_device_sharing_sample(scenes, monkeypatch, ctx):
     """On a device of its own (not r360gpu's shared one), with DeviceViewsSource made without ctx, pictures
     written."""
-    from r360gpu.bundle import load_bundle
-    from r360gpu.gpu import get_context
-    from r360gpu.io import load_gaussians, load_mask
-    from r360gpu.render import Renderer
-
-    b = load_bundle(scenes / "r360-demo" / "benchmark" / "room")
-    v = b.views[0]
-    adapter = ctx.device.adapter if hasattr(ctx.device, "adapter") else None
-    if adapter is None:
-        import wgpu
-
-        adapter = wgpu.gpu.request_adapter_sync(power_preference="high-performance")
-    my_wgpu_device = adapter.request_device_sync(label="another pipeline")
-    assert my_wgpu_device is not ctx.device
-    theirs = get_context(device=my_wgpu_device)
-    gaussians_pre, gaussians_post = load_gaussians(b.pre.path), load_gaussians(b.methods["recoloured"].path)
-    ns = {
-        "my_wgpu_device": my_wgpu_device,
-        "mask_v0": load_mask(b.masks[v]),
-        "camera_v0": b.cameras[v],
-        "gaussians_pre": gaussians_pre,
-        "gaussians_post": gaussians_post,
-        "pre_render_v0": Renderer(gaussians_pre, ctx=theirs).render_device(b.cameras[v]),
-        "post_render_v0": Renderer(gaussians_post, ctx=theirs).render_device(b.cameras[v]),
-    }
     import r360gpu
 
     monkeypatch.chdir(scenes)
@@ -89,7 +64,9 @@ def test_device_sharing_sample(scenes, monkeypatch, ctx):
         return runs[-1]
 
     monkeypatch.setattr(r360gpu, "evaluate", evaluate, raising=False)
+    ns: dict = {}
     exec(compile(_samples()[1], "docs/library.md", "exec"), ns)
+    assert ns["my_wgpu_device"] is not ctx.device  # the sample's own device, not r360gpu's shared one
     in_memory, on_device = runs
     a = in_memory["scenes"]["room"]["methods"]["mine"]["axes"]
     d = on_device["scenes"]["room"]["methods"]["mine"]["axes"]

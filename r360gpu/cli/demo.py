@@ -19,6 +19,9 @@ def register(sub) -> None:
     p.add_argument("--width", type=int, default=480, help="render width (default 480)")
     p.add_argument("--height", type=int, default=360, help="render height (default 360)")
     p.add_argument("--scene-seed", type=int, default=0, help="seed of the procedural scenes (default 0)")
+    p.add_argument("--layouts", action="store_true",
+                   help="also write each scene in the layouts of docs/your-scene.md (INRIA output folder, gsplat "
+                        "output, nerfstudio export, public Remove360 layout) under OUT/layouts")
     add_scoring_options(p)
     add_processes_option(p)
     p.set_defaults(func=run)
@@ -45,4 +48,12 @@ def run(args) -> int:
                                  ctx=get_context(args.adapter))  # scoring's context: its renders are kept
     unchanged = f" ({', '.join(reused)} unchanged since the last run: kept)" if reused else ""
     print(f"  {len(bundles)} scenes in {time.perf_counter() - t:.1f} s{unchanged}")
+    if args.layouts:
+        from ..synthetic.layouts import write_layouts
+
+        t = time.perf_counter()
+        for bundle in bundles:
+            write_layouts(bundle, out / "layouts", ctx=get_context(args.adapter))
+        print(f"  the scenes also as an INRIA output folder, a gsplat output, a nerfstudio export and public "
+              f"Remove360 folders in {out / 'layouts'} ({time.perf_counter() - t:.1f} s)")
     return score_and_report(bundles, out / "report", args, executor=executor, kept=kept)

@@ -15,14 +15,15 @@ import numpy as np
 from ..errors import InputError
 from ..render.sources import frame_of
 from .masks import TargetMaskRenderer
+from .occluders import find_occluders
 from .target import check_extent, lift_target, load_indices, target_from_box, target_from_indices
 
 #: Fewer given masks than this: the lifted target is doubtful (one view cannot tell depth).
 MIN_LIFT_VIEWS = 2
 
 
-def _given_masks(bundle, warn=None) -> dict:
-    """{view: (H, W) bool} of the views with a given mask, decoded and checked against the camera (an
+def _given_masks(bundle, warn=None) -> tuple[dict, dict]:
+    """({view: (H, W) bool}, {view: its file}) of the views with a given mask, decoded and checked against the camera (an
     error names the mask's file); a mask whose every pixel is target is warned about, and refused when
     every given mask is."""
     from ..io import load_mask
@@ -48,7 +49,7 @@ def _given_masks(bundle, warn=None) -> dict:
     for v in full:
         if warn is not None:
             warn(f"{paths[v]}: the target mask is target at every pixel (inverted?)")
-    return out
+    return out, paths
 
 
 def _where(bundle) -> str:
@@ -64,10 +65,11 @@ def lifted_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn
     The one validation of a ``[target]`` (``r360gpu check`` runs it too, :func:`check_target`):
     the indices file (type, range), the box (some but not every Gaussian inside), the given masks
     (decoded, at their camera's size, not every pixel target), and the lift holding some but not
-    every Gaussian; every error names the file."""
+    every Gaussian; every error names the file.  Masks that cover an occluder in front of the
+    object (`r360gpu.lift.occluders`) are warned about, naming them."""
     spec = bundle.target
     where = _where(bundle)
-    given = _given_masks(bundle, warn)
+    given, paths = _given_masks(bundle, warn)
     if spec.indices is not None:
         rows = dict(rows=gaussians.file_rows, warn=warn)  # the user's indices are rows of pre's file
         if isinstance(spec.indices, np.ndarray):
@@ -84,9 +86,15 @@ def lifted_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn
     if len(views) < MIN_LIFT_VIEWS and warn is not None:
         warn(f"target lifted from {len(views)} view's mask only ({views[0]}): depth is ambiguous; "
              f"give masks of at least {MIN_LIFT_VIEWS} views")
-    lifted = lift_target(gaussians, [bundle.cameras[v] for v in views], [given[v] for v in views], ctx=ctx,
-                         options=options, frame=frame)
-    return check_extent(lifted, f"{where}: [target].masks", warn), given
+    cams = [bundle.cameras[v] for v in views]
+    lifted = lift_target(gaussians, cams, [given[v] for v in views], ctx=ctx, options=options, frame=frame,
+                         per_view=warn is not None and len(views) >= MIN_LIFT_VIEWS)
+    check_extent(lifted, f"{where}: [target].masks", warn)
+    if lifted.w_views is not None:
+        occ = find_occluders(gaussians, cams, lifted, frame=frame)
+        if occ.doubtful:
+            warn(f"{where}: [target].masks: {occ.message(paths)}")
+    return replace(lifted, w_views=None), given  # (V, 2, N) weights are not kept past the check
 
 
 def check_target(bundle, *, ctx=None, warn=None):

@@ -53,6 +53,8 @@ class LiftedTarget:
     w_in: np.ndarray | None = None
     w_out: np.ndarray | None = None
     views: tuple = field(default_factory=tuple)
+    #: (V, 2, N) float64: each given view's own (w_in, w_out), in ``views``' order (lift_target(per_view=True)).
+    w_views: np.ndarray | None = None
 
     @property
     def indices(self) -> np.ndarray:
@@ -95,7 +97,7 @@ def decide(w_in: np.ndarray, w_out: np.ndarray, *, min_share: float = MIN_SHARE,
 
 
 def lift_target(scene, cameras, masks, *, ctx=None, options=None, frame=None, min_share: float = MIN_SHARE,
-                min_weight: float = MIN_WEIGHT) -> LiftedTarget:
+                min_weight: float = MIN_WEIGHT, per_view: bool = False) -> LiftedTarget:
     """Lift target masks of some views to pre's Gaussians (see the module docstring).
 
     scene: `Gaussians` (N Gaussians).
@@ -106,6 +108,8 @@ def lift_target(scene, cameras, masks, *, ctx=None, options=None, frame=None, mi
         rendered with (the weights are the renderer's own).
     frame: the scene's world frame (a `Frame`; None: the cameras'), each camera
         moved into it (`r360gpu.io.frames.in_frame`).
+    per_view: also keep each view's own weights (``w_views``; the accumulators are read after each
+        view: the sums are exact fixed point, so the differences are each view's exactly).
     Returns a `LiftedTarget` with w_in, w_out (N,) float64.
     """
     from ..io.frames import in_frame
@@ -119,13 +123,17 @@ def lift_target(scene, cameras, masks, *, ctx=None, options=None, frame=None, mi
     lifter = MaskLifter(scene, ctx=ctx, options=options)
     try:
         lifter.reset()
+        sums = []
         for cam, m in zip(cameras, masks):
             lifter.add_view(in_frame(frame, cam), m)
-        w_in, w_out = lifter.weights()
+            if per_view:
+                sums.append(np.stack(lifter.weights()))
+        w_in, w_out = sums[-1] if per_view else lifter.weights()
     finally:
         lifter.release()
+    w_views = np.diff(np.stack(sums), axis=0, prepend=0.0) if per_view else None
     return LiftedTarget(decide(w_in, w_out, min_share=min_share, min_weight=min_weight), "masks", w_in, w_out,
-                        tuple(getattr(c, "name", "") for c in cameras))
+                        tuple(getattr(c, "name", "") for c in cameras), w_views)
 
 
 def target_from_indices(n: int, indices, *, where: str = "indices", rows=None, warn=None) -> LiftedTarget:

@@ -25,6 +25,8 @@ Public API::
     clean / floaters / recoloured / hole / over_removal (scene, rng) -> Gaussians
     target_masks(scene, *, ctx=None) -> {view: (H, W) bool}
     write_bundle(scene, folder, *, seed=0, methods=None, camera_format="colmap", ctx=None) -> Path
+    layouts.write_layouts(bundle, out, *, layouts=LAYOUTS, ctx=None)   a bundle as INRIA / gsplat /
+                                                                        nerfstudio / public folders
 
 Determinism: the same arguments give byte-identical files on the same
 machine (all randomness comes from generators seeded by the seed and the
