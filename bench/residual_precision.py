@@ -43,7 +43,7 @@ SIZE = dict(n_views=6, width=240, height=180, detail=0.25)
 
 def precision(bundle, n_background: int) -> tuple[float, int]:
     """(precision at the floater count, floater count) of the floaters method's residuals."""
-    every_view = lambda records, xis=(0.3,): list(bundle.views)  # noqa: E731
+    every_view = lambda view_axes: list(bundle.views)  # noqa: E731
     real = lift_residuals.flagged_views
     lift_residuals.flagged_views = every_view
     try:

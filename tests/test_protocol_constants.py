@@ -1,10 +1,15 @@
 """Protocol constants are written once, in r360gpu/protocol.py.
 
-The scanner walks the syntax tree of every module of the package (comments and docstrings
-are not code, so prose may still say "xi = 0.3") and reports a protocol literal written again:
-a default argument or dataclass field (``xi=0.3``, ``nu: float = 1000.0``), a module constant
-bound to a literal (``XI = 0.3``, ``SCHEMA = "r360gpu.results/1"``), a tuple/list/set of the axis
-names or of sweep thresholds, a schema string, a statistics default (``default=20000``).
+The scanner walks the syntax tree of every module of the package and reports a protocol literal
+written again: a default argument or dataclass field (``xi=0.3``, ``nu: float = 1000.0``), a
+module constant bound to a literal (``XI = 0.3``, ``SCHEMA = "r360gpu.results/1"``), a
+tuple/list/set of the axis names or of sweep thresholds (``(0.3,)`` included), a schema string, a
+statistics default (``default=20000``).
+
+Output prose too (table notes and headers, report text, help and messages: every string that is
+not a docstring) gets the values from r360gpu.protocol (``f"xi = {XI_DEFAULT:g}"``): the prose
+scanner reports a protocol value written into such a string beside its symbol.  Docstrings and
+comments explain the code and may say "xi = 0.3".
 """
 from __future__ import annotations
 
@@ -61,7 +66,7 @@ def _seq_hit(node: ast.AST) -> str | None:
     # a set or tuple of acc_seg thresholds that includes the default ({0.3}, (0.3, 0.7)):
     # the thresholds of a sweep written again
     if all(isinstance(v, float) for v in vals) and P.XI_DEFAULT in vals and set(vals) <= set(P.XI_SWEEP) \
-            and (isinstance(node, ast.Set) or len(vals) > 1):
+            and (isinstance(node, (ast.Set, ast.Tuple)) or len(vals) > 1):
         return "XI_SWEEP"
     return None
 
@@ -145,6 +150,7 @@ def test_no_protocol_literal_outside_protocol_module():
     ("p.add_argument('--n-boot', default=20000)", "statistics default=20000"),
     ("settings = {'ci_level': 0.95}", "literal 'ci_level': 0.95"),
     ("OFFS = (-15, -10, -5, 0, 5, 10, 15)[4:]", None),
+    ("def f(xis=(0.3,)): pass", "XI_SWEEP"),
 ])
 def test_scanner_finds_each_kind_of_copy(src, expect):
     hits = scan(src)
@@ -160,7 +166,7 @@ def test_scanner_ignores_prose_and_other_numbers():
 
 
 def test_protocol_values_match_the_spec():
-    # PROTOCOL.md: "Default ξ = 0.3; the sensitivity sweep reports ξ ∈ {0.3, 0.5, 0.7, 0.9}",
+    # docs/protocol.md: "Default ξ = 0.3; the sensitivity sweep reports ξ ∈ {0.3, 0.5, 0.7, 0.9}",
     # "IoU with M^v is ≥ 0.1", "nu = 1000, tau = 300, kappa = 0, omega = 0", "256 bins",
     # "RQS = (s_sem · s_geo · s_str)^(1/3)", "20,000 resamples", dilate "by 5, 10, 15 px".
     assert P.XI_DEFAULT == 0.3 and P.XI_SWEEP == (0.3, 0.5, 0.7, 0.9) and P.XI_DEFAULT in P.XI_PUBLIC
@@ -168,3 +174,75 @@ def test_protocol_values_match_the_spec():
     assert (P.GHT_NU, P.GHT_TAU, P.GHT_KAPPA, P.GHT_OMEGA, P.GHT_BINS) == (1000, 300, 0, 0, 256)
     assert P.AXES == ("s_sem", "s_geo", "s_str")
     assert P.N_BOOT == 20000 and P.BOUNDARY_PX == (5, 10, 15)
+
+
+#: A protocol value in output prose: (constant, the value as written, the symbols it stands beside
+#: (within PROSE_WINDOW characters either side); None: the number alone says which constant).
+PROSE_VALUES = [
+    ("XI_DEFAULT", r"0\.3", r"xi|ξ|threshold|acc_seg|\bseg\b|iou|s_sem"),
+    ("RETAIN_IOU", r"0\.1", r"iou|retain"),
+    ("GHT_NU / GHT_TAU", r"1000|300", r"\bnu\b|\btau\b|ν|τ"),
+    ("N_BOOT", r"20,?000", r"resampl|bootstrap|default|n.boot"),
+    ("N_PERM", r"5,?000", r"permut|default|n.perm"),
+    ("CI_LEVEL", r"95 ?\\?%|0\.95", r"\bCI\b|confidence"),
+    ("BOUNDARY_PX", r"5\D{1,3}10\D{1,3}15", None),
+]
+PROSE_WINDOW = 16
+
+
+def _output_strings(tree: ast.AST):
+    """The string constants of ``tree`` that can reach output: all but docstrings (a string alone as
+    a statement), f-string pieces included."""
+    docs = {id(n.value) for n in ast.walk(tree) if isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant)}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
+            yield node
+
+
+def prose_scan(source: str, filename: str = "<src>") -> list[str]:
+    """Protocol values written into the output strings of ``source``: 'file:line: CONSTANT: text'."""
+    import re
+
+    hits = []
+    for node in _output_strings(ast.parse(source, filename)):
+        text = node.value
+        for const, value, symbols in PROSE_VALUES:
+            for m in re.finditer(rf"(?<![\d.])(?<!\d,)(?:{value})(?!\d|,\d)", text):
+                near = text[max(0, m.start() - PROSE_WINDOW): m.end() + PROSE_WINDOW]
+                if symbols is None or re.search(symbols, near, re.IGNORECASE):
+                    hits.append(f"{filename}:{node.lineno}: {const}: {text[:80]!r}")
+    return sorted(set(hits))
+
+
+def test_no_protocol_value_typed_into_output_prose():
+    hits = []
+    for path in sorted(PKG.rglob("*.py")):
+        if not (path.name == "protocol.py" and path.parent == PKG):
+            hits += prose_scan(path.read_text(encoding="utf-8"), str(path.relative_to(PKG.parent)))
+    assert not hits, ("protocol values typed into output text (format them from r360gpu.protocol, "
+                      "f\"xi = {XI_DEFAULT:g}\"):\n" + "\n".join(hits))
+
+
+@pytest.mark.parametrize("src, expect", [
+    ('NOTE = "s_sem uses xi = 0.3; higher thresholds count fewer views"', "XI_DEFAULT"),
+    ('h = ("acc_seg (xi=0.3)", r"acc$_{\\mathrm{seg},0.3}$")', "XI_DEFAULT"),
+    ('t = f"IoU_post &lt; 0.3; {n} views"', "XI_DEFAULT"),
+    ('t = f"below {low:g} (s_sem 0/1 at xi = 0.3, acc_depth)"', "XI_DEFAULT"),
+    ('p.add_argument("--xi", help="(0.3 is s_sem and always reported)")', "XI_DEFAULT"),
+    ('c = Cell("95% CI", r"95\\% CI")', "CI_LEVEL"),
+    ('h = "bootstrap resamples (default: 20000)"', "N_BOOT"),
+    ('h = "GHT with nu = 1000"', "GHT_NU"),
+    ('m = "masks with IoU >= 0.1 are kept"', "RETAIN_IOU"),
+    ('m = "erode by 5, 10, 15 px"', "BOUNDARY_PX"),
+])
+def test_prose_scanner_finds_a_typed_value(src, expect):
+    hits = prose_scan(src)
+    assert any(expect in h for h in hits), hits
+
+
+def test_prose_scanner_leaves_docstrings_formatted_values_and_other_numbers():
+    src = ('"""s_sem = acc_seg at xi = 0.3; nu = 1000, 95% CI."""\n'
+           'def f(n):\n    """xi = 0.3"""\n'
+           '    return f"xi = {XI_DEFAULT:g}; opacity 0.3; width:95%; {n:.3f}; 0.35 of 20001; port 5000x"\n'
+           'CSS = "a{opacity:0.3} b{width:95%}"\n')
+    assert prose_scan(src) == []

@@ -80,6 +80,16 @@ def method_axes(records: list[ViewRecord], *, xis=XI_SWEEP, boundary: list[dict]
     return out
 
 
+def per_view_axes(records, *, xis=XI_SWEEP) -> dict[str, dict]:
+    """{view: `method_axes` of that view's record alone} for a method's per-view records
+    (`ViewRecord` or their dicts), in their order."""
+    out = {}
+    for r in records:
+        rec = ViewRecord.from_dict(r) if isinstance(r, dict) else r
+        out[rec.view] = method_axes([rec], xis=xis)
+    return out
+
+
 def _empty_target(r: ViewRecord) -> bool:
     for v in list(r.semantic.values()) + list(r.structural.values()):
         return bool(v.empty_target)

@@ -33,8 +33,8 @@ def add_scoring_options(p) -> None:
                         "save_intermediate=True depth path) or 'public-default' (their default path, which "
                         "marks SMALL depth changes); on a public folder every axis is the scripts' number")
     g.add_argument("--xi", action=ListAction, item_type=float, default=None, metavar="XI",
-                   help="acc_seg threshold to report; repeat the flag or give a comma list (0.3 is s_sem and "
-                        "always reported; default 0.3,0.5,0.7,0.9)")
+                   help=f"acc_seg threshold to report; repeat the flag or give a comma list ({XI_DEFAULT:g} is "
+                        f"s_sem and always reported; default {','.join(f'{x:g}' for x in XI_SWEEP)})")
     g.add_argument("--depth", choices=["expected", "median"], default=None,
                    help="rendered depth used for the geometric axis (default: the bundle's, else expected)")
     g.add_argument("--antialiased", action="store_true",

@@ -66,9 +66,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="OUT", help="also write the numbers to this JSON file (atomically)")
     p.add_argument("--format", choices=FORMATS, default="md", help="table format printed (default: md)")
     p.add_argument("--n-boot", type=_positive_int, default=N_BOOT, metavar="N",
-                   help="bootstrap resamples for P(beats best) (default: 20000)")
+                   help="bootstrap resamples for P(beats best) (default: %(default)s)")
     p.add_argument("--n-perm", type=_positive_int, default=N_PERM, metavar="N",
-                   help="within-scene permutations for the scene-centred rho p-value (default: 5000)")
+                   help="within-scene permutations for the scene-centred rho p-value (default: %(default)s)")
     p.add_argument("--seed", type=_non_negative_int, default=0,
                    help="seed of the bootstrap and permutation generators (default: 0)")
     p.add_argument("--rank-decimals", type=_non_negative_int, default=None, metavar="D",

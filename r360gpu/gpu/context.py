@@ -29,7 +29,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .adapter import select_adapter
-from .shaders import load_shader_source
+from .shaders import check_bindings, load_shader_source
 
 # Usage flags spelled once, so callers need not import wgpu.
 STORAGE = 0x80  # wgpu.BufferUsage.STORAGE
@@ -76,6 +76,18 @@ class BufferRange:
     buffer: Any
     offset: int
     size: int
+
+
+@dataclass
+class DeviceDepth:
+    """A depth image already on the device: ``height x width`` float32,
+    row-major, starting at byte ``offset`` (a multiple of 4) of ``buffer``
+    (needs the STORAGE and COPY_SRC usages)."""
+
+    buffer: Any
+    height: int
+    width: int
+    offset: int = 0
 
 
 _F32 = struct.Struct("<f")
@@ -130,6 +142,7 @@ class GpuContext:
             self._set_device_facts(dict(adapter.limits), set(_requested(adapter)[1]), adapter.info)
         self._modules: dict[str, Any] = {}
         self._pipelines: dict[tuple, Any] = {}
+        self._checked_bindings: set[tuple] = set()  # (shader, host binding names) found to agree
         self._scratch: dict = {}
         self._staging = None
         self._uniforms: OrderedDict[bytes, Any] = OrderedDict()
@@ -240,14 +253,22 @@ class GpuContext:
                 self._modules[name] = mod
             return mod
 
-    def pipeline(self, name: str, entry_point: str = "main", constants: dict | None = None):
+    def pipeline(self, name: str, entry_point: str = "main", constants: dict | None = None,
+                 bindings: Sequence[str | None] | None = None):
         """A compute pipeline for ``entry_point`` of shader ``name`` (cached).
 
-        ``constants`` sets WGSL ``override`` declarations (e.g. workgroup size).
+        ``constants`` sets WGSL ``override`` declarations (e.g. workgroup size).  ``bindings``: the
+        WGSL names of the resources the host binds, by position (``bindings[i]`` is the variable at
+        ``@binding(i)``); a shader that declares others raises ValueError
+        (`r360gpu.gpu.shaders.check_bindings`).
         """
         key = (name, entry_point, tuple(sorted((constants or {}).items())))
         with self._lock:
             pipe = self._pipelines.get(key)
+        if bindings is not None and (name, tuple(bindings)) not in self._checked_bindings:
+            check_bindings(name, bindings)
+            with self._lock:
+                self._checked_bindings.add((name, tuple(bindings)))
         if pipe is None:
             stage = {"module": self.shader(name), "entry_point": entry_point}
             if constants:

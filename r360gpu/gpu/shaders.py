@@ -154,3 +154,40 @@ def workgroup_threads(name: str, entry_point: str = "main") -> int:
     """Invocations in one workgroup of ``entry_point`` (the product of its workgroup size)."""
     x, y, z = workgroup_size(name, entry_point)
     return x * y * z
+
+
+# ---- bindings the shaders declare, checked against the host's names -----------------------------
+# The host binds resources by position (``@binding(i)`` gets ``resources[i]``); a kernel module also
+# states the WGSL names of those positions, and the pipeline is refused when they disagree, so a
+# binding moved in the WGSL (or a list written in another order) fails with a message, not a
+# wrong image.
+
+_LINE_COMMENT = re.compile(r"//[^\n]*")
+_BINDING = re.compile(r"((?:@\w+\(\s*\w+\s*\)\s*)+)var(?:<[^>]*>)?\s+(\w+)")
+_ATTR = re.compile(r"@(group|binding)\(\s*(\d+)\s*\)")
+
+
+@lru_cache(maxsize=None)
+def _bindings_of(source: str) -> dict[int, dict[int, str]]:
+    out: dict[int, dict[int, str]] = {}
+    for m in _BINDING.finditer(_LINE_COMMENT.sub("", source)):
+        attrs = dict(_ATTR.findall(m.group(1)))
+        if "binding" in attrs:
+            out.setdefault(int(attrs.get("group", 0)), {})[int(attrs["binding"])] = m.group(2)
+    return out
+
+
+def shader_bindings(name: str, group: int = 0) -> dict[int, str]:
+    """{binding number: variable name} of bind group ``group`` in shader ``name`` (includes expanded)."""
+    return dict(_bindings_of(load_shader_source(name)).get(group, {}))
+
+
+def check_bindings(name: str, names, group: int = 0) -> None:
+    """Raise ValueError unless shader ``name`` declares ``names[i]`` at ``@binding(i)`` of ``group``
+    for every ``i`` (``names[i]`` None: position ``i`` left unchecked)."""
+    declared = shader_bindings(name, group)
+    wrong = [f"@binding({i}) is {declared[i]!r} in the WGSL, the host binds {n!r} there" if i in declared
+             else f"the WGSL declares no @binding({i}), the host binds {n!r} there"
+             for i, n in enumerate(names) if n is not None and declared.get(i) != n]
+    if wrong:
+        raise ValueError(f"{name}.wgsl, group {group}: " + "; ".join(wrong))

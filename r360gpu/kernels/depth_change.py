@@ -42,10 +42,12 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from ..gpu.context import BufferRange, GpuContext, get_context
+from ..gpu.context import BufferRange, DeviceDepth, GpuContext, get_context
 from ..gpu.shaders import shader_constants, workgroup_threads
 
 SHADER = "depth_change"
+#: The WGSL names of the resources the calls here bind, by position (checked at pipeline creation).
+BINDINGS = ("P", "d_pre", "d_post", "delta", "stats", "hist", "m_words", "changed_words", "nd_words")
 _SIZES = shader_constants(SHADER)  # the sizes depth_change.wgsl states
 QV = _SIZES["QV"]  # vec4s per invocation in delta_minmax / histo
 N_BINS = _SIZES["N_BINS"]
@@ -69,18 +71,6 @@ def histogram_entry(ctx: GpuContext) -> str:
     if forced in ("histo", "histo_private"):
         return forced
     return "histo_private" if ctx.adapter_info.get("adapter_type") == "CPU" else "histo"
-
-
-@dataclass
-class DeviceDepth:
-    """A depth image already on the device: ``height x width`` float32,
-    row-major, starting at byte ``offset`` (a multiple of 4) of ``buffer``
-    (needs the STORAGE and COPY_SRC usages)."""
-
-    buffer: object
-    height: int
-    width: int
-    offset: int = 0
 
 
 @dataclass
@@ -199,7 +189,7 @@ def delta_histograms(d_pre, d_posts, *, ctx: GpuContext | None = None) -> list[D
     init = np.zeros((n, stride // 4), np.uint32)
     init[:, 0] = 0xFFFFFFFF
     stats = ctx.buffer(init, label="depth_stats")
-    pipe = ctx.pipeline(SHADER, "delta_minmax")
+    pipe = ctx.pipeline(SHADER, "delta_minmax", bindings=BINDINGS)
     enc = ctx.encoder()
     for r0 in range(0, h, rows):
         r1 = min(h, r0 + rows)
@@ -220,7 +210,7 @@ def delta_histograms(d_pre, d_posts, *, ctx: GpuContext | None = None) -> list[D
     st = ctx.read(stats, np.uint32, n * stride // 4).reshape(n, -1)
     hist = ctx.buffer(n * stride * 4, label="hist")  # 256 u32 per image, stride-aligned
     entry = histogram_entry(ctx)
-    pipe = ctx.pipeline(SHADER, entry)
+    pipe = ctx.pipeline(SHADER, entry, bindings=BINDINGS)
     enc = ctx.encoder()
     for k, r in enumerate(res):
         r.lo = float(np.uint32(st[k, 0]).view(np.float32))
@@ -345,7 +335,7 @@ def changed_in_masks(stages, mask, ts, *, ctx: GpuContext | None = None) -> list
     n = len(stages)
     stride = _STATS_STRIDE
     stats = ctx.buffer(np.zeros(n * stride // 4, np.uint32), label="changed_stats")
-    pipe = ctx.pipeline(SHADER, "changed")
+    pipe = ctx.pipeline(SHADER, "changed", bindings=BINDINGS)
     pending = []
     enc = ctx.encoder()
     m_bufs = {}

@@ -32,6 +32,8 @@ from ..gpu.shaders import shader_constant
 from ..util.memo import ByIdentity
 
 SHADER = "mask_iou"
+#: The WGSL names of the resources the calls here bind, by position (checked at pipeline creation).
+BINDINGS = ("P", "a_words", "a_boxes", "b_words", "b_boxes", "out", "out_boxes")
 _HOST_COUNTS = hasattr(np, "bitwise_count")  # numpy >= 2; else intersections always run the kernel
 WG = shader_constant(SHADER, "WG")  # workgroup size of every entry point in mask_iou.wgsl
 _RANGES_EMPTY = (0, 0)
@@ -303,7 +305,7 @@ def _pack_device(dm: DeviceMasks, ctx: GpuContext) -> PackedMasks:
         kchunk = 1
     else:
         kchunk = max(1, min(kchunk, (span - hw) // hw + 1))
-    pipe = ctx.pipeline(SHADER, "pack")
+    pipe = ctx.pipeline(SHADER, "pack", bindings=BINDINGS)
     for k0 in range(0, n, kchunk):
         k1 = min(n, k0 + kchunk)
         for r0 in range(0, h, rchunk):
@@ -340,7 +342,7 @@ def areas(masks, *, ctx: GpuContext | None = None) -> np.ndarray:
     if p.areas_host is not None:
         return p.areas_host.copy()
     out = np.zeros(p.n, np.int64)
-    pipe = ctx.pipeline(SHADER, "area")
+    pipe = ctx.pipeline(SHADER, "area", bindings=BINDINGS)
     for c in device_chunks(p, ctx):
         nk = c.k1 - c.k0
         buf = ctx.buffer(nk * 4)
@@ -362,7 +364,7 @@ def intersections(a, b, *, ctx: GpuContext | None = None) -> np.ndarray:
             and pb.words_host is not None:
         return _intersections_host(pa, pb, inter)
     device_chunks(pa, ctx), device_chunks(pb, ctx)
-    pipe = ctx.pipeline(SHADER, "intersect")
+    pipe = ctx.pipeline(SHADER, "intersect", bindings=BINDINGS)
     max_out = ctx.max_binding_bytes // 4
     pending = []
     enc = ctx.encoder()
@@ -469,7 +471,7 @@ def union(masks, *, ctx: GpuContext | None = None) -> np.ndarray:
         words = np.bitwise_or.reduce(p.words_host, axis=0) if p.n else np.zeros((p.height, rw), np.uint32)
         return unpack_bits(words[None], p.width)[0]
     words = np.zeros((p.height, rw), np.uint32)
-    pipe = ctx.pipeline(SHADER, "union_or")
+    pipe = ctx.pipeline(SHADER, "union_or", bindings=BINDINGS)
     for c in device_chunks(p, ctx):
         nk, nr = c.k1 - c.k0, c.r1 - c.r0
         buf = ctx.buffer(nr * rw * 4)

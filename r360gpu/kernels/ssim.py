@@ -49,6 +49,8 @@ from ..gpu.context import GpuContext, get_context
 from ..gpu.shaders import shader_constants
 
 SHADER = "ssim"
+#: The WGSL names of the resources the calls here bind, by position (checked at pipeline creation).
+BINDINGS = ("P", "img_x", "img_y", "hs", "partial")
 WIN = 11
 SIGMA = 1.5
 K1, K2 = 0.01, 0.03
@@ -161,7 +163,8 @@ def ssim_mse_many(posts: Sequence, ref, *, ctx: GpuContext | None = None,
     c1, c2 = (K1 * scale) ** 2, (K2 * scale) ** 2
     vh, vw = h - (WIN - 1), w - (WIN - 1)
     band = _band_rows(ctx, w, c, itemsize)
-    p_h, p_v, p_sq = (ctx.pipeline(SHADER, e, {"IS_U8": int(u8)}) for e in ("ssim_h", "ssim_v", "sqdiff"))
+    p_h, p_v, p_sq = (ctx.pipeline(SHADER, e, {"IS_U8": int(u8)}, bindings=BINDINGS)
+                      for e in ("ssim_h", "ssim_v", "sqdiff"))
     sums = np.zeros(len(xs), np.float64)
     sq = np.zeros(len(xs), np.float64)
     for o0 in range(0, vh, band):

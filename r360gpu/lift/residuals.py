@@ -39,21 +39,13 @@ from .device import MaskLifter
 FLAG_BELOW = 0.5
 
 
-def flagged_views(records, xis=(0.3,)) -> list[str]:
-    """Views (names) of a method's per-view records (`ViewRecord`
-    or their dicts) where some axis flags evidence: the semantic probe fires in M on I_post
-    (s_sem), the depth in M stays pre's (acc_depth), or the structure differs (s_str), each below
-    `FLAG_BELOW` on that view alone."""
-    from ..aggregate.results import method_axes
-    from ..metrics.record import ViewRecord
-
-    out = []
-    for r in records:
-        rec = ViewRecord.from_dict(r) if isinstance(r, dict) else r
-        axes = method_axes([rec], xis=xis)
-        if any(axes.get(k) is not None and axes[k] < FLAG_BELOW for k in AXES):
-            out.append(rec.view)
-    return out
+def flagged_views(view_axes: dict[str, dict]) -> list[str]:
+    """The views of ``view_axes`` ({view: that view's axes alone}, as
+    `r360gpu.aggregate.results.per_view_axes` gives them for a method's records) where some
+    axis flags evidence: the semantic probe fires in M on I_post (s_sem), the depth in M stays pre's
+    (acc_depth), or the structure differs (s_str), each below `FLAG_BELOW` on that view alone."""
+    return [v for v, axes in view_axes.items()
+            if any(axes.get(k) is not None and axes[k] < FLAG_BELOW for k in AXES)]
 
 
 #: A Gaussian whose centre lies within this many standard deviations (along the viewing ray) of the

@@ -37,7 +37,7 @@ NOTE_UNIT = "depth unit differs from pre"
 def _host(depth) -> np.ndarray | None:
     if depth is None:
         return None
-    from ..kernels.depth_change import DeviceDepth
+    from ..gpu.context import DeviceDepth
 
     if isinstance(depth, DeviceDepth):
         from ..render.sources import host_depth  # noqa: layer below the pipeline that calls us

@@ -50,7 +50,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels.ssim import image_hwc, ssim_mse_many
-from ..probes.base import file_sha256
+from ..util.filehash import file_sha256
 from . import json_values
 
 SSIM_WIN = 11

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..bundle.names import DERIVED_SUFFIXES
 from ..errors import InputError
+from ..protocol import XI_DEFAULT
 from .orbit import _gaussians, _is_scene
 
 #: Indices of the highest residuals recorded per method.
@@ -103,9 +104,10 @@ def _behind(bundle, cams, ctx, warn):
             "in front of pre's surface behind the target")
 
 
-def scene_residuals(bundle, scene_res: dict, out, *, ctx=None, xis=(0.3,), warn=None) -> tuple[dict, dict]:
+def scene_residuals(bundle, scene_res: dict, out, *, ctx=None, xis=(XI_DEFAULT,), warn=None) -> tuple[dict, dict]:
     """({method: {"file", "flagged_views", "top", "max", "gate"} or {"note"}}, {method: (N,) residual})
     for ``bundle`` scored as ``scene_res``; the PLYs are written under ``out`` (None: not written)."""
+    from ..aggregate.results import per_view_axes
     from ..lift.residuals import flagged_views, residuals, top_residuals, write_residual_ply
 
     entry: dict = {}
@@ -120,7 +122,7 @@ def scene_residuals(bundle, scene_res: dict, out, *, ctx=None, xis=(0.3,), warn=
     masks = _masks(bundle, cams)
     behind, gate = _behind(bundle, cams, ctx, warn)
     for m, spec in splat.items():
-        flagged = flagged_views(scene_res["methods"][m]["views"], xis=xis)
+        flagged = flagged_views(per_view_axes(scene_res["methods"][m]["views"], xis=xis))
         g, options, frame = _gaussians(spec)
         r = residuals(g, cams, masks, flagged, behind=behind, ctx=ctx, options=options, frame=frame)
         values[m] = r

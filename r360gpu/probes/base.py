@@ -22,15 +22,11 @@ that produced it (``probe``) so later stages can combine or compare them.
 """
 from __future__ import annotations
 
-import hashlib
-import os
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
-from r360gpu.errors import InputError
 
 __all__ = [
     "RENDERINGS",
@@ -40,7 +36,6 @@ __all__ = [
     "Probe",
     "SemanticProbe",
     "StructuralProbe",
-    "file_sha256",
     "check_results",
 ]
 
@@ -199,21 +194,6 @@ class MaskSet:
     def size(self) -> tuple[int, int]:
         """(H, W) in pixels."""
         return int(self.masks.shape[1]), int(self.masks.shape[2])
-
-
-def file_sha256(path: str | os.PathLike) -> str:
-    """Hex SHA-256 of a file's bytes (for the model hashes in ``describe()``).
-
-    Raises InputError naming the file when it cannot be read.
-    """
-    digest = hashlib.sha256()
-    try:
-        with open(path, "rb") as f:
-            for block in iter(lambda: f.read(1 << 20), b""):
-                digest.update(block)
-    except OSError as exc:
-        raise InputError(f"cannot read model file ({exc.strerror or exc})", path) from None
-    return digest.hexdigest()
 
 
 class Probe(ABC):

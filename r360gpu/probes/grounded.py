@@ -55,10 +55,11 @@ from pathlib import Path
 import numpy as np
 
 from r360gpu.errors import InputError, R360Error
-from r360gpu.probes.base import ProbeView, SemanticPrediction, SemanticProbe, file_sha256
+from r360gpu.probes.base import ProbeView, SemanticPrediction, SemanticProbe
 from r360gpu.probes.onnx_models import OnnxModel, SamModels
 from r360gpu.probes.prompt_rule import PROMPT_RULE, label_matches
 from r360gpu.probes.preprocess import as_rgb01, dino_encoder_input, dino_input_shape
+from r360gpu.util.filehash import file_sha256
 
 __all__ = [
     "GroundingParams",

@@ -69,7 +69,7 @@ from typing import NoReturn
 import numpy as np
 
 from r360gpu.errors import InputError
-from r360gpu.probes.base import file_sha256
+from r360gpu.util.filehash import file_sha256
 from r360gpu.probes.preprocess import (
     as_rgb01,
     resize_logits,

@@ -156,7 +156,7 @@ class DeviceViewsSource:
                              f"pass the same device (or ctx) to DeviceViewsSource and evaluate()")
 
     def images(self, view: str, camera=None) -> ViewImages:
-        from ..kernels.depth_change import DeviceDepth
+        from ..gpu.context import DeviceDepth
         from .renderer import DeviceRender
 
         if view not in self.views:
@@ -184,7 +184,7 @@ class DeviceViewsSource:
 
 def host_depth(depth, ctx=None) -> np.ndarray | None:
     """A depth image on the host (reads a DeviceDepth back; arrays pass through)."""
-    from ..kernels.depth_change import DeviceDepth
+    from ..gpu.context import DeviceDepth
 
     if isinstance(depth, DeviceDepth):
         from ..gpu import get_context

@@ -35,7 +35,7 @@ import warnings
 from pathlib import Path
 
 from ..errors import R360Warning
-from ..protocol import AXES
+from ..protocol import AXES, XI_DEFAULT
 from ..util.atomic import write_text
 from ..util.warning_log import format_record
 from . import findings
@@ -98,7 +98,7 @@ def per_view_table_html(results: dict, scene: str, rows: list[dict]) -> str:
     label = {"s_str": "s_str (sim_SAM)" if mode == "reference" else "s_str (1 - sim_SAM)",
              "s_sem": "s_sem (not found)"}
     h = ['<table class="sortable perview"><caption>Per view (click a header to sort, a view for its contact sheet; s_sem is 1 when the '
-         'semantic probe no longer finds the object, IoU_post &lt; 0.3; t_depth is the GHT threshold; '
+         f'semantic probe no longer finds the object, IoU_post &lt; {XI_DEFAULT:g}; t_depth is the GHT threshold; '
          + ('no depth: pixels of the target with no depth after removal, a see-through hole that acc_depth counts '
             'as unchanged; ' if any(c[0] == "no_depth" for c in cols) else '')
          + 'mean = mean of s_sem, acc_depth, s_str)</caption><thead><tr><th class="lab">Method</th><th class="lab">View</th>'

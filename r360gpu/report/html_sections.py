@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..metrics.semantic import SemanticView, semantic_summary
 from ..metrics.structural import StructuralView, structural_summary
-from ..protocol import AXES
+from ..protocol import AXES, XI_DEFAULT
 from . import findings
 from .embed import JPEG_QUALITY
 from .findings import LOW_AXIS
@@ -136,7 +136,7 @@ def probe_readings(results: dict, scene: str, method: str) -> list[tuple[str, st
     for p, views in sem.items():
         s = semantic_summary(views, include_empty_targets=include)
         vals = (f"mIoU_pre {fmt_number(s.iou_pre, 3)}, mIoU_post {fmt_number(s.iou_post, 3)}, IoU_drop {fmt_number(s.iou_drop, 3)}, "
-                f"acc_seg(0.3) {fmt_number(s.s_sem, 3)}")
+                f"acc_seg({XI_DEFAULT:g}) {fmt_number(s.s_sem, 3)}")
         out.append((p, "semantic", vals, f"{s.n_scored}/{s.n_views}"))
     for p, views in struct.items():
         s = structural_summary(views, include_empty_targets=include)
@@ -192,7 +192,7 @@ def worst_views_html(results: dict, out_dir: Path, rows: list[dict], problems: l
     if not scored:
         return ""
     h = ['<h3>Where each method leaks most</h3><p class="notes">Per method, among the views where an axis '
-         f"is below {findings.LOW_AXIS:g} (s_sem 0/1 at xi = 0.3, acc_depth, s_str), the one with the lowest "
+         f"is below {findings.LOW_AXIS:g} (s_sem 0/1 at xi = {XI_DEFAULT:g}, acc_depth, s_str), the one with the lowest "
          "mean of those axes; I_post with the target outlined in green. Click for the contact sheet.</p>",
          '<div class="thumbs">']
     clean = [m for m in method_names(results) if m in scored and m not in worst]

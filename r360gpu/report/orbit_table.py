@@ -7,7 +7,7 @@ aggregate tables or any rank.
 """
 from __future__ import annotations
 
-from ..protocol import AXES
+from ..protocol import AXES, XI_DEFAULT
 from .tables import Cell, Table
 
 #: The columns: the protocol's axes, then RQS.
@@ -34,14 +34,10 @@ def doubts(entry: dict) -> str:
 
 def worst_views(orbit: dict, method: str, xis, k: int = WORST_VIEWS) -> list[tuple[str, float]]:
     """The ``k`` orbit views of ``method`` with the lowest single-view RQS, as (view, rqs)."""
-    from ..aggregate.results import method_axes
-    from ..metrics.record import ViewRecord
+    from ..aggregate.results import per_view_axes
 
-    out = []
-    for d in orbit["methods"][method]["views"]:
-        axes = method_axes([ViewRecord.from_dict(d)], xis=xis)
-        if axes.get("rqs") is not None:
-            out.append((d["view"], float(axes["rqs"])))
+    out = [(v, float(axes["rqs"])) for v, axes in per_view_axes(orbit["methods"][method]["views"], xis=xis).items()
+           if axes.get("rqs") is not None]
     return sorted(out, key=lambda t: t[1])[:k]
 
 
@@ -50,7 +46,7 @@ def orbit_table(results: dict) -> Table | None:
     scenes = [s for s, e in results.get("scenes", {}).items() if "orbit" in e]
     if not scenes:
         return None
-    xis = tuple(results.get("options", {}).get("xis") or (0.3,))
+    xis = tuple(results.get("options", {}).get("xis") or (XI_DEFAULT,))
     rows, notes = [], []
     for s in scenes:
         entry, orbit = results["scenes"][s], results["scenes"][s]["orbit"]

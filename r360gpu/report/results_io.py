@@ -1,7 +1,7 @@
 """results.json and results.csv: writing, reading back, and reading values out.
 
-results.json is the one document an evaluation run produces (structure in
-``notes/issue6_design.md``; schema tag :data:`RESULTS_SCHEMA`)::
+results.json is the one document an evaluation run produces (built by
+`r360gpu.pipeline.results_doc`, which states its keys; schema tag :data:`RESULTS_SCHEMA`)::
 
     {"schema": "r360gpu.results/1", "r360gpu_version", "created", "adapter", "options", "probes",
      "scenes": {SCENE: {"prompt", "n_views", "views", "reference", "excluded_views",

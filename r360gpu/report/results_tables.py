@@ -27,6 +27,7 @@ import os
 from pathlib import Path
 
 from ..metrics.fidelity import FidelityView, fidelity_summary
+from ..protocol import XI_DEFAULT
 from ..util.atomic import write_text
 from .results_io import method_entry, method_names, number, scene_names, structural_modes
 from .tables import (
@@ -46,7 +47,7 @@ TABLES_TEX = "tables.tex"
 # (key in the method's "axes", Markdown header, LaTeX header, decimals, higher is better)
 _AXIS_SPECS = {
     "iou_drop": ("IoU_drop", r"IoU$_{\mathrm{drop}}\uparrow$", 3, True),
-    "s_sem": ("acc_seg (xi=0.3)", r"acc$_{\mathrm{seg},0.3}\uparrow$", 3, True),
+    "s_sem": (f"acc_seg (xi={XI_DEFAULT:g})", rf"acc$_{{\mathrm{{seg}},{XI_DEFAULT:g}}}\uparrow$", 3, True),
     "s_geo": ("acc_depth", r"acc$_{\Delta\mathrm{depth}}\uparrow$", 3, True),
     "psnr": ("PSNR (dB)", r"PSNR$\uparrow$", 2, True),
     "ssim": ("SSIM", r"SSIM$\uparrow$", 3, True),
@@ -204,7 +205,7 @@ def main_table(results: dict, *, doubt_marks: bool = True) -> Table:
         for row, cell in zip(rows, number_cells(values, decimals, True, higher)):
             row[j] = doubt_mark(results, key, cell) if doubt_marks else cell
     notes = [
-        f"acc_seg = s_sem (IoU threshold 0.3); acc_depth = s_geo; {str_note}.",
+        f"acc_seg = s_sem (IoU threshold {XI_DEFAULT:g}); acc_depth = s_geo; {str_note}.",
         f"RQS is the geometric mean of the three {_pooling(results)} pooled axes; AvgRank is the mean of the "
         "per-axis ranks. IoU_drop is a diagnostic and enters neither.",
     ]
@@ -308,7 +309,7 @@ def xi_table(results: dict) -> Table | None:
         header=header,
         rows=rows,
         notes=((f"Values are {pooling} averages. " if isinstance(pooling, str) else "")
-               + "s_sem uses xi = 0.3; higher thresholds count fewer views as detected.",),
+               + f"s_sem uses xi = {XI_DEFAULT:g}; higher thresholds count fewer views as detected.",),
     )
 
 

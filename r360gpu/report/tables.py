@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
-from ..protocol import AXES
+from ..protocol import AXES, CI_LEVEL, XI_DEFAULT
 
 FORMATS = ("md", "latex")
 _NONE = "--"
@@ -22,7 +22,7 @@ _AXIS_HEADERS = {
     "s_geo": ("s_geo", r"$s_{\mathrm{geo}}$"),
     "s_str": ("s_str", r"$s_{\mathrm{str}}$"),
 }
-_AXES_NOTE = ("s_sem = acc_seg at IoU threshold 0.3; s_geo = acc_depth; s_str = sim_SAM(post, ref), "
+_AXES_NOTE = (f"s_sem = acc_seg at IoU threshold {XI_DEFAULT:g}; s_geo = acc_depth; s_str = sim_SAM(post, ref), "
               "or 1 - sim_SAM(pre, post) without a post-removal reference.")
 _PAIR_HEADERS = {
     "sem-geo": ("s_sem vs s_geo", r"$s_{\mathrm{sem}}$ vs.\ $s_{\mathrm{geo}}$"),
@@ -217,7 +217,8 @@ def reliability_table(result: dict) -> Table:
     rel = result["reliability"]
     best = result.get("reliability_best", "best")
     settings = result.get("settings", {})
-    header = [Cell("Method"), Cell("mean RQS"), Cell("sd"), Cell("range"), Cell("95% CI", r"95\% CI"),
+    ci = f"{CI_LEVEL:.0%} CI"
+    header = [Cell("Method"), Cell("mean RQS"), Cell("sd"), Cell("range"), Cell(ci, ci.replace("%", r"\%")),
               Cell(f"P(beats {best})", f"$P$(beats {_latex_escape(best)})")]
     rows = []
     means = number_cells([rel[m]["mean"] for m in methods], 3, emphasise=True)
@@ -237,7 +238,7 @@ def reliability_table(result: dict) -> Table:
         title="Reliability of the ranking across scenes (scene-macro mean RQS).",
         header=header,
         rows=rows,
-        notes=("sd over scenes with ddof=1; 95% CI: percentile interval of the paired scene-level bootstrap "
+        notes=(f"sd over scenes with ddof=1; {ci}: percentile interval of the paired scene-level bootstrap "
                "(the paper prints mean +- 1.96 sd / sqrt(scenes)).",
                f"P(beats {best}): the same bootstrap" + (f" ({n_boot} resamples)." if n_boot else ".")),
     )

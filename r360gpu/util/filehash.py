@@ -36,6 +36,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
+from ..errors import InputError
+
 _CHUNK = 1 << 20
 _memo: dict[str, list] = {}
 _decoded: dict[str, str] = {}  # absolute path -> digest of the bytes read_file last returned
@@ -103,6 +105,21 @@ def read_file(path: str | os.PathLike) -> bytes:
     with _lock:
         _decoded[key] = digest
     return data
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """Hex SHA-256 of a file's bytes (for the model hashes in ``describe()``).
+
+    Raises InputError naming the file when it cannot be read.
+    """
+    digest = hashlib.sha256()
+    try:
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                digest.update(block)
+    except OSError as exc:
+        raise InputError(f"cannot read model file ({exc.strerror or exc})", path) from None
+    return digest.hexdigest()
 
 
 def file_stamp(path: str | os.PathLike) -> list | None:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from r360gpu.gpu.context import BufferRange, GpuContext
-from r360gpu.kernels.depth_change import DeviceDepth
+from r360gpu.gpu.context import DeviceDepth
 from r360gpu.render.rasterize import PLANES, plane_stride
 
 #: Plane index of each depth mode.

@@ -34,6 +34,8 @@ from . import colormaps
 from .layers import PlaneImage
 
 SHADER = "viewer_overlay"
+#: The WGSL names of the resources the calls here bind, by position (checked at pipeline creation).
+BINDINGS = ("P", "scene_rgb", "scene_depth", "pre_depth", "mask_words", "probe_ids", "cmap", "out_rgba", "stats")
 _TILE_XY = workgroup_size(SHADER, "overlay")  # pixels one overlay workgroup covers
 HEAT_BELOW = 0.35
 CHANGED_RGB = (1.0, 0.1, 0.75)
@@ -151,7 +153,8 @@ class OverlayPass:
             probe_ids if probe_ids is not None else self._dummy,
             self.cmap_buffer(settings.colormap), out,
         ]
-        ctx.dispatch(enc, ctx.pipeline(SHADER, "overlay"), resources, (math.ceil(w / _TILE_XY[0]), math.ceil(h / _TILE_XY[1]), 1))
+        ctx.dispatch(enc, ctx.pipeline(SHADER, "overlay", bindings=BINDINGS), resources,
+                     (math.ceil(w / _TILE_XY[0]), math.ceil(h / _TILE_XY[1]), 1))
 
     def depth_range(self, image: PlaneImage) -> tuple[float, float] | None:
         """(min, max) of the valid depths of ``image`` (waits for the device), None without coverage."""
@@ -160,7 +163,7 @@ class OverlayPass:
         params = ctx.uniform(int(image.width), int(image.height), int(image.stride), 0, 1, 0, 0, 0,
                              0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         n = image.width * image.height
-        ctx.run(ctx.pipeline(SHADER, "depth_range"),
+        ctx.run(ctx.pipeline(SHADER, "depth_range", bindings=BINDINGS),
                 [params, None, image.depth_window(), None, None, None, None, None, stats], math.ceil(n / workgroup_threads(SHADER, "depth_range")))
         lo_bits, hi_bits = ctx.read(stats, np.uint32, 2)
         if lo_bits == 0xFFFFFFFF:
