@@ -1,5 +1,8 @@
 import sys
 
+from .util.interrupts import install
+
+install()  # before the imports a Ctrl-C could otherwise leave half done (util/interrupts.py)
 try:
     from .cli import main
 except KeyboardInterrupt:  # Ctrl-C during the first imports

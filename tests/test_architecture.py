@@ -38,7 +38,7 @@ ALLOWED: dict[str, set[str]] = {
     "viewer": {"gpu", "kernels", "io", "bundle", "render", "probes", "metrics", "lift", "pipeline", "util"},
     "cli": {"gpu", "kernels", "io", "bundle", "render", "probes", "metrics", "aggregate", "lift", "report",
             "pipeline", "synthetic", "viewer", "util"},
-    "__main__": {"cli"},
+    "__main__": {"cli", "util"},
     # the package facade's lazy top-level names
     "__init__": {"bundle", "pipeline", "render"},
 }

@@ -38,6 +38,15 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def entry() -> int:
+    """The `r360gpu` command: `main` with Ctrl-C kept out of imports (`r360gpu.util.interrupts`), which
+    a library call of `main` leaves to its caller."""
+    from ..util.interrupts import install
+
+    install()
+    return main()
+
+
 def main(argv: list[str] | None = None) -> int:
     # Everything, the heavy imports of build_parser() included, runs under the Ctrl-C handler.
     args = None
