@@ -88,7 +88,7 @@ def test_one_command_spelling():
 
 
 #: A bench command as the pages write it (through ./r360, or as run on a machine without it), up to the
-#: end of its code span, table cell or line; a placeholder in capitals (bench/NAME.py) is not one.
+#: end of its code span, table cell or line; a script named by a placeholder in capitals is not one.
 BENCH_COMMAND = re.compile(r"(?:\./r360 python|(?:PYTHONPATH=\. )?python3?) (bench/[a-z]\w*\.py)([^`|\n]*)")
 
 
