@@ -14,6 +14,7 @@ from ..gpu.context import BufferRange, GpuContext
 from ..gpu.shaders import workgroup_threads
 from ..gpu.uniforms import uniform
 from .binning import TileLists
+from .scratch import Scratch
 from .shader_pipelines import pipeline
 
 #: Plane order in the output buffer.
@@ -40,6 +41,27 @@ class Band:
     image: object
     stride: int
     row_base: int
+
+
+@dataclass
+class RasterPass:
+    """The rasteriser as a :class:`~r360gpu.render.tile_pass.TilePass`: composites each window's
+    tiles into ``band`` over ``background``; depth is 0 where alpha < ``min_alpha``.
+
+    ``work`` is the window last recorded's work counters (see :func:`record_rasterize`), in
+    ``scratch``'s buffer ``render.work``.
+    """
+
+    band: Band
+    background: tuple
+    min_alpha: float
+    scratch: Scratch
+    work: BufferRange | None = None
+
+    def record(self, ctx: GpuContext, enc, lists: TileLists, cam: dict) -> None:
+        self.work = self.scratch.window("render.work", (lists.window.end - lists.window.begin) * 8)
+        record_rasterize(ctx, enc, lists, self.band, width=cam["width"], height=cam["height"],
+                         background=self.background, min_alpha=self.min_alpha, work=self.work)
 
 
 def record_rasterize(ctx: GpuContext, enc, lists: TileLists, band: Band, *, width: int, height: int, background,
