@@ -21,6 +21,11 @@ from .shader_pipelines import pipeline
 PLANES = ("r", "g", "b", "alpha", "depth", "median_depth")
 #: Invocations per workgroup of render_interleave.wgsl (the shader states it).
 INTERLEAVE_WG = workgroup_threads("render_interleave")
+#: The WGSL names of render_rasterize.wgsl's bindings, in binding order (the output planes in PLANES order).
+RASTERIZE_BINDINGS = ("p", "ranges", "vals", "pos_op", "conic", "rgb", "out_r", "out_g", "out_b", "out_alpha",
+                      "out_depth", "out_median", "work")
+#: The WGSL names of render_interleave.wgsl's bindings, in binding order.
+INTERLEAVE_BINDINGS = ("p", "plane_r", "plane_g", "plane_b", "out")
 
 
 def plane_stride(width: int, height: int) -> int:
@@ -79,7 +84,7 @@ def record_rasterize(ctx: GpuContext, enc, lists: TileLists, band: Band, *, widt
     per_gaussian = max(16, lists.n * 16)
     proj = lists.proj
     ctx.dispatch(
-        enc, pipeline(ctx, "render_rasterize"),
+        enc, pipeline(ctx, "render_rasterize", "main", RASTERIZE_BINDINGS),
         [params, lists.ranges, ctx.span(lists.vals, 0, max(4, lists.num_keys * 4)),
          BufferRange(proj.pos_op, 0, per_gaussian), BufferRange(proj.conic, 0, per_gaussian),
          BufferRange(proj.rgb, 0, per_gaussian), *plane_windows(band.image, band.stride), work],
@@ -117,7 +122,7 @@ def image_to_numpy(ctx: GpuContext, image, width: int, height: int, stride: int)
     first = PLANES.index("alpha")
     out = ctx.reusable("render.interleaved", 3 * pixels * 4)
     enc = ctx.encoder()
-    ctx.dispatch(enc, pipeline(ctx, "render_interleave"),
+    ctx.dispatch(enc, pipeline(ctx, "render_interleave", "main", INTERLEAVE_BINDINGS),
                  [uniform(ctx, "render_interleave", n=pixels), *plane_windows(image, stride)[:first],
                   BufferRange(out, 0, 3 * pixels * 4)],
                  ctx.grid(-(-pixels // wg)))
