@@ -1,0 +1,245 @@
+"""Inpainting quality as the removal benchmarks score it: 360-USID (AuraFusion360) and SPIn-NeRF.
+
+These benchmarks ask "how good is what was painted in?": a method's renders at the captured
+test views against photographs of the real scene without the object, over the whole image
+and inside the object's mask.  The definitions are those of AuraFusion360's public
+evaluation (``scripts/aura_eval.py`` with the 3DGS helpers ``utils/image_utils.py`` and
+``utils/loss_utils.py``), re-derived here in float64:
+
+* **PSNR** ``20 log10(1 / sqrt(MSE))`` per image, MSE over all pixels and the three channels
+  of the [0, 1] images (``+inf`` for identical images).  (20 log10 of 1/sqrt is the same number
+  as :func:`r360gpu.metrics.fidelity.psnr_from_mse`'s 10 log10(1/MSE).)
+* **SSIM** as 3DGS computes it: an 11 x 11 Gaussian window (sigma 1.5), correlation with
+  *zero* padding of 5 pixels (so the map is H x W, its border windows see black), channels
+  filtered apart, ``C1 = 0.01^2``, ``C2 = 0.03^2``, the mean over the whole map and the
+  channels.  It differs from :func:`r360gpu.metrics.fidelity.ssim`, which keeps only the
+  windows inside the image.
+* **masked PSNR** the MSE over the mask's pixels (a pixel counts where its mask value is
+  non-zero: the script's ``mask.bool()``), all three channels.
+* **masked SSIM** the SSIM above of both images multiplied by the mask weights.  Outside the
+  mask both products are 0, where SSIM is 1, so the value grows with the unmasked area; that is
+  the benchmark's definition, kept as it is.
+
+Mask weights are the values the script multiplies by: the mask file as PIL and torchvision's
+``to_tensor`` read it, then every value above 0.5 set to 1 (:func:`script_weights`); a value in
+(0, 0.5] stays fractional.  Reading the files is :mod:`r360gpu.io.inpaint_folders`' job.
+
+Two modes.  ``compat`` gives the script's numbers: its mask weights, an empty mask's
+masked PSNR NaN and masked SSIM 1, infinite values kept in the means (``np.mean`` of the
+per-view values, as it prints them).  The script computes in float32 on the GPU; the float64
+values here equal a float32 model of its steps to 1e-4 (tests/test_inpainting_metrics.py).
+``default`` differs where the script's number says something it should not:
+
+* the mask is binary, any non-zero pixel inside (the project's mask rule, :mod:`r360gpu.io.masks`),
+  so an anti-aliased or JPEG-noisy edge does not weigh masked SSIM with fractional values;
+* an empty mask gives no masked value (``None`` with the reason), not NaN and not a perfect SSIM of 1;
+* a mean over views leaves out infinite PSNRs (identical images) and counts them beside it, as
+  :func:`r360gpu.metrics.fidelity.fidelity_summary` does; it is ``inf`` only when every view is.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, fields
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+from . import json_values
+from .fidelity import SSIM_K1, SSIM_K2, SSIM_SIGMA, SSIM_WIN, gaussian_window, psnr_from_mse
+
+MODES = ("default", "compat")
+
+#: The per-view metrics of this module, in table order, with whether higher is better.
+METRICS: tuple[tuple[str, bool], ...] = (
+    ("psnr", True), ("ssim", True), ("masked_psnr", True), ("masked_ssim", True))
+
+#: Reasons recorded for a value not computed.
+EMPTY_MASK = "the object mask is empty at this view"
+NO_MASKS = "no object masks for this method (give --masks)"
+
+
+def _check_mode(mode: str) -> None:
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+
+
+def _pair(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    x = np.asarray(a, dtype=np.float64)
+    y = np.asarray(b, dtype=np.float64)
+    if x.shape != y.shape or x.ndim != 3:
+        raise InputError(f"the two images must be (H, W, C) of one shape, got {x.shape} and {y.shape}")
+    return x, y
+
+
+def psnr_3dgs(a: np.ndarray, b: np.ndarray) -> float:
+    """PSNR (dB) of two (H, W, 3) images in [0, 1]: ``20 log10(1 / sqrt(MSE))``; ``+inf`` when identical."""
+    x, y = _pair(a, b)
+    return psnr_from_mse(float(np.mean((x - y) ** 2)))
+
+
+def masked_psnr(a: np.ndarray, b: np.ndarray, weights: np.ndarray) -> float:
+    """PSNR over the pixels whose weight is non-zero (all channels); NaN for an empty mask, as the
+    script's mean over no pixels; ``+inf`` when the images agree there."""
+    x, y = _pair(a, b)
+    inside = _weights(weights, x.shape) != 0
+    n = int(inside.sum())
+    if n == 0:
+        return math.nan
+    return psnr_from_mse(float(((x - y) ** 2)[inside].sum() / (n * x.shape[2])))
+
+
+def _weights(weights: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != shape[:2]:
+        raise InputError(f"the mask is {w.shape[1]}x{w.shape[0]} but the images are {shape[1]}x{shape[0]}")
+    return w
+
+
+def _filter_zero_padded(img: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Separable correlation of (H, W, C) with g x g, zero outside the image, output (H, W, C) float64."""
+    out = cv2.sepFilter2D(np.ascontiguousarray(img, np.float64), cv2.CV_64F, g, g,
+                          borderType=cv2.BORDER_CONSTANT)  # BORDER_CONSTANT pads with 0
+    return out.reshape(img.shape)
+
+
+def ssim_3dgs(a: np.ndarray, b: np.ndarray) -> float:
+    """SSIM as 3DGS's ``loss_utils.ssim`` computes it (zero padding, mean over the whole map)."""
+    x, y = _pair(a, b)
+    g = gaussian_window(SSIM_WIN, SSIM_SIGMA)
+    c1, c2 = SSIM_K1 ** 2, SSIM_K2 ** 2
+    mx, my = _filter_zero_padded(x, g), _filter_zero_padded(y, g)
+    sxx = _filter_zero_padded(x * x, g) - mx * mx
+    syy = _filter_zero_padded(y * y, g) - my * my
+    sxy = _filter_zero_padded(x * y, g) - mx * my
+    num = (2 * mx * my + c1) * (2 * sxy + c2)
+    den = (mx * mx + my * my + c1) * (sxx + syy + c2)
+    return float(np.mean(num / den))
+
+
+def masked_ssim(a: np.ndarray, b: np.ndarray, weights: np.ndarray) -> float:
+    """:func:`ssim_3dgs` of both images multiplied by the mask weights (1 for an empty mask)."""
+    x, y = _pair(a, b)
+    w = _weights(weights, x.shape)[:, :, None]
+    return ssim_3dgs(x * w, y * w)
+
+
+def script_weights(values: np.ndarray) -> np.ndarray:
+    """The script's mask weights from the mask tensor as ``to_tensor`` gives it (H, W): every value
+    above 0.5 becomes 1, the others stay (float64)."""
+    w = np.array(values, dtype=np.float64)
+    w[w > 0.5] = 1.0
+    return w
+
+
+@dataclass
+class InpaintView:
+    """One method's render at one test view against the photograph.
+
+    A metric is ``None`` when not computed; ``reasons[metric]`` then says why.  New metrics
+    (LPIPS, masked LPIPS) are new fields here, listed in :data:`METRICS`.
+    """
+
+    view: str
+    psnr: float | None = None
+    ssim: float | None = None
+    masked_psnr: float | None = None
+    masked_ssim: float | None = None
+    mask_pixels: int | None = None
+    reasons: dict[str, str] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {f.name: (json_values.enc_float(getattr(self, f.name)) if f.name in _METRIC_NAMES
+                         else getattr(self, f.name)) for f in fields(self)}
+
+
+_METRIC_NAMES = frozenset(name for name, _ in METRICS)
+
+
+def score_view(view: str, photo: np.ndarray, render: np.ndarray, weights: np.ndarray | None, *,
+               mode: str = "default", no_mask_reason: str = NO_MASKS) -> InpaintView:
+    """The metrics of one view.  photo, render: (H, W, 3) in [0, 1]; weights: (H, W) mask weights
+    (:func:`script_weights` in compat mode, a 0/1 mask in default mode) or None when there is no mask."""
+    _check_mode(mode)
+    rec = InpaintView(view, psnr=psnr_3dgs(render, photo), ssim=ssim_3dgs(render, photo))
+    if weights is None:
+        rec.reasons.update(masked_psnr=no_mask_reason, masked_ssim=no_mask_reason)
+        return rec
+    rec.mask_pixels = int(np.count_nonzero(weights))
+    if rec.mask_pixels == 0 and mode == "default":
+        rec.reasons.update(masked_psnr=EMPTY_MASK, masked_ssim=EMPTY_MASK)
+        return rec
+    rec.masked_psnr = masked_psnr(render, photo, weights)
+    rec.masked_ssim = masked_ssim(render, photo, weights)
+    return rec
+
+
+@dataclass
+class MetricMean:
+    """A metric's mean over a scene's views: ``n`` views with a finite value in it, ``n_infinite``
+    infinite values (left out in default mode, in the mean in compat mode), ``n_missing`` not computed."""
+
+    mean: float | None
+    n: int
+    n_infinite: int = 0
+    n_missing: int = 0
+    reason: str | None = None
+
+    def to_dict(self) -> dict:
+        return {"mean": json_values.enc_float(self.mean), "n": self.n, "n_infinite": self.n_infinite,
+                "n_missing": self.n_missing, "reason": self.reason}
+
+
+def metric_mean(values: Sequence[float | None], reasons: Sequence[str | None], *, mode: str = "default"
+                ) -> MetricMean:
+    """Mean of one metric over views.  compat: ``np.mean`` of every computed value as the script prints it
+    (NaN and inf included); default: of the finite values, with the infinite ones counted."""
+    _check_mode(mode)
+    got = [float(v) for v in values if v is not None]
+    missing = len(values) - len(got)
+    reason = next((r for v, r in zip(values, reasons) if v is None and r), None)
+    n_inf = sum(math.isinf(v) for v in got)
+    if not got:
+        return MetricMean(None, 0, 0, missing, reason)
+    if mode == "compat":
+        return MetricMean(float(np.mean(got)), len(got), n_inf, missing, reason)
+    finite = [v for v in got if math.isfinite(v)]
+    if finite:
+        return MetricMean(float(np.mean(finite)), len(finite), n_inf, missing, reason)
+    # Every computed value infinite: +inf only when all agree in sign (identical images), else NaN.
+    return MetricMean(float(np.mean(got)), 0, n_inf, missing, reason)
+
+
+@dataclass
+class InpaintScene:
+    """One method in one scene: the per-view records and each metric's mean (``means[metric]``)."""
+
+    scene: str
+    method: str
+    views: list[InpaintView]
+    means: dict[str, MetricMean]
+    masks: str | None = None
+
+    def to_dict(self) -> dict:
+        return {"scene": self.scene, "method": self.method, "n_views": len(self.views), "masks": self.masks,
+                "means": {k: m.to_dict() for k, m in self.means.items()},
+                "views": [v.to_dict() for v in self.views]}
+
+
+def summarise(scene: str, method: str, views: list[InpaintView], *, mode: str = "default",
+              masks: str | None = None) -> InpaintScene:
+    """An :class:`InpaintScene` with the mean of every metric of :data:`METRICS`."""
+    means = {name: metric_mean([getattr(v, name) for v in views], [v.reasons.get(name) for v in views], mode=mode)
+             for name, _ in METRICS}
+    return InpaintScene(scene, method, views, means, masks)
+
+
+def overall_means(scenes: Sequence[InpaintScene], method: str) -> dict[str, float | None]:
+    """Per metric, the mean over scenes of the method's scene means (scene-macro; a scene without a
+    value is left out); ``None`` when no scene has one."""
+    out: dict[str, float | None] = {}
+    for name, _ in METRICS:
+        vals = [s.means[name].mean for s in scenes if s.method == method and s.means[name].mean is not None]
+        out[name] = float(np.mean(vals)) if vals else None
+    return out
