@@ -100,24 +100,39 @@ def _conv(x: np.ndarray, w: np.ndarray) -> np.ndarray:
     return out
 
 
-def ssim(img1: np.ndarray, img2: np.ndarray) -> float:
+def _conv_separable(x: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """The same correlation as :func:`_conv`, as two 1-D passes (the window is an outer product): what a
+    numpy port of the script would do to be fast (bench/inpaint_vs_script.py)."""
+    from scipy.ndimage import correlate1d
+
+    y = correlate1d(x, g, axis=1, mode="constant", cval=0.0)
+    return correlate1d(y, g, axis=2, mode="constant", cval=0.0)
+
+
+def ssim(img1: np.ndarray, img2: np.ndarray, *, separable: bool = False) -> float:
     w = _window()
-    mu1, mu2 = _conv(img1, w), _conv(img2, w)
+    if separable:
+        g = np.sqrt(np.diag(w)).astype(F32)  # the 1-D taps: w = outer(g, g)
+        def conv(x, _):
+            return _conv_separable(x, g)
+    else:
+        conv = _conv
+    mu1, mu2 = conv(img1, w), conv(img2, w)
     mu1_sq, mu2_sq, mu1_mu2 = mu1 ** 2, mu2 ** 2, mu1 * mu2
-    s1 = _conv(img1 * img1, w) - mu1_sq
-    s2 = _conv(img2 * img2, w) - mu2_sq
-    s12 = _conv(img1 * img2, w) - mu1_mu2
+    s1 = conv(img1 * img1, w) - mu1_sq
+    s2 = conv(img2 * img2, w) - mu2_sq
+    s12 = conv(img1 * img2, w) - mu1_mu2
     c1, c2 = F32(0.01 ** 2), F32(0.03 ** 2)
     m = ((2 * mu1_mu2 + c1) * (2 * s12 + c2)) / ((mu1_sq + mu2_sq + c1) * (s1 + s2 + c2))
     return float(np.mean(m, dtype=F32))
 
 
-def masked_ssim(img: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> float:
+def masked_ssim(img: np.ndarray, gt: np.ndarray, mask: np.ndarray, *, separable: bool = False) -> float:
     m = np.repeat(mask, 3, axis=0).astype(F32)
-    return ssim(img * m, gt * m)
+    return ssim(img * m, gt * m, separable=separable)
 
 
-def score_pair_lists(gt_paths, render_paths, mask_paths) -> dict[str, list[float]]:
+def score_pair_lists(gt_paths, render_paths, mask_paths, *, separable: bool = False) -> dict[str, list[float]]:
     """The script's per-view lists for one scene and method."""
     if not (len(gt_paths) == len(mask_paths) == len(render_paths)):
         raise ValueError("counts differ (the script stops at a breakpoint)")
@@ -125,16 +140,16 @@ def score_pair_lists(gt_paths, render_paths, mask_paths) -> dict[str, list[float
     for g, r, m in zip(gt_paths, render_paths, mask_paths):
         gt, img, mask = read_rgb(g), read_rgb(r), read_mask(m)
         out["masked_psnr"].append(masked_psnr(img, gt, mask))
-        out["masked_ssim"].append(masked_ssim(img, gt, mask))
-        out["ssim"].append(ssim(img, gt))
+        out["masked_ssim"].append(masked_ssim(img, gt, mask, separable=separable))
+        out["ssim"].append(ssim(img, gt, separable=separable))
         out["psnr"].append(psnr(img, gt))
     return out
 
 
-def score_usid_scene(scene_dir, method_dir, mask_dir) -> dict[str, float]:
+def score_usid_scene(scene_dir, method_dir, mask_dir, *, separable: bool = False) -> dict[str, float]:
     """Per-scene means as the script prints them (np.mean of the per-view values)."""
     gts = natsorted_paths(Path(scene_dir, "test_images").glob("*jpg"))
     renders = natsorted_paths(Path(method_dir, "renders").glob("*png"))
     masks = natsorted_paths(Path(mask_dir).glob("*.png"))
-    lists = score_pair_lists(gts, renders, masks)
+    lists = score_pair_lists(gts, renders, masks, separable=separable)
     return {k: float(np.mean(v)) for k, v in lists.items()}

@@ -69,7 +69,11 @@ def _masks(rng, h, w):
     one[h // 2, w // 3] = 1
     edge = np.zeros((h, w), np.float32)
     edge[0, 0] = 0.2  # a lone fractional corner pixel: counted by masked PSNR, weight 0.2 in masked SSIM
-    return {"fractional": frac, "one_pixel": one, "corner_fraction": edge, "full": np.ones((h, w), np.float32),
+    far = np.zeros((h, w), np.float32)
+    far[0, w - 1] = far[h - 1, 0] = 0.7  # two pixels at opposite corners: the box spans the image
+    strip = np.zeros((h, w), np.float32)
+    strip[h - 2:, w // 2:] = 1  # touches the bottom and right borders
+    return {"fractional": frac, "far": far, "strip": strip, "one_pixel": one, "corner_fraction": edge, "full": np.ones((h, w), np.float32),
             "empty": np.zeros((h, w), np.float32)}
 
 
@@ -172,3 +176,10 @@ def test_natural_order_as_natsort():
     assert sorted(names, key=natural_key) == [p.name for p in oracle.natsorted_paths(
         [__import__("pathlib").Path(n) for n in names])]
     assert sorted(["v10", "v9", "v100"], key=natural_key) == ["v9", "v10", "v100"]
+
+
+def test_the_benchs_separable_model_equals_the_literal_one():
+    """bench/inpaint_vs_script.py times the separable form of the script's 11x11 correlation."""
+    rng = np.random.default_rng(9)
+    a, b = _chw(_img(rng, 20, 27)), _chw(_img(rng, 20, 27))
+    assert abs(oracle.ssim(a, b, separable=True) - oracle.ssim(a, b)) <= 1e-6
