@@ -2,9 +2,9 @@
 
 ``inpaint 360usid DATA METHOD=FOLDER ... --out DIR`` and ``inpaint spinnerf ...`` score renders
 made elsewhere against the benchmark's photographs (PSNR, SSIM, masked PSNR, masked SSIM as the
-benchmark defines them, :mod:`r360gpu.metrics.inpainting`); ``--compat`` gives the script's own
+benchmark defines them, `r360gpu.metrics.inpainting`); ``--compat`` gives the script's own
 numbers.  ``inpaint example DIR`` writes a small folder in each layout to try it on.  Outputs:
-``results.json`` (:mod:`r360gpu.pipeline.inpaint`), ``results.csv`` (one row per view),
+``results.json`` (`r360gpu.pipeline.inpaint`), ``results.csv`` (one row per view),
 ``tables.md``, ``tables.tex`` and ``report.html``, written together once every view is scored.
 """
 from __future__ import annotations

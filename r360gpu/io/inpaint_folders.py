@@ -17,9 +17,9 @@ follows the data release and the later papers that score on it; ``--n-test`` cha
 are taken from ``test_label/`` when the folder has one, else ``label/``, by the photograph's stem.
 
 Images are read as the script reads them: PIL, ``.convert("RGB")``, divided by 255 (float32).
-Mask files are read two ways: :func:`read_mask_script` as PIL and torchvision's ``to_tensor``
-make them (the script's values, compat mode), :func:`read_mask_binary` by the project's rule
-(any non-zero pixel is inside, :func:`r360gpu.io.masks.load_mask`; default mode).
+Mask files are read two ways: `read_mask_script` as PIL and torchvision's ``to_tensor``
+make them (the script's values, compat mode), `read_mask_binary` by the project's rule
+(any non-zero pixel is inside, `r360gpu.io.masks.load_mask`; default mode).
 """
 from __future__ import annotations
 
@@ -75,7 +75,7 @@ def read_image(path: str | os.PathLike, *, compat: bool = False) -> np.ndarray:
     """An image as the script reads it: (H, W, 3) float32 in [0, 1], PIL ``convert("RGB")`` / 255.
 
     An image with more than 8 bits per sample (16-bit PNG) loses them in ``convert("RGB")``; in
-    default mode it is read at full depth (:func:`r360gpu.io.renders.read_rgb`) instead, in compat
+    default mode it is read at full depth (`r360gpu.io.renders.read_rgb`) instead, in compat
     mode as the script reads it, with a warning either way.
     """
     path = Path(path)
@@ -231,7 +231,7 @@ def spinnerf_scenes(data: str | os.PathLike, methods: list[str], *, masks: str |
     """The SPIn-NeRF scenes under ``data`` (a scene folder with ``images/``, or a folder of them).
 
     The test views are the first ``n_test`` photographs of ``images/`` (``images_<factor>/``) in
-    natural order.  methods: ``NAME=FOLDER`` as for :func:`usid_scenes`, FOLDER holding the renders
+    natural order.  methods: ``NAME=FOLDER`` as for `usid_scenes`, FOLDER holding the renders
     of the test views in ``renders/`` (or directly), ``*.png`` / ``*.jpg``.  masks: a folder of
     ``<photo stem>.png`` masks; without it ``test_label/`` or ``label/`` beside the photographs.
     """

@@ -8,11 +8,11 @@ evaluation (``scripts/aura_eval.py`` with the 3DGS helpers ``utils/image_utils.p
 
 * **PSNR** ``20 log10(1 / sqrt(MSE))`` per image, MSE over all pixels and the three channels
   of the [0, 1] images (``+inf`` for identical images).  (20 log10 of 1/sqrt is the same number
-  as :func:`r360gpu.metrics.fidelity.psnr_from_mse`'s 10 log10(1/MSE).)
+  as `r360gpu.metrics.fidelity.psnr_from_mse`'s 10 log10(1/MSE).)
 * **SSIM** as 3DGS computes it: an 11 x 11 Gaussian window (sigma 1.5), correlation with
   *zero* padding of 5 pixels (so the map is H x W, its border windows see black), channels
   filtered apart, ``C1 = 0.01^2``, ``C2 = 0.03^2``, the mean over the whole map and the
-  channels.  It differs from :func:`r360gpu.metrics.fidelity.ssim`, which keeps only the
+  channels.  It differs from `r360gpu.metrics.fidelity.ssim`, which keeps only the
   windows inside the image.
 * **masked PSNR** the MSE over the mask's pixels (a pixel counts where its mask value is
   non-zero: the script's ``mask.bool()``), all three channels.
@@ -21,8 +21,8 @@ evaluation (``scripts/aura_eval.py`` with the 3DGS helpers ``utils/image_utils.p
   the benchmark's definition, kept as it is.
 
 Mask weights are the values the script multiplies by: the mask file as PIL and torchvision's
-``to_tensor`` read it, then every value above 0.5 set to 1 (:func:`script_weights`); a value in
-(0, 0.5] stays fractional.  Reading the files is :mod:`r360gpu.io.inpaint_folders`' job.
+``to_tensor`` read it, then every value above 0.5 set to 1 (`script_weights`); a value in
+(0, 0.5] stays fractional.  Reading the files is `r360gpu.io.inpaint_folders`' job.
 
 Two modes.  ``compat`` gives the script's numbers: its mask weights, an empty mask's
 masked PSNR NaN and masked SSIM 1, infinite values kept in the means (``np.mean`` of the
@@ -30,11 +30,11 @@ per-view values, as it prints them).  The script computes in float32 on the GPU;
 values here equal a float32 model of its steps to 1e-4 (tests/test_inpainting_metrics.py).
 ``default`` differs where the script's number says something it should not:
 
-* the mask is binary, any non-zero pixel inside (the project's mask rule, :mod:`r360gpu.io.masks`),
+* the mask is binary, any non-zero pixel inside (the project's mask rule, `r360gpu.io.masks`),
   so an anti-aliased or JPEG-noisy edge does not weigh masked SSIM with fractional values;
 * an empty mask gives no masked value (``None`` with the reason), not NaN and not a perfect SSIM of 1;
 * a mean over views leaves out infinite PSNRs (identical images) and counts them beside it, as
-  :func:`r360gpu.metrics.fidelity.fidelity_summary` does; it is ``inf`` only when every view is.
+  `r360gpu.metrics.fidelity.fidelity_summary` does; it is ``inf`` only when every view is.
 """
 from __future__ import annotations
 
@@ -124,7 +124,7 @@ def ssim_3dgs(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def masked_ssim(a: np.ndarray, b: np.ndarray, weights: np.ndarray) -> float:
-    """:func:`ssim_3dgs` of both images multiplied by the mask weights (1 for an empty mask).
+    """`ssim_3dgs` of both images multiplied by the mask weights (1 for an empty mask).
 
     Both products are 0 farther than the window's radius from the mask's bounding box, where every
     map value is exactly ``(C1 C2) / (C1 C2) = 1``; the map is computed on that box only (zero padding
@@ -157,7 +157,7 @@ class InpaintView:
     """One method's render at one test view against the photograph.
 
     A metric is ``None`` when not computed; ``reasons[metric]`` then says why.  New metrics
-    (LPIPS, masked LPIPS) are new fields here, listed in :data:`METRICS`.
+    (LPIPS, masked LPIPS) are new fields here, listed in `METRICS`.
     """
 
     view: str
@@ -179,7 +179,7 @@ _METRIC_NAMES = frozenset(name for name, _ in METRICS)
 def score_view(view: str, photo: np.ndarray, render: np.ndarray, weights: np.ndarray | None, *,
                mode: str = "default", no_mask_reason: str = NO_MASKS) -> InpaintView:
     """The metrics of one view.  photo, render: (H, W, 3) in [0, 1]; weights: (H, W) mask weights
-    (:func:`script_weights` in compat mode, a 0/1 mask in default mode) or None when there is no mask."""
+    (`script_weights` in compat mode, a 0/1 mask in default mode) or None when there is no mask."""
     _check_mode(mode)
     rec = InpaintView(view, psnr=psnr_3dgs(render, photo), ssim=ssim_3dgs(render, photo))
     if weights is None:
@@ -248,7 +248,7 @@ class InpaintScene:
 
 def summarise(scene: str, method: str, views: list[InpaintView], *, mode: str = "default",
               masks: str | None = None) -> InpaintScene:
-    """An :class:`InpaintScene` with the mean of every metric of :data:`METRICS`."""
+    """An `InpaintScene` with the mean of every metric of `METRICS`."""
     means = {name: metric_mean([getattr(v, name) for v in views], [v.reasons.get(name) for v in views], mode=mode)
              for name, _ in METRICS}
     return InpaintScene(scene, method, views, means, masks)

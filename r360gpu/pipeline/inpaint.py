@@ -1,9 +1,9 @@
 """Scoring the inpainting benchmarks' folders (360-USID, SPIn-NeRF) and their results document.
 
-:func:`score_scenes` reads every scene's photographs, each method's renders and the object
-masks (:mod:`r360gpu.io.inpaint_folders`), scores every view (:mod:`r360gpu.metrics.inpainting`)
-and summarises each (scene, method).  :func:`results_document` is the ``results.json`` of the
-``inpaint`` command (schema :data:`r360gpu.protocol.INPAINT_SCHEMA`); its top-level keys::
+`score_scenes` reads every scene's photographs, each method's renders and the object
+masks (`r360gpu.io.inpaint_folders`), scores every view (`r360gpu.metrics.inpainting`)
+and summarises each (scene, method).  `results_document` is the ``results.json`` of the
+``inpaint`` command (schema `r360gpu.protocol.INPAINT_SCHEMA`); its top-level keys::
 
     schema, r360gpu_version, created, protocol, mode, differs_from_script, inputs, methods,
     scenes   {SCENE: {METHOD: {scene, method, n_views, masks, means {METRIC: {mean, n, n_infinite,
@@ -12,7 +12,7 @@ and summarises each (scene, method).  :func:`results_document` is the ``results.
     overall  {METHOD: {METRIC: mean over scenes}},
     warnings
 
-Non-finite values are written as ``{"__float__": "inf"}`` (:mod:`r360gpu.metrics.json_values`).
+Non-finite values are written as ``{"__float__": "inf"}`` (`r360gpu.metrics.json_values`).
 """
 from __future__ import annotations
 

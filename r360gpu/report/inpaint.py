@@ -2,8 +2,8 @@
 
 Three tables: per method the mean over scenes (the row a paper's table shows), per scene and
 method the scene means as the benchmark's script prints them, and per scene the values of every
-view.  Markdown and LaTeX come from :mod:`r360gpu.report.tables`, HTML from
-:mod:`r360gpu.report.html_blocks`, so they look like the Remove360 tables beside them.
+view.  Markdown and LaTeX come from `r360gpu.report.tables`, HTML from
+`r360gpu.report.html_blocks`, so they look like the Remove360 tables beside them.
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Generated folders in the layouts of the inpainting benchmarks (360-USID, SPIn-NeRF).
 
-:func:`write_inpaint_example` writes, from a seed, procedural "photographs" of scenes without
+`write_inpaint_example` writes, from a seed, procedural "photographs" of scenes without
 the object, object masks with anti-aliased edges (so mask values between 0 and 255 occur, as in
 real rendered masks) and the renders of two simulated inpainting methods: ``blur`` fills the
 object's region with a blurred copy of the background (a plausible inpainting), ``flat`` with
@@ -15,7 +15,7 @@ a photograph.  Camera motion is a shifting crop of a larger picture per scene.  
     OUT/spinnerf/output/SCENE/METHOD/renders/<i>.png             a method's renders of the test views
 
 The folder is written beside its final place and renamed into it; an earlier example folder (it
-holds :data:`MARKER`) is replaced, any other existing non-empty folder refused.
+holds `MARKER`) is replaced, any other existing non-empty folder refused.
 """
 from __future__ import annotations
 
