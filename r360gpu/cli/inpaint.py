@@ -13,16 +13,7 @@ import argparse
 import sys
 
 from ..io.inpaint_folders import SPINNERF_N_TEST
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
-    return value
+from .tables import _positive_int
 
 
 def _common(p: argparse.ArgumentParser) -> None:
