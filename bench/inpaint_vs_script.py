@@ -3,7 +3,7 @@ generated 360-USID-shaped folder, in one process.
 
 The folder (``r360gpu.synthetic.inpaint_folders``: JPEG photographs, two methods' PNG renders,
 anti-aliased object masks) has ``--scenes`` scenes x ``--views`` views at ``--width`` x ``--height``
-(the issue's case: 7 x 30 at 1008 x 567).  Timed, each once, every scene and both methods:
+(7 x 30 at 1008 x 567 by default: 360-USID's seven scenes).  Timed, each once, every scene and both methods:
 
 * ours: ``r360gpu.cli.main(["inpaint", "360usid", ...])`` in default mode and in ``--compat``
   (reading, scoring, writing results.json / csv / tables / report.html);

@@ -1,4 +1,4 @@
-"""A plain numpy model of AuraFusion360's ``scripts/aura_eval.py`` (PSNR, SSIM, masked PSNR, masked SSIM),
+"""A plain numpy model of AuraFusion360's evaluation script ``aura_eval.py`` (PSNR, SSIM, masked PSNR, masked SSIM),
 step by step as its torch code runs, in float32: the reference r360gpu's inpainting metrics are tested
 against (tests/test_inpainting_metrics.py, tests/test_inpaint_layouts.py) and timed against
 (bench/inpaint_vs_script.py).  Written apart from r360gpu.metrics.inpainting on purpose: explicit

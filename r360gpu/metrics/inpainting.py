@@ -3,8 +3,8 @@
 These benchmarks ask "how good is what was painted in?": a method's renders at the captured
 test views against photographs of the real scene without the object, over the whole image
 and inside the object's mask.  The definitions are those of AuraFusion360's public
-evaluation (``scripts/aura_eval.py`` with the 3DGS helpers ``utils/image_utils.py`` and
-``utils/loss_utils.py``), re-derived here in float64:
+evaluation script ``aura_eval.py`` (in its ``scripts`` folder) with the 3DGS helpers
+``image_utils.py`` and ``loss_utils.py`` (in its ``utils`` folder), re-derived here in float64:
 
 * **PSNR** ``20 log10(1 / sqrt(MSE))`` per image, MSE over all pixels and the three channels
   of the [0, 1] images (``+inf`` for identical images).  (20 log10 of 1/sqrt is the same number
