@@ -180,3 +180,16 @@ def test_example_refuses_a_foreign_folder(tmp_path, capsys):
     (tmp_path / "mine" / "keep.txt").write_text("x")
     _fails(capsys, ["inpaint", "example", str(tmp_path / "mine")], "not an example folder")
     assert (tmp_path / "mine" / "keep.txt").exists()
+
+
+def test_spinnerf_01_labels_warned_in_compat(example, tmp_path):
+    """SPIn-NeRF's labels are 0/1: the script's to_tensor makes them 1/255 weights; default mode reads them whole."""
+    s = example / "spinnerf"
+    args = ["inpaint", "spinnerf", str(s / "data"), f"blur={s}/output/{{scene}}/blur", "--n-test", "3", "--quiet"]
+    assert main([*args, "--out", str(tmp_path / "c"), "--compat"]) == 0
+    assert main([*args, "--out", str(tmp_path / "d")]) == 0
+    c, d = _doc(tmp_path / "c"), _doc(tmp_path / "d")
+    assert any("at most 0.003922" in w["message"] for w in c["warnings"])
+    cv, dv = c["scenes"]["carton"]["blur"]["views"][0], d["scenes"]["carton"]["blur"]["views"][0]
+    assert cv["masked_psnr"] == dv["masked_psnr"]  # the same pixels: any non-zero value
+    assert cv["masked_ssim"] > dv["masked_ssim"]  # weighted by 1/255 the object nearly vanishes

@@ -76,6 +76,11 @@ def _weights(path: Path, shape: tuple[int, int], mode: str) -> np.ndarray:
     if values.shape != shape:
         raise InputError(f"mask is {values.shape[1]}x{values.shape[0]} but the photograph is "
                          f"{shape[1]}x{shape[0]}", path)
+    top = float(values.max()) if values.size else 0.0
+    if 0.0 < top <= 0.5:
+        # SPIn-NeRF's labels are 0/1 PNGs: to_tensor makes them 1/255, under the script's 0.5 threshold.
+        warn(f"every mask value is at most {top:.4g} after the script's division by 255 (a 0/1 mask?): its masked "
+             f"SSIM weighs the object by that value; default mode reads any non-zero pixel as the object", file=path)
     return script_weights(values)
 
 

@@ -11,7 +11,7 @@ a photograph.  Camera motion is a shifting crop of a larger picture per scene.  
     OUT/360usid/output/SCENE/test/ours_30000/object_mask/<i>.png the object masks (as the script's fixed folder)
     OUT/360usid/output/SCENE/test/METHOD/renders/<i>.png         a method's renders (object_mask/ beside them)
     OUT/spinnerf/data/SCENE/images/IMG_<i>.jpg                  N test photographs, then training ones with the object
-    OUT/spinnerf/data/SCENE/images/label/IMG_<i>.png            object masks of every photograph
+    OUT/spinnerf/data/SCENE/images/label/IMG_<i>.png            object masks of every photograph (0/1, as released)
     OUT/spinnerf/output/SCENE/METHOD/renders/<i>.png             a method's renders of the test views
 
 The folder is written beside its final place and renamed into it; an earlier example folder (it
@@ -114,7 +114,7 @@ def _spinnerf(root: Path, scenes: list[str], n_test: int, n_train: int, h: int, 
             else:  # a training view: the object is there
                 inside = (mask.astype(np.float32) / 255.0)[:, :, None]
                 _save(images / f"IMG_{i}.jpg", photo * (1 - inside) + colour * inside)
-            _save_mask(images / "label" / f"IMG_{i}.png", mask)
+            _save_mask(images / "label" / f"IMG_{i}.png", (mask > 127).astype(np.uint8))  # 1 = object, as released
 
 
 def write_inpaint_example(out: str | os.PathLike, *, n_scenes: int = 2, n_views: int = 6, width: int = 160,
