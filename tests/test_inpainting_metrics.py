@@ -183,3 +183,19 @@ def test_the_benchs_separable_model_equals_the_literal_one():
     rng = np.random.default_rng(9)
     a, b = _chw(_img(rng, 20, 27)), _chw(_img(rng, 20, 27))
     assert abs(oracle.ssim(a, b, separable=True) - oracle.ssim(a, b)) <= 1e-6
+
+
+def test_16_bit_images_full_depth_in_default_as_pil_clips_them_in_compat(tmp_path):
+    from r360gpu.io.inpaint_folders import read_image
+    from r360gpu.util.warning_log import collecting
+
+    grey = np.array([[0, 200, 300, 65535]], np.uint16)
+    p = tmp_path / "g16.png"
+    Image.fromarray(grey).save(p)
+    with collecting(None) as log:
+        full = read_image(p)
+        script = read_image(p, compat=True)
+    np.testing.assert_allclose(full[0, :, 0], grey[0] / 65535, atol=1e-7)
+    np.testing.assert_array_equal(script, oracle.read_rgb(p).transpose(1, 2, 0))  # PIL's own conversion
+    assert not np.allclose(script, full)
+    assert len(log.records()) == 2 and all("I;16" in r["message"] for r in log.records())
