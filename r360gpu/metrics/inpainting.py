@@ -104,16 +104,21 @@ def _filter_zero_padded(img: np.ndarray, g: np.ndarray) -> np.ndarray:
     return out.reshape(img.shape)
 
 
-def _ssim_map(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """The SSIM map (H, W, C) float64 of 3DGS's ``loss_utils.ssim``, zero-padded."""
+def _moments(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x, its local mean, the local mean of x^2): one image's share of the SSIM map, computed once per
+    photograph when several renders are compared with it."""
     g = gaussian_window(SSIM_WIN, SSIM_SIGMA)
+    return x, _filter_zero_padded(x, g), _filter_zero_padded(x * x, g)
+
+
+def _ssim_map(x: np.ndarray, y: np.ndarray, y_moments=None) -> np.ndarray:
+    """The SSIM map (H, W, C) float64 of 3DGS's ``loss_utils.ssim``, zero-padded."""
     c1, c2 = SSIM_K1 ** 2, SSIM_K2 ** 2
-    mx, my = _filter_zero_padded(x, g), _filter_zero_padded(y, g)
-    sxx = _filter_zero_padded(x * x, g) - mx * mx
-    syy = _filter_zero_padded(y * y, g) - my * my
-    sxy = _filter_zero_padded(x * y, g) - mx * my
+    _, mx, xx = _moments(x)
+    _, my, yy = _moments(y) if y_moments is None else y_moments
+    sxy = _filter_zero_padded(x * y, gaussian_window(SSIM_WIN, SSIM_SIGMA)) - mx * my
     num = (2 * mx * my + c1) * (2 * sxy + c2)
-    den = (mx * mx + my * my + c1) * (sxx + syy + c2)
+    den = (mx * mx + my * my + c1) * ((xx - mx * mx) + (yy - my * my) + c2)
     return num / den
 
 
@@ -180,18 +185,31 @@ def score_view(view: str, photo: np.ndarray, render: np.ndarray, weights: np.nda
                mode: str = "default", no_mask_reason: str = NO_MASKS) -> InpaintView:
     """The metrics of one view.  photo, render: (H, W, 3) in [0, 1]; weights: (H, W) mask weights
     (`script_weights` in compat mode, a 0/1 mask in default mode) or None when there is no mask."""
+    return score_views(view, photo, [render], [weights], mode=mode, no_mask_reason=no_mask_reason)[0]
+
+
+def score_views(view: str, photo: np.ndarray, renders: Sequence[np.ndarray], weights: Sequence[np.ndarray | None], *,
+                mode: str = "default", no_mask_reason: str = NO_MASKS) -> list[InpaintView]:
+    """`score_view` of several renders (methods) against one photograph, each with its mask weights;
+    the photograph's share of SSIM is computed once."""
     _check_mode(mode)
-    rec = InpaintView(view, psnr=psnr_3dgs(render, photo), ssim=ssim_3dgs(render, photo))
-    if weights is None:
-        rec.reasons.update(masked_psnr=no_mask_reason, masked_ssim=no_mask_reason)
-        return rec
-    rec.mask_pixels = int(np.count_nonzero(weights))
-    if rec.mask_pixels == 0 and mode == "default":
-        rec.reasons.update(masked_psnr=EMPTY_MASK, masked_ssim=EMPTY_MASK)
-        return rec
-    rec.masked_psnr = masked_psnr(render, photo, weights)
-    rec.masked_ssim = masked_ssim(render, photo, weights)
-    return rec
+    x = np.asarray(photo, dtype=np.float64)
+    photo_moments = _moments(x)
+    out = []
+    for render, w in zip(renders, weights, strict=True):
+        y, _ = _pair(render, x)
+        rec = InpaintView(view, psnr=psnr_3dgs(y, x), ssim=float(np.mean(_ssim_map(y, x, photo_moments))))
+        out.append(rec)
+        if w is None:
+            rec.reasons.update(masked_psnr=no_mask_reason, masked_ssim=no_mask_reason)
+            continue
+        rec.mask_pixels = int(np.count_nonzero(w))
+        if rec.mask_pixels == 0 and mode == "default":
+            rec.reasons.update(masked_psnr=EMPTY_MASK, masked_ssim=EMPTY_MASK)
+            continue
+        rec.masked_psnr = masked_psnr(y, x, w)
+        rec.masked_ssim = masked_ssim(y, x, w)
+    return out
 
 
 @dataclass

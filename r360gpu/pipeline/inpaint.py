@@ -26,7 +26,7 @@ from .. import __version__
 from ..errors import InputError
 from ..io.inpaint_folders import SceneFiles, read_image, read_mask_binary, read_mask_script
 from ..metrics import json_values
-from ..metrics.inpainting import (METRICS, MODES, InpaintScene, overall_means, score_view, script_weights,
+from ..metrics.inpainting import (METRICS, MODES, InpaintScene, overall_means, score_views, script_weights,
                                   summarise)
 from ..protocol import INPAINT_SCHEMA
 from ..util.progress import progress
@@ -100,19 +100,19 @@ def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "defaul
                 photo = read_image(photo_path, compat=mode == "compat")
                 shape = photo.shape[:2]
                 masks_read: dict[Path, np.ndarray] = {}
+                renders, weights = [], []
                 for m in scene.methods:
                     with where(method=m.name):
-                        render = read_image(m.renders[i], compat=mode == "compat")
-                        _size_check(render, shape, m.renders[i], photo_path)
-                        weights = None
-                        if m.masks is not None:
-                            path = m.masks[i]
-                            if path not in masks_read:
-                                masks_read[path] = _weights(path, shape, mode)
-                            weights = masks_read[path]
-                        rec = score_view(photo_path.name, photo, render, weights, mode=mode)
+                        renders.append(read_image(m.renders[i], compat=mode == "compat"))
+                        _size_check(renders[-1], shape, m.renders[i], photo_path)
+                        if m.masks is not None and m.masks[i] not in masks_read:
+                            masks_read[m.masks[i]] = _weights(m.masks[i], shape, mode)
+                        weights.append(None if m.masks is None else masks_read[m.masks[i]])
+                recs = score_views(photo_path.name, photo, renders, weights, mode=mode)
+                for m, rec in zip(scene.methods, recs):
+                    with where(method=m.name):
                         _warn_view(rec, mode, m.masks[i] if m.masks is not None else None)
-                        per_method[m.name].append(rec)
+                    per_method[m.name].append(rec)
         for m in scene.methods:
             results.append(summarise(scene.name, m.name, per_method[m.name], mode=mode,
                                      masks=None if m.mask_folder is None else str(m.mask_folder)))
