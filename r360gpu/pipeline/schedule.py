@@ -65,7 +65,7 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
         # the fit record no longer holds: the key changes, so look the views up again
         view_cache, cells_of, todo = _cached_views(run, cache, sink)
     for v in cells_of:
-        warning_log.replay(next(iter(cells_of[v].values())).get("warnings"))
+        warning_log.replay(cells_of[v].warnings)
         run.done(v)
     if executor is not None and todo:
         # The executor hook: the views the cache lacks are scored elsewhere (.distributed.RayExecutor),
@@ -78,14 +78,14 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     # thread is then closed, every picture written) before the scene is assembled.
     ticks = iter(_progress(todo, f"scoring {bundle.name}{done}", progress))
     next(ticks, None)
-    for v, cells in score_views(run, todo, sink, view_cache, rendered=rendered):
-        cells_of[v] = cells
+    for v, scored in score_views(run, todo, sink, view_cache, rendered=rendered):
+        cells_of[v] = scored
         next(ticks, None)
     return scene_entry(run, cells_of, what_if=what_if)
 
 
 def scene_entry(run: SceneRun, cells_of: dict, *, what_if: bool = False) -> dict:
-    """The scene's results entry from the cells of its views ({view: {method: cell}}): the
+    """The scene's results entry from the cells of its views ({view: ScoredView}): the
     per-view records and the axes of every method and control, the controls' validity verdicts,
     and in a compat mode the public scripts' values (:mod:`r360gpu.aggregate.compat`).  The
     records (ViewRecord objects) become dicts here, in the entry results.json is written from."""
@@ -99,11 +99,11 @@ def scene_entry(run: SceneRun, cells_of: dict, *, what_if: bool = False) -> dict
     boundaries: dict = {m: [] for m in scored}
     pictures: dict = {m: {} for m in scored}
     for v in run.views:
-        for m, cell in cells_of[v].items():
-            records[m].append(cell["record"])
-            boundaries[m].append(cell.get("boundary"))
-            if cell.get("picture"):
-                pictures[m][v] = cell["picture"]
+        for m, cell in cells_of[v].cells.items():
+            records[m].append(cell.record)
+            boundaries[m].append(cell.boundary)
+            if cell.picture:
+                pictures[m][v] = cell.picture
     scene = _scene_header(run)
     own = {m: {"axes": method_axes(records[m], xis=opts.xis, boundary=boundaries[m] if opts.boundary else None),
                "views": [r.to_dict() for r in records[m]]} for m in bundle.methods}
@@ -149,7 +149,7 @@ def _scene_header(run: SceneRun) -> dict:
 
 
 def _cached_views(run: SceneRun, cache: RunCache, sink: PictureSink):
-    """(view cache, {view: cells} of the views it has, views to score)."""
+    """(view cache, {view: ScoredView} of the views it has, views to score)."""
     if run.fingerprint is None:  # renders held on the device: what they hold is not known, nothing is cached
         return None, {}, list(run.views)
     view_cache = cache.views(run.bundle.name, {
@@ -157,19 +157,18 @@ def _cached_views(run: SceneRun, cache: RunCache, sink: PictureSink):
         "depth": run.depth_mode, "lpips": run.lpips.describe() if run.lpips else None})
     cells_of, todo = {}, []
     for v in run.views:
-        cells = view_cache.load_view(run.bundle.methods, v, pictures=sink.enabled) if view_cache else None
-        if cells is not None and run.controls:  # the controls' cells (no pictures) must be there too
-            ctl = view_cache.load_view(run.controls.values(), v, pictures=False)
-            cells = None if ctl is None else {**cells, **ctl}
-        if cells is None:
+        # the controls' cells (no pictures) must be there too
+        scored = view_cache.load_scored(run.bundle.methods, run.controls.values(), v, pictures=sink.enabled) \
+            if view_cache else None
+        if scored is None:
             todo.append(v)
         else:
-            cells_of[v] = cells
+            cells_of[v] = scored
     return view_cache, cells_of, todo
 
 
 def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rendered=None):
-    """Score ``views``, yielding (view, cells) in order, with the stages overlapped:
+    """Score ``views``, yielding (view, ScoredView) in order, with the stages overlapped:
 
     this (the GPU) thread renders on the device and measures; :func:`host_threads`
     threads read renders, masks and run the probes, one view ahead per thread
@@ -184,6 +183,7 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rende
     from collections import deque
     from concurrent.futures import ThreadPoolExecutor
 
+    from ..schema import ScoredView
     from .stages import measure, on_host, picture_jobs, render_on_device, view_sources
     from .writer import BackgroundWriter
 
@@ -225,11 +225,10 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rende
             with warning_log.where(view=v):
                 cells, geos = measure(run, data, sink)
                 jobs = picture_jobs(run, data, geos, cells) if sink.enabled else []
-            # a view's warnings go with its first cell (once: counts add up on replay)
-            next(iter(cells.values()))["warnings"] = warning_log.for_view(run.bundle.name, v)
-            writer.submit(contextvars.copy_context().run, _finish_view, run, sink, view_cache, v, cells, jobs)
+            scored = ScoredView(cells, warning_log.for_view(run.bundle.name, v))
+            writer.submit(contextvars.copy_context().run, _finish_view, run, sink, view_cache, v, scored, jobs)
             run.done(v)
-            yield v, cells
+            yield v, scored
         ok = True
     finally:
         for _, fut in inflight:
@@ -270,7 +269,7 @@ def writer_threads(threads: int) -> int:
     return max(1, threads // 2)
 
 
-def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, cells: dict, jobs: list) -> None:
+def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, scored, jobs: list) -> None:
     """Writer thread: the view's pictures, then its cache cells."""
     import time
 
@@ -280,7 +279,7 @@ def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, cells:
     if jobs:
         run.timer.add("pictures", t)
     if view_cache is not None:
-        view_cache.store_view(view, cells, run.changed_inputs(view))
+        view_cache.store_view(view, scored, run.changed_inputs(view))
 
 
 def _progress(views, desc, enabled):
