@@ -1,10 +1,11 @@
-"""The data handed from stage to stage, typed: a view's cells, a scene's entry, the pooled cross-scene values.
+"""The data handed from stage to stage, typed: a view's cells, a scene's entry, the pooled cross-scene
+values, the results document.
 
 The per-view stages (:mod:`r360gpu.pipeline.stages`) return a :class:`ScoredView` per view: one
 :class:`ViewCell` per method and control, and the warnings raised while scoring the view.  The
 scene's schedule turns a scene's views into a :class:`SceneEntry`; the run adds its what-ifs
 (orbit, residuals, pruned) as fields; the cross-scene pooling (:mod:`r360gpu.aggregate.pooling`)
-returns a :class:`Pooled`.  Only the results document (:mod:`r360gpu.pipeline.results_doc`) turns
+returns a :class:`Pooled`; a :class:`ResultsDoc` holds them all.  Only the results document (:mod:`r360gpu.pipeline.results_doc`) turns
 these into the JSON of results.json, in the order :data:`SCENE_KEYS` gives (schema
 :data:`r360gpu.protocol.RESULTS_SCHEMA`).
 
@@ -108,3 +109,22 @@ class Pooled:
     sensitivity: dict | None = None
     notes: list[str] = field(default_factory=list)
     notes_first: bool = False
+
+
+@dataclass
+class ResultsDoc:
+    """One run's results document before it is written: what it ran with, its scenes (each with the
+    probes it ran: ``selection`` {scene: {axis: {"probes", "source", "why"}}}), the stage timings,
+    the pooled cross-scene values and the run's warnings.  The schema tag, the version and the
+    run-level probe descriptions are added where it is turned into JSON
+    (:func:`r360gpu.pipeline.results_doc.results_json`)."""
+
+    adapter: dict
+    options: dict
+    created: str
+    scenes: dict[str, SceneEntry] = field(default_factory=dict)
+    selection: dict[str, dict] = field(default_factory=dict)
+    timing: dict | None = None
+    pooled: Pooled | None = None
+    warnings: list[dict] | None = None
+    warning_counts: dict | None = None

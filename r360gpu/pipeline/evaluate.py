@@ -4,11 +4,12 @@ from __future__ import annotations
 import time
 from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..schema import SceneEntry
 from ..util import warning_log
 from .cache import RunCache
 from .options import EvaluateOptions, default_probes
@@ -154,7 +155,6 @@ def _evaluate(loaded, plan: _Plan, cache: RunCache, sink: PictureSink) -> dict:
     timer = Timer()
     document = ResultsDocument(adapter=ctx.describe(), options={**opts.scoring_key(), "n_boot": opts.n_boot,
                                                                 "n_perm": opts.n_perm, "seed": opts.seed})
-    results = document.doc
     t_start = time.perf_counter()
     n_views_done = 0
     views_of: dict = {}
@@ -185,14 +185,15 @@ def _evaluate(loaded, plan: _Plan, cache: RunCache, sink: PictureSink) -> dict:
                 finally:
                     run.release()
             with warning_log.where(scene=bundle.name):
-                _reusable_target(run, scene_res, out)
-                _what_ifs(run.bundle, scene_res, plan, open_what_if,
-                          lambda r, pictures=True: evaluate_scene(r, cache, sink if pictures else quiet, progress,
-                                                                  what_if=True))
+                target = _reusable_target(run, scene_res, out)
+                what_ifs = _what_ifs(run.bundle, scene_res, plan, open_what_if,
+                                     lambda r, pictures=True: evaluate_scene(r, cache, sink if pictures else quiet,
+                                                                             progress, what_if=True))
             views_of[bundle.name] = {v: k for k, v in enumerate(run.views)}
-            document.add_scene(bundle.name, scene_res, run.probes_desc, selection=run.probe_selection)
+            document.add_scene(bundle.name, replace(scene_res, target=target, **what_ifs), run.probes_desc,
+                               selection=run.probe_selection)
             n_views_done += len(run.views)
-            plots.draw(bundle.name, scene_res)
+            plots.draw(bundle.name, document.scene(bundle.name))
         document.set_timing(timer.totals, time.perf_counter() - t_start, n_views_done,
                             executor.describe() if executor is not None else None)
         if executor is not None:
@@ -201,6 +202,7 @@ def _evaluate(loaded, plan: _Plan, cache: RunCache, sink: PictureSink) -> dict:
         document.aggregate(n_boot=opts.n_boot, n_perm=opts.n_perm, seed=opts.seed)
         document.set_warnings(in_run_order(warning_log.records(), [b.name for b in loaded], views_of),
                               warning_log.counts())
+        results = document.doc
         if out is not None:
             from ..report.outputs import write_run_outputs
 
@@ -211,34 +213,38 @@ def _evaluate(loaded, plan: _Plan, cache: RunCache, sink: PictureSink) -> dict:
     return results
 
 
-def _what_ifs(bundle, scene_res: dict, plan: _Plan, open_what_if, score) -> None:
-    """The scene beyond its capture views, into ``scene_res``: the orbit (``--orbit N``, under
-    scenes.S.orbit), the residual Gaussians and the unranked METHOD+pruned what-ifs."""
+def _what_ifs(bundle, scene_res: SceneEntry, plan: _Plan, open_what_if, score) -> dict:
+    """The scene beyond its capture views, as :class:`~r360gpu.schema.SceneEntry` fields: the orbit
+    (``--orbit N``, ``orbit``), the residual Gaussians (``residuals``) and the unranked METHOD+pruned
+    what-ifs (``pruned``)."""
     opts, ctx, out = plan.opts, plan.ctx, plan.out
+    fields: dict = {}
     if opts.orbit:  # --orbit N: the scene from all around (pipeline.orbit)
         from .orbit import score_orbit
 
-        scene_res["orbit"] = score_orbit(bundle, opts, open_what_if, score, ctx=ctx, warn=warning_log.warn, out=out)
+        fields["orbit"] = score_orbit(bundle, opts, open_what_if, score, ctx=ctx, warn=warning_log.warn, out=out)
     if opts.residuals or opts.prune_residuals:  # the Gaussians behind the evidence (pipeline.residuals)
         from .residuals import scene_residuals, score_pruned
 
-        scene_res["residuals"], values = scene_residuals(bundle, scene_res, out, ctx=ctx, xis=opts.xis,
-                                                         warn=warning_log.warn)
+        fields["residuals"], values = scene_residuals(bundle, scene_res.methods, out, ctx=ctx, xis=opts.xis,
+                                                      warn=warning_log.warn)
         if opts.prune_residuals:  # the what-ifs have no contact sheets
-            scene_res["pruned"] = score_pruned(bundle, values, opts, open_what_if,
-                                               lambda r: score(r, pictures=False), out)
+            fields["pruned"] = score_pruned(bundle, values, opts, open_what_if, lambda r: score(r, pictures=False),
+                                            out)
+    return fields
 
 
-def _reusable_target(run, scene_res: dict, out) -> None:
-    """A ``[target]``'s lifted set and rendered masks written under ``out`` (pipeline.reusable), their
-    paths under scenes.S.target.files."""
-    if out is None or run.target_lifted is None or "target" not in scene_res:
-        return
+def _reusable_target(run, scene_res: SceneEntry, out) -> dict | None:
+    """The scene's ``target`` entry, with the paths of a ``[target]``'s lifted set and rendered masks
+    written under ``out`` (pipeline.reusable) under ``files``."""
+    if out is None or run.target_lifted is None or scene_res.target is None:
+        return scene_res.target
     from .reusable import write_target
 
-    rendered = {v: run.bundle.masks[v] for v in scene_res["target"]["rendered"]}
-    scene_res["target"]["files"] = write_target(out, run.bundle.name, run.pre.gaussians, run.target_lifted.target,
-                                                rendered, source=getattr(run.bundle.pre, "path", None))
+    rendered = {v: run.bundle.masks[v] for v in scene_res.target["rendered"]}
+    return {**scene_res.target,
+            "files": write_target(out, run.bundle.name, run.pre.gaussians, run.target_lifted.target, rendered,
+                                  source=getattr(run.bundle.pre, "path", None))}
 
 
 def _say_probes(run: SceneRun, log) -> None:

@@ -13,6 +13,7 @@ import contextvars
 
 from ..errors import InputError
 from ..protocol import XI_DEFAULT
+from ..schema import SceneEntry
 from ..util import warning_log
 from .cache import RunCache
 from .picture_sink import PictureSink
@@ -52,7 +53,7 @@ def host_threads() -> int:
 
 
 def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool, executor=None,
-                   rendered=None, what_if: bool = False) -> dict:
+                   rendered=None, what_if: bool = False) -> SceneEntry:
     """Every view of one scene (from the view cache where it has them); the scene's results entry.
 
     rendered: called (once, on this thread) when the last view to score here is rendered.
@@ -84,11 +85,11 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     return scene_entry(run, cells_of, what_if=what_if)
 
 
-def scene_entry(run: SceneRun, cells_of: dict, *, what_if: bool = False) -> dict:
-    """The scene's results entry from the cells of its views ({view: ScoredView}): the
-    per-view records and the axes of every method and control, the controls' validity verdicts,
+def scene_entry(run: SceneRun, cells_of: dict, *, what_if: bool = False) -> SceneEntry:
+    """The scene's :class:`~r360gpu.schema.SceneEntry` from the cells of its views ({view: ScoredView}):
+    the per-view records and the axes of every method and control, the controls' validity verdicts,
     and in a compat mode the public scripts' values (:mod:`r360gpu.aggregate.compat`).  The
-    records (ViewRecord objects) become dicts here, in the entry results.json is written from."""
+    records (ViewRecord objects) become dicts here."""
     from ..aggregate.compat import scene_compat
     from ..aggregate.results import method_axes
     from ..aggregate.validity import scene_validity
@@ -104,32 +105,29 @@ def scene_entry(run: SceneRun, cells_of: dict, *, what_if: bool = False) -> dict
             boundaries[m].append(cell.boundary)
             if cell.picture:
                 pictures[m][v] = cell.picture
-    scene = _scene_header(run)
     own = {m: {"axes": method_axes(records[m], xis=opts.xis, boundary=boundaries[m] if opts.boundary else None),
                "views": [r.to_dict() for r in records[m]]} for m in bundle.methods}
-    if run.controls:
-        scene["controls"] = {c: {"source": src, "axes": method_axes(records[src], xis=opts.xis),
-                                 "views": [r.to_dict() for r in records[src]]}
-                             for c, src in run.controls.items()}
+    controls = {c: {"source": src, "axes": method_axes(records[src], xis=opts.xis),
+                    "views": [r.to_dict() for r in records[src]]}
+                for c, src in run.controls.items()} if run.controls else None
     # The verdicts weigh r360gpu's own readings (its probes, on the controls as on the methods),
     # also in a compat mode, whose method axes are the public scripts'.
-    scene["validity"], scene["validity_notes"], scene["detectability"] = scene_validity(
-        {"methods": own, "controls": scene.get("controls")}, xi=XI_DEFAULT)
+    validity, validity_notes, detectability = scene_validity({"methods": own, "controls": controls}, xi=XI_DEFAULT)
     compat = None if what_if else scene_compat(bundle, list(bundle.methods), opts.compat, xis=opts.xis,
                                                ght=opts.ght)
-    for m, entry in own.items():
-        scene["methods"][m] = {"axes": compat.axes(entry["axes"]) if compat else entry["axes"],
-                               "views": [compat.view(d) for d in entry["views"]] if compat else entry["views"],
-                               "pictures": pictures[m]}
-    if compat is not None:
-        scene["notes"] = compat.notes
-    return scene
+    methods = {m: {"axes": compat.axes(entry["axes"]) if compat else entry["axes"],
+                   "views": [compat.view(d) for d in entry["views"]] if compat else entry["views"],
+                   "pictures": pictures[m]} for m, entry in own.items()}
+    return SceneEntry(**_scene_header(run), methods=methods, controls=controls, validity=validity,
+                      validity_notes=validity_notes, detectability=detectability,
+                      notes=compat.notes if compat is not None else None)
 
 
 def _scene_header(run: SceneRun) -> dict:
-    """The scene entry's description of the run, before its measures ("methods" filled in after)."""
+    """The scene entry's description of the run (the :class:`~r360gpu.schema.SceneEntry` fields before
+    its measures)."""
     bundle = run.bundle
-    scene = {
+    return {
         "prompt": bundle.prompt,
         "n_views": len(run.views),
         "views": run.views,
@@ -137,15 +135,11 @@ def _scene_header(run: SceneRun) -> dict:
         "structural_mode": run.mode,
         "depth": run.depth_mode,
         "sources": run.describe_sources(),
-        "methods": {},
+        "frame_check": run.frame_check or None,  # do pre's cameras see its splats (r360gpu.metrics.frame_check)
+        "target": run.target_record,  # [target]: which views' masks were given, which rendered
+        # scene.toml [expected.METHOD]: known failures, checked by the report
+        "expected": getattr(bundle, "expected", None) or None,
     }
-    if getattr(run, "frame_check", None):  # do pre's cameras see its splats (r360gpu.metrics.frame_check)
-        scene["frame_check"] = run.frame_check
-    if run.target_record is not None:  # [target]: which views' masks were given, which rendered
-        scene["target"] = run.target_record
-    if getattr(bundle, "expected", None):  # scene.toml [expected.METHOD]: known failures, checked by the report
-        scene["expected"] = bundle.expected
-    return scene
 
 
 def _cached_views(run: SceneRun, cache: RunCache, sink: PictureSink):
