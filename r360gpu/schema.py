@@ -5,9 +5,9 @@ The per-view stages (:mod:`r360gpu.pipeline.stages`) return a :class:`ScoredView
 :class:`ViewCell` per method and control, and the warnings raised while scoring the view.  The
 scene's schedule turns a scene's views into a :class:`SceneEntry`; the run adds its what-ifs
 (orbit, residuals, pruned) as fields; the cross-scene pooling (:mod:`r360gpu.aggregate.pooling`)
-returns a :class:`Pooled`; a :class:`ResultsDoc` holds them all.  Only the results document (:mod:`r360gpu.pipeline.results_doc`) turns
-these into the JSON of results.json, in the order :data:`SCENE_KEYS` gives (schema
-:data:`r360gpu.protocol.RESULTS_SCHEMA`).
+returns a :class:`Pooled`; a :class:`ResultsDoc` holds them all.  Only the results document
+(:mod:`r360gpu.pipeline.results_doc`) turns these into the JSON of results.json, in the order
+:data:`SCENE_KEYS` gives (schema :data:`r360gpu.protocol.RESULTS_SCHEMA`).
 
 A leaf like :mod:`r360gpu.protocol`: it imports no other r360gpu module, so every package may use it.
 """
