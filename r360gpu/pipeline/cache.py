@@ -37,6 +37,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
+from ..schema import ScoredView, ViewCell
 from ..util import code_id
 
 CACHE_DIR = ".r360cache"
@@ -122,16 +123,15 @@ class ViewCache:
         except (OSError, ValueError, KeyError, TypeError):
             return None  # a damaged cache entry is recomputed
 
-    def load_cell(self, method: str, view: str):
+    def load_cell(self, method: str, view: str) -> ViewCell | None:
         """The :class:`~r360gpu.schema.ViewCell` of (method, view), or None."""
         d = self._load(method, view)
         return None if d is None else _cell(d)
 
-    def load_view(self, methods, view: str, *, pictures: bool):
+    def load_view(self, methods, view: str, *, pictures: bool) -> ScoredView | None:
         """Every method's cell of ``view`` as a :class:`~r360gpu.schema.ScoredView` (the view's
         warnings stored with its first cell), or None when any is missing (or its picture is, or a
         precomputed probe file it was scored from has changed since: the cells' ``inputs``)."""
-        from ..schema import ScoredView
         from ..util.filehash import changed_stamps
 
         cells, inputs, warnings = {}, {}, None
@@ -147,17 +147,15 @@ class ViewCache:
                 warnings = d.get("warnings")
         return None if changed_stamps(inputs) else ScoredView(cells, warnings)
 
-    def load_scored(self, methods, controls, view: str, *, pictures: bool):
+    def load_scored(self, methods, controls, view: str, *, pictures: bool) -> ScoredView | None:
         """Every cell of ``view`` (the methods', whose pictures are checked, and the controls'), or None."""
-        from ..schema import ScoredView
-
         scored = self.load_view(methods, view, pictures=pictures)
         if scored is None:
             return None
         ctl = self.load_view(controls, view, pictures=False)
         return None if ctl is None else ScoredView({**scored.cells, **ctl.cells}, scored.warnings)
 
-    def store_view(self, view: str, scored, changed: list) -> bool:
+    def store_view(self, view: str, scored: ScoredView, changed: list) -> bool:
         """Store every cell of ``view`` (a :class:`~r360gpu.schema.ScoredView`; its warnings go into
         the first cell's file) unless ``changed`` names an input whose decoded bytes are not
         those the key was computed from (:func:`changed_inputs`), or a precomputed probe file the
@@ -184,7 +182,7 @@ class ViewCache:
             self.store(m, view, cell, scored.warnings if i == 0 else None)
         return True
 
-    def store(self, method: str, view: str, cell, warnings: dict | None = None) -> None:
+    def store(self, method: str, view: str, cell: ViewCell, warnings: dict | None = None) -> None:
         from ..util.atomic import write_json
 
         # compact (no indent): written for every method and view, read back by this class only;
@@ -192,7 +190,7 @@ class ViewCache:
         write_json(self._path(method, view), cell_json(cell, warnings), allow_nan=False, sync=False, indent=None)
 
 
-def cell_json(cell, warnings: dict | None = None) -> dict:
+def cell_json(cell: ViewCell, warnings: dict | None = None) -> dict:
     """A :class:`~r360gpu.schema.ViewCell` as a cache file holds it: its ViewRecord as a dict
     (:meth:`~r360gpu.metrics.record.ViewRecord.to_dict`), "inputs" only when some file was read,
     and the view's ``warnings`` when given (its first cell's file holds them)."""
@@ -212,9 +210,7 @@ def cell_from_json(d: dict) -> dict:
     return {**d, "record": ViewRecord.from_dict(d["record"])}
 
 
-def _cell(d: dict):
-    from ..schema import ViewCell
-
+def _cell(d: dict) -> ViewCell:
     return ViewCell(d["record"], d.get("boundary"), d.get("picture"), d.get("inputs") or {})
 
 

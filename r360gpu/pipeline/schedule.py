@@ -13,7 +13,7 @@ import contextvars
 
 from ..errors import InputError
 from ..protocol import XI_DEFAULT
-from ..schema import SceneEntry
+from ..schema import SceneEntry, ScoredView
 from ..util import warning_log
 from .cache import RunCache
 from .picture_sink import PictureSink
@@ -177,7 +177,6 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rende
     from collections import deque
     from concurrent.futures import ThreadPoolExecutor
 
-    from ..schema import ScoredView
     from .stages import measure, on_host, picture_jobs, render_on_device, view_sources
     from .writer import BackgroundWriter
 
@@ -263,7 +262,7 @@ def writer_threads(threads: int) -> int:
     return max(1, threads // 2)
 
 
-def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, scored, jobs: list) -> None:
+def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, scored: ScoredView, jobs: list) -> None:
     """Writer thread: the view's pictures, then its cache cells."""
     import time
 

@@ -21,6 +21,8 @@ import time
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from ..schema import ScoredView, ViewCell
+from ..util import warning_log
 
 
 @dataclass
@@ -225,8 +227,6 @@ def measure(run, data: ViewData, sink) -> tuple[dict, dict]:
     without pictures); a control's has neither.  Every cell gets the stamps of the precomputed
     probe files read for the view (``data.inputs``).
     """
-    from ..schema import ViewCell
-
     t = time.perf_counter()
     cells, geos = {}, {}
     for m, res in measure_methods(run, data, list(run.methods)).items():
@@ -277,12 +277,9 @@ def picture_jobs(run, data: ViewData, geos: dict, cells: dict | None = None) -> 
     return jobs
 
 
-def score_view(run, view: str, sink):
+def score_view(run, view: str, sink) -> ScoredView:
     """One view's :class:`~r360gpu.schema.ScoredView`, stage after stage in this thread (pictures
     written here too), with the warnings raised for it."""
-    from ..schema import ScoredView
-    from ..util import warning_log
-
     data = gather(run, render_on_device(run, view))
     cells, geos = measure(run, data, sink)
     if sink.enabled:
