@@ -9,7 +9,7 @@ from r360gpu.metrics.geometric import acc_depth_view
 from r360gpu.metrics.measure import MeasureJob, MeasureSettings, MethodOutputs, measure_view_methods
 from r360gpu.metrics.record import ViewRecord
 from r360gpu.metrics.semantic import semantic_view
-from r360gpu.metrics.sensitivity import NOT_GIVEN, BoundaryInput, boundary_sensitivity
+from r360gpu.metrics.sensitivity import NOT_GIVEN, BoundaryInput, BoundarySweep, boundary_sensitivity
 from r360gpu.metrics.structural import structural_view
 
 
@@ -55,7 +55,7 @@ def test_batched_equals_per_method(ctx, mode):
         table = boundary_sensitivity(
             [BoundaryInput(target, pred_pre=sem_pre["s"], pred_post=mo.semantic["s"], masks_a=a, masks_b=b,
                            geometric=geo if geo is not None else NOT_GIVEN, view="v")],
-            geometric=geo is not None, structural_mode=mode, xis=(0.3, 0.5), ctx=ctx)
+            BoundarySweep(geometric=geo is not None, structural_mode=mode, xis=(0.3, 0.5)), ctx=ctx)
         assert got[name].boundary == {row: table.row(row) for row in table.rows}
         assert (got[name].geometric is None) == (geo is None)
 

@@ -29,7 +29,7 @@ from .geometric import GeometricView, GhtParams, acc_depth_views
 from .record import ViewRecord
 from ..protocol import XI_DEFAULT
 from .semantic import semantic_view
-from .sensitivity import NOT_GIVEN, BoundaryInput, boundary_sensitivity, boundary_targets
+from .sensitivity import NOT_GIVEN, BoundaryInput, BoundarySweep, boundary_sensitivity, boundary_targets
 from .structural import check_mode, structural_view
 
 
@@ -138,7 +138,8 @@ def measure_view_methods(job: MeasureJob, settings: MeasureSettings) -> dict[str
                 table = boundary_sensitivity(
                     [BoundaryInput(target, pred_pre=semantic_pre[sem_names[0]], pred_post=mo.semantic[sem_names[0]],
                                    masks_a=a, masks_b=b, geometric=g if g is not None else NOT_GIVEN, view=view)],
-                    geometric=g is not None, structural_mode=mode, xis=xis, compat=compat, ght_params=ght_params,
+                    BoundarySweep(geometric=g is not None, structural_mode=mode, xis=xis, compat=compat,
+                                  ght_params=ght_params),
                     ctx=ctx, packs=packs,
                 )
                 rows = {row: table.row(row) for row in table.rows}
