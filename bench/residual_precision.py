@@ -47,7 +47,7 @@ def precision(bundle, n_background: int) -> tuple[float, int]:
     real = lift_residuals.flagged_views
     lift_residuals.flagged_views = every_view
     try:
-        _, values = scene_residuals(bundle, {"methods": {m: {"views": []} for m in bundle.methods}}, None)
+        _, values = scene_residuals(bundle, {m: {"views": []} for m in bundle.methods}, None)
     finally:
         lift_residuals.flagged_views = real
     r = values["floaters"]

@@ -11,8 +11,9 @@ import pytest
 PKG = Path(__file__).resolve().parent.parent / "r360gpu"
 DOC = PKG.parent / "docs" / "architecture.md"
 
-#: Leaves every package may import: the error types, the protocol's constants, the version string.
-LEAVES = {"errors", "protocol", "__version__"}
+#: Leaves every package may import: the error types, the protocol's constants, the stages' data types,
+#: the version string.
+LEAVES = {"errors", "protocol", "schema", "__version__"}
 #: What each package (or top-level module) imports besides LEAVES, and so may import: the data flow
 #: io/bundle (load) -> render -> probes -> metrics -> aggregate -> report, pipeline running them,
 #: the generator, viewer and command line on top.  Exactly the edges some import uses
@@ -21,6 +22,7 @@ LEAVES = {"errors", "protocol", "__version__"}
 ALLOWED: dict[str, set[str]] = {
     "errors": set(),
     "protocol": set(),
+    "schema": set(),
     "util": set(),
     "gpu": set(),
     "io": {"util"},

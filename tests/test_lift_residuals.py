@@ -121,7 +121,8 @@ def test_without_a_reference_the_gate_is_pre_without_the_target(floaters_run, ct
     scene_res = res["scenes"]["room"]
     got = {}
     for how, target in (("indices", TargetSpec(indices=np.arange(n_bg, scene.pre.n))), ("masks", None)):
-        entry, values = scene_residuals(replace(bundle, reference=None, target=target), scene_res, None, ctx=ctx)
+        entry, values = scene_residuals(replace(bundle, reference=None, target=target), scene_res["methods"], None,
+                                        ctx=ctx)
         assert entry["floaters"]["gate"] == "in front of pre's surface behind the target"
         got[how] = _precision(values["floaters"], n_bg, n_floaters)
     print("no reference, precision at the floater count: " + ", ".join(f"{k} {v:.3f}" for k, v in got.items()))

@@ -125,6 +125,9 @@ class SceneRun:
         # the driver checks that pre's cameras see its splats (workers score what the driver accepted);
         # a what-if's cameras are the capture's, already checked, or derived from them (the orbit)
         self.frame_check = self.check_frames(cache) if fit and check_frames else {}
+        #: which probes the scene runs and why ({axis: {"probes", "source", "why"}}: the third value of
+        #: :func:`r360gpu.probes.registry.scene_probes`, given by whoever chose the probes; {}: not told)
+        self.probe_selection: dict = {}
         self._open_probes(sem_probes, str_probes, cache, fit)
         self.lpips = (LpipsModel(opts.lpips_model, choose(opts.probe_device, ctx.adapter_info))
                       if opts.lpips_model and self.reference is not None else None)
@@ -185,6 +188,17 @@ class SceneRun:
             else:
                 self.fit_pending = True
         self.probes_desc = recorded if self.fit_pending else self._describe()
+
+    def measure_settings(self, *, boundary_sweep: bool = True):
+        """How the run measures a view (:class:`~r360gpu.metrics.measure.MeasureSettings`), with the
+        probes as described now (a pending fit changes their description); ``boundary_sweep`` False:
+        without the sweep (the controls)."""
+        from ..metrics.measure import MeasureSettings
+
+        opts = self.opts
+        return MeasureSettings(mode=self.mode, probes=self.probes_desc["semantic"] + self.probes_desc["structural"],
+                               boundary=boundary_sweep and opts.boundary, xis=opts.xis, compat=opts.compat,
+                               ght_params=opts.ght, lpips_model=self.lpips, ctx=self.ctx)
 
     @property
     def pre(self):
