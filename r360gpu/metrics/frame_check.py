@@ -113,7 +113,7 @@ TARGET_COVERED = 0.8
 #: Views checked per pre source.
 CHECK_VIEWS = 4
 #: What a cached verdict was computed by (part of its cache key): 3 = "refuse" / "note" / "ok",
-#: 4 = a flat outline also judged by the reference's removal.
+#: 4 = the reference's removal judged too.
 CHECK_VERSION = 4
 #: Relative depth step at the outline that counts (:func:`outline_step`).
 STEP = 0.05
