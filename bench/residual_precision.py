@@ -17,7 +17,7 @@ counted as flagging evidence, in three settings:
 The floaters method's Gaussians are the scene's background followed by the
 floaters (the generator builds it so), so the floaters are the indices from the
 background's count on.  Printed: the share of floaters among the floater-count
-highest residuals (the issue's goal: >= 0.9).
+highest residuals (the goal: >= 0.9).
 """
 from __future__ import annotations
 

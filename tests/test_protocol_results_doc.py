@@ -1,5 +1,5 @@
-"""The results document keeps each scene's probe descriptions (issue 28: with several scenes,
-results["probes"] used to hold only the last scene's, each fitted probe having its own model hash)."""
+"""The results document keeps each scene's probe descriptions: with several scenes, results["probes"]
+holds every scene's, not only the last scene's, each fitted probe with its own model hash."""
 from __future__ import annotations
 
 import json
