@@ -8,20 +8,22 @@ Scenes: the demo's room and garden (r360gpu.synthetic, at --size with --views ca
 real splat file given with --real (e.g. the PlayCanvas engine's examples/assets/splats/biker
 and guitar .compressed.ply), framed as bench/real_scene_controls.py frames one: cameras on a
 ring around the scene, a target cut out and its masks rendered.  Per scene the frame check
-(r360gpu.metrics.frame_check.check_views) is run on
+(r360gpu.metrics.frame_check.check_views, with the scene's reference: pre without the target, in
+pre's frame) is run on
 
 * the correct frame: the scene as it is; for the demo scenes also the splats moved into gsplat's
   normalised world (normalize_world_space recomputed from the cameras and the splat centres)
   with that frame declared (what ``frame = "gsplat"`` does);
 * --wrong random wrong frames: a random similarity (a rotation uniform over all rotations, a
   scale log-uniform in [0.1, 10] about the world origin, the object or the cameras' centroid, a
-  shift of up to 1.5 orbit radii) applied to the cameras and not declared.  A draw is *wrong*
+  shift of up to 1.5 orbit radii) applied to the cameras and not declared, drawn from a generator
+  seeded with 2026 + --frame-seed (default --seed), scene after scene.  A draw is *wrong*
   when the target's own silhouette, seen by the moved cameras, overlaps its masks by a median IoU
   under 0.5 over the checked views (the masks no longer mark the object); a draw that leaves the
   object under its masks is listed apart (the scores would still measure its removal);
 * for the demo scenes also gsplat's normalised world with the cameras as they are (not declared).
 
-Printed: one row per case with --detail, and the confusion table (truth x verdict).  These are
+Printed: one row per case with --detail-rows, and the confusion table (truth x verdict).  These are
 the tables of docs/your-scene.md ("The check") and docs/input-validation.md;
 tests/test_frame_check_class.py checks a small draw of the same class.
 """
