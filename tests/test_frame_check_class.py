@@ -155,3 +155,22 @@ def test_a_flat_outline_is_a_quiet_note_in_results_json(tmp_path, ctx):
     assert check["cones"] >= frame_check.CONES_MIN and "little depth step" in check["note"]
     assert not [w for w in res["warnings"] if "frame" in w["message"]]
     assert res["scenes"]["room"]["methods"]["clean"]["axes"]["rqs"] is not None
+
+
+def test_a_reference_that_still_holds_the_object_is_refused_before_scoring(tmp_path, ctx):
+    """The room framed right, but its reference is pre itself: pre and the reference render the
+    same thing under the masks, so the run stops before scoring, naming the reading."""
+    import shutil
+
+    from r360gpu.errors import InputError
+    from r360gpu.pipeline import EvaluateOptions, evaluate
+    from r360gpu.synthetic import write_bundle
+
+    scene = make_scene("room", seed=0, n_views=5, width=96, height=72, detail=0.1)
+    folder = write_bundle(scene, tmp_path / "room", methods=["clean"], ctx=ctx)
+    opts = EvaluateOptions(n_boot=50, n_perm=20, boundary=False, pictures=False, controls=False)
+    assert evaluate(folder, options=opts, ctx=ctx, progress=False)["scenes"]["room"]["frame_check"]["pre"][
+        "removed"] >= frame_check.REMOVED_MIN
+    shutil.copy(folder / "pre.ply", folder / "reference.ply")
+    with pytest.raises(InputError, match="the reference render the same thing under the target masks"):
+        evaluate(folder, options=opts, ctx=ctx, progress=False)

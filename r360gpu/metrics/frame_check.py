@@ -436,7 +436,7 @@ def mismatch_message(verdict: FrameVerdict, *, source: str, frame: str | None, c
     else:
         what = (f"and the reference render the same thing under the target masks (they differ at "
                 f"{100 * verdict.removed:.0f}% of the masks' pixels, < {100 * REMOVED_MIN:.0f}%): the object the "
-                f"reference lacks is not where the masks are")
+                f"reference lacks is not where the masks are, or the reference still holds it")
     framed = f"the cameras were moved by {frame}" if frame else "the cameras were used as they are"
     return (f"pre ({source}) {what} at the checked evaluation views (image covered: {_listed(verdict)}; {framed}"
             f"{'' if cameras is None else f', cameras {cameras}'}): {LIKELY_CAUSE}")
