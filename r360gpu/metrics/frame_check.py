@@ -71,7 +71,8 @@ Two verdicts (:func:`frame_verdict`), kept apart because they mean different thi
   lacks the object under the masks.  The check found the target where the
   masks are, so no frame advice is given; the note is kept in ``results.json``
   (without a reference, a wrong frame that puts a large surface through the
-  masks' 3D place also ends here).
+  masks' 3D place also ends here, and a rare one that puts another object
+  there passes as "ok": bench/frame_check_scenes.py).
 * ``"ok"`` otherwise, and when nothing was checked.
 
 With one checked view there are no pairs (``cones`` None): only the target
