@@ -115,6 +115,7 @@ class SceneRun:
             timer.add("target", t0)
         self._masks: dict = {}
         self._fit_renders: dict = {}
+        self._checked_refs: dict = {}  # {view: the reference's render the frame check made}
         require_target(self.views, self.mask, bundle.masks)
         # The digests the key is made of, kept to check, before a view's cells are stored, that the
         # bytes decoded for it are these (cache.changed_inputs: hash while reading, util.filehash).
@@ -238,6 +239,11 @@ class SceneRun:
         hit = self._fit_renders.pop((name, view), None)
         return hit if hit is not None else self.images(self.pres[name], view)
 
+    def render_reference(self, view: str):
+        """The view rendered by the reference; the frame check's render is used once more, not redone."""
+        hit = self._checked_refs.pop(view, None)
+        return hit if hit is not None else self.images(self.reference, view)
+
     def images(self, source, view: str):
         """``source`` rendered at the view's camera: a kept render when there is one."""
         cam = self.camera(view)
@@ -247,6 +253,7 @@ class SceneRun:
     def done(self, view: str) -> None:
         """Drop what was kept for ``view``."""
         self._masks.pop(view, None)
+        self._checked_refs.pop(view, None)
         for key in [k for k in list(self._fit_renders) if k[1] == view]:
             self._fit_renders.pop(key, None)
 
@@ -319,8 +326,8 @@ class SceneRun:
                 for v in pick:
                     img = self.images(src, v)
                     self._fit_renders[name, v] = img  # render_pre takes it when the view is scored
-                    seen.append((v, self.camera(v), img.alpha, host_depth(img.depth, self.ctx), self.mask(v)))
-                verdict = frame_check.check_views(seen)
+                    seen.append((v, self.camera(v), img.alpha, host_depth(img.depth, self.ctx), self.mask(v), img.rgb))
+                verdict = frame_check.check_views(seen, self._reference_images)
                 self.timer.add("frame check", t0)
                 if self.fingerprint is not None:
                     cache.store_fit(key, verdict.to_dict(), "frames")
@@ -333,6 +340,15 @@ class SceneRun:
                     verdict, source=str(src.path), frame=None if frame is None else frame.origin,
                     cameras=None if self.bundle.cameras_path is None else str(self.bundle.cameras_path)))
         return out
+
+    def _reference_images(self, view: str):
+        """The reference at ``view`` for the frame check (host arrays), or None without one."""
+        from ..render.sources import ViewImages, host_depth
+
+        if self.reference is None:
+            return None
+        img = self._checked_refs[view] = self.render_reference(view)  # render_reference takes it when scored
+        return ViewImages(img.rgb, host_depth(img.depth, self.ctx), img.alpha)
 
     def describe_sources(self) -> dict:
         out = {"pre": self.pre.describe(),

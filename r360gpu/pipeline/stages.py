@@ -66,7 +66,7 @@ def _render(run, data: ViewData, slot, key, source) -> None:
     if slot == "pre":
         data.pres[key] = run.render_pre(key, data.view)
     elif slot == "ref":
-        data.ref = run.images(source, data.view)
+        data.ref = run.render_reference(data.view)
     else:
         data.posts[key] = run.images(source, data.view)
 
