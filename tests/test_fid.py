@@ -163,7 +163,7 @@ def test_kid_subsets_are_seeded_draws_without_replacement():
         vals.append(ref_mmd2(a[ia], b[ib]))
     assert (k.subsets, k.subset_size) == (4, 5)
     assert k.mean == pytest.approx(np.mean(vals), rel=1e-10)
-    assert k.std == pytest.approx(np.std(vals, ddof=1), rel=1e-9)
+    assert k.std == pytest.approx(np.std(vals), rel=1e-9)  # torchmetrics: std(unbiased=False)
     assert F.kid_from_features(a, b, subsets=4, subset_size=5, seed=3) == k
 
 
@@ -176,7 +176,7 @@ def test_kid_subset_size_is_capped_at_the_smaller_set():
     assert k.mean == pytest.approx(ref_mmd2(a, b), rel=1e-10)
     assert k.std == pytest.approx(0.0, abs=1e-12)
     one = F.kid_from_features(a, b, subsets=1)
-    assert one.std is None and one.mean == pytest.approx(k.mean, rel=1e-12)
+    assert one.std == 0.0 and one.mean == pytest.approx(k.mean, rel=1e-12)
 
 
 def test_kid_is_near_zero_for_one_distribution_and_bad_arguments_refused():
@@ -197,3 +197,13 @@ def test_kid_is_near_zero_for_one_distribution_and_bad_arguments_refused():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert math.isfinite(F.kid_from_features(a[:2], a[2:4]).mean)
+
+
+def test_fid_image_files_are_pytorch_fids_listing(tmp_path):
+    for name in ["b.png", "a.jpg", "c.JPG", "d.webp", "e.txt", "f.jpeg", "g.png.bak", "h.tiff"]:
+        (tmp_path / name).write_bytes(b"")
+    (tmp_path / "sub.png").mkdir()  # pytorch-fid's glob lists it, then fails to open it
+    got = [p.name for p in F.fid_image_files(tmp_path)]
+    assert got == ["a.jpg", "b.png", "d.webp", "f.jpeg", "h.tiff"]
+    with pytest.raises(InputError, match="not found"):
+        F.fid_image_files(tmp_path / "none")

@@ -30,9 +30,9 @@ images).  One image per set is refused (a covariance needs N >= 2; pytorch-fid's
 **KID** (Binkowski et al., ICLR 2018, "Demystifying MMD GANs"): the unbiased estimate of
 the squared maximum mean discrepancy with the polynomial kernel
 ``k(x, y) = (gamma x.y + coef)^degree``, ``degree = 3``, ``gamma = 1 / d``, ``coef = 1``,
-averaged over random subsets, as torchmetrics' ``KernelInceptionDistance`` (``poly_kernel``,
-``maximum_mean_discrepancy``: mean and sample standard deviation over ``subsets``) and
-clean-fid's ``kernel_distance`` define it.  Per subset of ``m`` rows of each set::
+averaged over random subsets, as torchmetrics' ``KernelInceptionDistance`` (1.x: ``poly_kernel``,
+``maximum_mean_discrepancy``; mean and population standard deviation, ``std(unbiased=False)``,
+over ``subsets``) and clean-fid's ``kernel_distance`` (the mean) define it.  Per subset of ``m`` rows of each set::
 
     MMD^2 = (sum_{i != j} k(x_i, x_j) + sum_{i != j} k(y_i, y_j)) / (m (m - 1))
             - 2 sum_{i, j} k(x_i, y_j) / m^2
@@ -42,12 +42,19 @@ clean-fid's ``kernel_distance`` define it.  Per subset of ``m`` rows of each set
 replacement from ``numpy.random.default_rng(seed)`` (the reference's rows first), so the
 result is deterministic.  When ``m`` equals both set sizes every subset holds all rows and
 the value is the full unbiased MMD^2.
+
+**Which images**: pytorch-fid's ``calculate_fid_given_paths`` scores every file of each
+folder whose name ends in one of its extensions (lower case only, as its ``glob`` does on
+Linux), sorted by path: :func:`fid_image_files` lists the same files.  (The 360-USID script
+so compares all of ``test_images/`` with all of ``renders/``, not view pairs.)
 """
 from __future__ import annotations
 
 import math
+import os
 import warnings
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy import linalg
@@ -66,6 +73,18 @@ KID_SUBSETS = 100
 KID_SUBSET_SIZE = 1000
 KID_DEGREE = 3
 KID_COEF = 1.0
+#: The file extensions pytorch-fid reads from a folder (``fid_score.IMAGE_EXTENSIONS``).
+FID_IMAGE_EXTENSIONS = ("bmp", "jpg", "jpeg", "pgm", "png", "ppm", "tif", "tiff", "webp")
+
+
+def fid_image_files(folder: str | os.PathLike) -> list[Path]:
+    """The images pytorch-fid takes from ``folder``: files named ``*.EXT`` for its lower-case
+    extensions, sorted (a folder so named, which pytorch-fid would list and fail to open, is
+    left out).  A missing folder is an InputError naming it."""
+    root = Path(folder)
+    if not root.is_dir():
+        raise InputError("FID image folder not found", root)
+    return sorted(p for ext in FID_IMAGE_EXTENSIONS for p in root.glob(f"*.{ext}") if p.is_file())
 
 
 def _features(x, what: str) -> np.ndarray:
@@ -166,11 +185,11 @@ def fid_from_features(ref, out, *, eps: float = FID_EPS, what: str | None = None
 
 @dataclass(frozen=True)
 class Kid:
-    """One KID: mean and sample standard deviation (ddof 1; None for one subset) of the
-    unbiased MMD^2 over ``subsets`` subsets of ``subset_size`` rows of each set."""
+    """One KID: mean and population standard deviation (as torchmetrics) of the unbiased
+    MMD^2 over ``subsets`` subsets of ``subset_size`` rows of each set."""
 
     mean: float
-    std: float | None
+    std: float
     subsets: int
     subset_size: int
 
@@ -208,5 +227,4 @@ def kid_from_features(ref, out, *, subsets: int = KID_SUBSETS, subset_size: int 
         ir = rng.choice(r.shape[0], m, replace=False)
         io = rng.choice(o.shape[0], m, replace=False)
         vals[s] = polynomial_mmd2(r[ir], o[io], degree, gamma, coef)
-    std = float(np.std(vals, ddof=1)) if subsets > 1 else None
-    return Kid(float(np.mean(vals)), std, subsets, m)
+    return Kid(float(np.mean(vals)), float(np.std(vals)), subsets, m)
