@@ -136,15 +136,6 @@ def test_models_that_break_the_contract_are_refused_naming_the_file(tmp_path, kw
     assert "other.onnx" in str(e.value)
 
 
-def test_missing_and_unloadable_files(tmp_path):
-    with pytest.raises(InputError, match="does not exist"):
-        InceptionModel(tmp_path / "none.onnx")
-    junk = tmp_path / "junk.onnx"
-    junk.write_bytes(b"not a model")
-    with pytest.raises(InputError, match="junk.onnx"):
-        InceptionModel(junk)
-
-
 def test_a_graph_that_returns_the_wrong_count_at_run_time(tmp_path):
     # Declared (N, dims) with symbolic dims, but it returns 100 values per image.
     path = inception_like(tmp_path / "short.onnx", dims=100)

@@ -1,7 +1,7 @@
 """FID and KID between two sets of image features (float64, numpy / scipy).
 
 The features are one row per image, e.g. the 2048 Inception pool3 activations of
-:class:`r360gpu.probes.inception.InceptionModel`; the reference set (the photographs
+`r360gpu.probes.inception.InceptionModel`; the reference set (the photographs
 of the scene without the object) comes first, the method's renders second.
 
 **FID** (Heusel et al., NeurIPS 2017) exactly as pytorch-fid (``fid_score.py``:
@@ -13,12 +13,12 @@ of the scene without the object) comes first, the method's renders second.
 * ``covmean = sqrtm(sigma_ref . sigma_out)`` (``scipy.linalg.sqrtm``);
 * if ``covmean`` has a non-finite entry (a singular product), ``eps`` is added to both
   covariances' diagonals and the square root taken again; pytorch-fid prints
-  "fid calculation produces singular product"; here :attr:`Fid.offset_added` says so and
-  a warning is raised (:func:`r360gpu.util.warning_log.warn`);
+  "fid calculation produces singular product"; here `Fid.offset_added` says so and
+  a warning is raised (`r360gpu.util.warning_log.warn`);
 * a complex ``covmean`` (rounding) keeps its real part when every diagonal imaginary part
   is within ``1e-3`` of 0 (``np.allclose(..., atol=1e-3)``); otherwise pytorch-fid raises
-  "Imaginary component"; here FID is *not computed*: :attr:`Fid.value` is None and
-  :attr:`Fid.reason` says why;
+  "Imaginary component"; here FID is *not computed*: `Fid.value` is None and
+  `Fid.reason` says why;
 * ``FID = |mu_ref - mu_out|^2 + tr(sigma_ref) + tr(sigma_out) - 2 tr(covmean)``.
 
 Fewer images than feature dimensions (30 test views against 2048 dimensions) leave both
@@ -45,7 +45,7 @@ the value is the full unbiased MMD^2.
 
 **Which images**: pytorch-fid's ``calculate_fid_given_paths`` scores every file of each
 folder whose name ends in one of its extensions (lower case only, as its ``glob`` does on
-Linux), sorted by path: :func:`fid_image_files` lists the same files.  (The 360-USID script
+Linux), sorted by path: `fid_image_files` lists the same files.  (The 360-USID script
 so compares all of ``test_images/`` with all of ``renders/``, not view pairs.)
 """
 from __future__ import annotations
@@ -116,7 +116,7 @@ class Fid:
     value: the distance (None when not computed, with ``reason``); offset_added: the
     square root of the covariances' product was not finite and ``eps`` was added to their
     diagonals (pytorch-fid's singular-product branch); n_ref, n_out: images per set
-    (None when computed from statistics by :func:`frechet_distance`).
+    (None when computed from statistics by `frechet_distance`).
     """
 
     value: float | None
@@ -163,7 +163,7 @@ def _statistics(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def feature_statistics(features) -> tuple[np.ndarray, np.ndarray]:
-    """(mu (d,), sigma (d, d)) float64 of (N, d) features (N >= 2), for :func:`frechet_distance`."""
+    """(mu (d,), sigma (d, d)) float64 of (N, d) features (N >= 2), for `frechet_distance`."""
     return _statistics(_features(features, "image"))
 
 

@@ -38,8 +38,8 @@ output holding the distance.  The model file's name and SHA-256 go into the
 result.  Without a model LPIPS is *not computed*: ``lpips = None`` with a
 reason, never 0.  An export of ``lpips.LPIPS(spatial=True)`` outputs the
 distance map ``(N, 1, H, W)`` instead (each layer's map upsampled bilinearly to
-the image and summed): :meth:`LpipsModel.distance_map` reads it, and
-:func:`masked_lpips` weights it by an object mask as the 360-USID script
+the image and summed): `LpipsModel.distance_map` reads it, and
+`masked_lpips` weights it by an object mask as the 360-USID script
 (AuraFusion360's ``aura_eval.py``) does.  The map's mean is not the plain
 export's distance (the upsampling does not preserve means), so each export is
 refused where the other is needed.
@@ -177,10 +177,10 @@ class LpipsModel:
     output; its first output holds one value per image pair (the plain
     export) or a distance map (N, 1, H, W) per pair (the spatial export).
     device: the execution provider, chosen as the learned probes'
-    (``--probe-device``, :mod:`r360gpu.probes.providers`); the one that ran is
-    in :meth:`describe`.
+    (``--probe-device``, `r360gpu.probes.providers`); the one that ran is
+    in `describe`.
 
-    :attr:`spatial` is True for a map, False for one value, None while the
+    `spatial` is True for a map, False for one value, None while the
     declared output shape leaves it open (symbolic H, W): the first run decides.
     """
 
@@ -249,7 +249,7 @@ class LpipsModel:
     def distance_map(self, a, b, *, normalize: bool = True) -> np.ndarray:
         """(H, W) float64 LPIPS distance map of a spatial export (``lpips.LPIPS(spatial=True)``).
 
-        normalize: as in :meth:`distance`.  A plain (one-distance) export is refused.
+        normalize: as in `distance`.  A plain (one-distance) export is refused.
         """
         if self.spatial is False:
             self._wrong_kind(False)
@@ -348,8 +348,8 @@ def script_mask_weights(mask) -> np.ndarray:
 def masked_lpips(lpips_map, mask) -> float | None:
     """LPIPS inside an object mask: ``sum(map * w) / sum(w)`` with the 360-USID script's weights.
 
-    lpips_map: (H, W) (or (1, 1, H, W)) from :meth:`LpipsModel.distance_map`; mask: as
-    :func:`script_mask_weights` takes it.  A multi-channel mask weights each pixel by the sum
+    lpips_map: (H, W) (or (1, 1, H, W)) from `LpipsModel.distance_map`; mask: as
+    `script_mask_weights` takes it.  A multi-channel mask weights each pixel by the sum
     of its channels' weights (the script's broadcast of the 1-channel map over the mask's
     channels).  An empty mask (no weight) gives None: the script's 0 / 0 is NaN, which
     makes its per-scene mean NaN; the caller reports the view as excluded.

@@ -15,7 +15,7 @@ Exported with dynamic ``H, W`` (``dynamic_axes``), each image is fed at its own 
 the graph resizes it, as pytorch-fid does.  An export whose input is fixed at 299 x 299
 (``torch.onnx.export`` without ``dynamic_axes``, traced on a 299 x 299 dummy) is fed
 images that we resize first with the same bilinear rule
-(:func:`r360gpu.probes.preprocess.resize_logits`, equal to ``F.interpolate(...,
+(`r360gpu.probes.preprocess.resize_logits`, equal to ``F.interpolate(...,
 align_corners=False)``); the graph's own resize is then the identity.  Any other fixed
 size, a second input or a wrong feature count is an InputError naming the file.  A
 fixed batch size of 1 is run image by image; otherwise up to ``batch_size`` images of
@@ -70,7 +70,7 @@ class InceptionModel:
     """pytorch-fid's Inception network in ONNX form (see the module docstring for the contract).
 
     path: the ``.onnx`` file; device: the execution provider, as the learned probes'
-    (``--probe-device``, :mod:`r360gpu.probes.providers`).
+    (``--probe-device``, `r360gpu.probes.providers`).
     """
 
     def __init__(self, path: str | os.PathLike, device: str = "cpu"):
