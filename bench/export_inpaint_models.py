@@ -137,17 +137,21 @@ def _calibrate_batch_norms(net, images: int = 8) -> None:
     """Set every batch norm's running statistics to those of one batch of random images.
 
     Without it, 20 randomly initialised layers shrink the pool3 features to ~1e-8, where any
-    FID agrees with any other; with it each layer's output has unit scale, as the trained
-    network's roughly has."""
+    FID agrees with any other; with it each layer's output has about unit scale on images like
+    the calibration batch, as the trained network's roughly has.  The batch is smooth random
+    images (upsampled noise plus a little fine noise), closer to photographs than white noise."""
     import torch
+    import torch.nn.functional as F
 
     for m in net.modules():
         if isinstance(m, torch.nn.BatchNorm2d):
             m.reset_running_stats()
             m.momentum = None  # a cumulative average: after one batch, that batch's statistics
+    coarse = F.interpolate(torch.rand(images, 3, 20, 20), size=(299, 299), mode="bicubic", align_corners=False)
+    batch = (coarse + 0.05 * torch.randn(images, 3, 299, 299)).clamp(0, 1)
     net.train()
     with torch.no_grad():
-        net(torch.rand(images, 3, 299, 299))
+        net(batch)
     net.eval()
 
 
