@@ -8,7 +8,8 @@ in one run and one process:
    exports against ``lpips.LPIPS`` in torch, and ``masked_lpips`` against the script's
    ``sum(map * mask) / sum(mask)`` on ``to_tensor`` masks with values above 0.5 set to 1;
 2. Inception pool3 features: ``InceptionModel`` on the export against pytorch-fid's
-   ``get_activations`` on the same PNG files (images of two sizes, neither 299);
+   ``get_activations`` on the same PNG files (images of two sizes, neither 299), beside the
+   floor set by rounding: torch against itself with its inputs moved by ~1 float32 ulp;
 3. FID: r360gpu (``fid_image_files`` + ``InceptionModel`` + ``fid_from_features``) against
    ``pytorch_fid.fid_score.calculate_fid_given_paths([ref, out], 50, "cpu", 2048, 0)``, the
    360-USID script's call, end to end; and ``fid_from_features`` against
@@ -185,8 +186,17 @@ def check_fid_kid(models: dict, work: Path, n_ref: int, n_out: int, rng) -> None
             t_feat_o += t1 - t0
             t_feat_t += t2 - t1
         d = max(float(np.abs(a - b).max()) for a, b in zip(feats_o, feats_t))
-        row(f"pool3 features ({n_ref} at {REF_SIZE}, {n_out} at {OUT_SIZE})", d,
-            max(float(np.abs(b).max()) for b in feats_t), t_feat_o, t_feat_t)
+        scale = max(float(np.abs(b).max()) for b in feats_t)
+        row(f"pool3 features ({n_ref} at {REF_SIZE}, {n_out} at {OUT_SIZE})", d, scale, t_feat_o, t_feat_t)
+        # The floor: torch against itself with the inputs moved by about one float32 ulp.  A random
+        # network of 20 layers amplifies rounding far more than a trained one.
+        feats_moved = []
+        for folder in (ref_dir, out_dir):
+            batch = torch.cat([to_tensor(read_rgb(p)) for p in fid_image_files(folder)])
+            with torch.no_grad():
+                feats_moved.append(peer_net(batch * (1 + 1e-7))[0].flatten(1).double().numpy())
+        d_floor = max(float(np.abs(a - b).max()) for a, b in zip(feats_moved, feats_t))
+        row("  floor: torch vs torch, inputs x (1 + 1e-7)", d_floor, scale)
 
         # The script's call, end to end (its own file listing, loading, network and statistics).
         t0 = time.perf_counter()
@@ -209,6 +219,8 @@ def check_fid_kid(models: dict, work: Path, n_ref: int, n_out: int, rng) -> None
     peer = float(fid_score.calculate_frechet_distance(mu1, s1, mu2, s2))
     t2 = time.perf_counter()
     row("FID formula on the same features", abs(same.value - peer), abs(peer), t1 - t0, t2 - t1)
+    moved = fid_from_features(*feats_moved)
+    row("  floor: FID of torch's features, inputs x (1 + 1e-7)", abs(moved.value - same.value), abs(same.value))
 
     # KID: the same subsets through torchmetrics' kernel and MMD.
     subsets = 100
