@@ -23,8 +23,9 @@ the images as ``lpips.LPIPS.forward`` does without ``normalize``: r360gpu maps [
 to [-1, 1] itself, or feeds them unchanged where a script does (``LpipsModel``'s
 ``normalize``).  Give the files to r360gpu as ``LpipsModel(...)`` / ``InceptionModel(...)``.
 
-Weights.  Nothing is downloaded by this script's own code; the libraries look in their caches
-(``TORCH_HOME``, default ``~/.cache/torch``): torchvision's ``vgg16-397923af.pth`` and
+Weights.  The libraries read them from their caches (``TORCH_HOME``, default
+``~/.cache/torch``; they try a download when a file is missing there, and the script stops
+with exit 2 and says where to put it when that fails): torchvision's ``vgg16-397923af.pth`` and
 pytorch-fid's ``pt_inception-2015-12-05-6726825d.pth`` under ``hub/checkpoints/``; lpips's
 linear layers ship inside the lpips package.  ``--vgg-weights`` / ``--fid-weights`` take
 those files from a path instead.  ``--random-weights`` builds both networks with random
@@ -222,7 +223,12 @@ def export_all(out: Path, random_weights: bool, seed: int = 0, vgg_weights=None,
 
 def main(argv=None) -> int:
     a = parse_args(argv)
-    paths = export_all(a.out, a.random_weights, a.seed, a.vgg_weights, a.fid_weights, a.only)
+    try:
+        paths = export_all(a.out, a.random_weights, a.seed, a.vgg_weights, a.fid_weights, a.only)
+    except OSError as exc:  # the libraries' loaders try a download when the cache lacks the weights
+        print(f"export_inpaint_models: cannot read the weights ({exc}); put them in TORCH_HOME's "
+              "hub/checkpoints/ or give --vgg-weights / --fid-weights", file=sys.stderr)
+        return 2
     for role, path in paths.items():
         print(f"{role}: {path}")
     return 0
