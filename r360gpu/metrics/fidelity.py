@@ -36,7 +36,13 @@ LPIPS.  Computed only with an LPIPS network exported to ONNX
 [-1, 1] (their names are read from the model, in the model's order) and one
 output holding the distance.  The model file's name and SHA-256 go into the
 result.  Without a model LPIPS is *not computed*: ``lpips = None`` with a
-reason, never 0.
+reason, never 0.  An export of ``lpips.LPIPS(spatial=True)`` outputs the
+distance map ``(N, 1, H, W)`` instead (each layer's map upsampled bilinearly to
+the image and summed): `LpipsModel.distance_map` reads it, and
+`masked_lpips` weights it by an object mask as the 360-USID script
+(AuraFusion360's ``aura_eval.py``) does.  The map's mean is not the plain
+export's distance (the upsampling does not preserve means), so each export is
+refused where the other is needed.
 """
 from __future__ import annotations
 
@@ -168,9 +174,14 @@ class LpipsModel:
 
     path: the .onnx file.  The model must have exactly two inputs of rank 4
     (N, 3, H, W) (names and order read from the model) and at least one
-    output; its first output must hold one value per image pair.  device:
-    the execution provider, chosen as the learned probes' (``--probe-device``,
-    :mod:`r360gpu.probes.providers`); the one that ran is in :meth:`describe`.
+    output; its first output holds one value per image pair (the plain
+    export) or a distance map (N, 1, H, W) per pair (the spatial export).
+    device: the execution provider, chosen as the learned probes'
+    (``--probe-device``, `r360gpu.probes.providers`); the one that ran is
+    in `describe`.
+
+    `spatial` is True for a map, False for one value, None while the
+    declared output shape leaves it open (symbolic H, W): the first run decides.
     """
 
     def __init__(self, path: str | os.PathLike, device: str = "cpu"):
@@ -200,7 +211,9 @@ class LpipsModel:
                 raise InputError(f"LPIPS input {i.name!r} has {i.shape[1]} channels, expected 3", self.path)
         self.input_names = tuple(i.name for i in inputs)
         self._input_shapes = tuple(tuple(i.shape) for i in inputs)
-        self.output_name = self._session.get_outputs()[0].name
+        out = self._session.get_outputs()[0]
+        self.output_name = out.name
+        self.spatial = _declared_spatial(tuple(out.shape))
 
     @property
     def file_name(self) -> str:
@@ -216,8 +229,69 @@ class LpipsModel:
             "provider": self.provider,
         }
 
-    def distance(self, a, b) -> float:
-        """LPIPS distance between two images ((H, W, 3) uint8 or [0, 1] float)."""
+    def distance(self, a, b, *, normalize: bool = True) -> float:
+        """LPIPS distance between two images ((H, W, 3) uint8 or [0, 1] float).
+
+        normalize: as ``lpips.LPIPS.forward``'s flag: True maps the [0, 1] images to
+        the network's [-1, 1]; False feeds them unchanged, as the 360-USID script does
+        (it passes ``to_tensor`` images without the flag).  A spatial export is refused.
+        """
+        if self.spatial:
+            self._wrong_kind(True)
+        out, (h, w) = self._forward(a, b, normalize)
+        if self._is_map(out, h, w):
+            self._wrong_kind(True)
+        value = float(np.asarray(out, np.float64).ravel()[0])
+        if not np.isfinite(value):
+            raise InputError(f"LPIPS output is not finite ({value})", self.path)
+        return value
+
+    def distance_map(self, a, b, *, normalize: bool = True) -> np.ndarray:
+        """(H, W) float64 LPIPS distance map of a spatial export (``lpips.LPIPS(spatial=True)``).
+
+        normalize: as in `distance`.  A plain (one-distance) export is refused.
+        """
+        if self.spatial is False:
+            self._wrong_kind(False)
+        out, (h, w) = self._forward(a, b, normalize)
+        if not self._is_map(out, h, w):
+            self._wrong_kind(False)
+        lmap = np.asarray(out, np.float64).reshape(h, w)
+        if not np.isfinite(lmap).all():
+            raise InputError("LPIPS map has non-finite values", self.path)
+        return lmap
+
+    def _wrong_kind(self, spatial: bool):
+        if spatial:
+            raise InputError(
+                "a spatial LPIPS export (its output is a distance map): the whole-image LPIPS needs the "
+                "plain export (lpips.LPIPS(spatial=False)); the map's mean is not that distance",
+                self.path,
+            )
+        raise InputError(
+            "gives one LPIPS distance per image pair, not a map: masked LPIPS needs the spatial export "
+            "(lpips.LPIPS(spatial=True))",
+            self.path,
+        )
+
+    def _is_map(self, out: np.ndarray, h: int, w: int) -> bool:
+        """Whether a run's output is a distance map (and so this model spatial), checking its size."""
+        n = int(np.asarray(out).size)
+        if n == 1 and h * w > 1:
+            spatial = False
+        elif n == h * w:
+            spatial = True
+        else:
+            raise InputError(
+                f"LPIPS output {self.output_name!r} has shape {tuple(np.shape(out))} for {h}x{w} images; "
+                f"expected one distance or a (1, 1, {h}, {w}) map",
+                self.path,
+            )
+        if self.spatial is None:
+            self.spatial = spatial
+        return spatial
+
+    def _forward(self, a, b, normalize: bool) -> tuple[np.ndarray, tuple[int, int]]:
         x, y = _pair(a, b)
         h, w = x.shape[:2]
         for name, shape in zip(self.input_names, self._input_shapes):
@@ -226,24 +300,79 @@ class LpipsModel:
                     raise InputError(
                         f"LPIPS input {name!r} has a fixed shape {shape}, the images are {h}x{w}", self.path
                     )
-        feeds = {n: _to_nchw(im) for n, im in zip(self.input_names, (x, y))}
+        feeds = {n: _to_nchw(im, normalize) for n, im in zip(self.input_names, (x, y))}
         try:
             out = self._session.run([self.output_name], feeds)[0]
         except Exception as exc:
             raise InputError(f"LPIPS model failed on {h}x{w} images ({type(exc).__name__}: {exc})", self.path) from None
-        vals = np.asarray(out, np.float64).ravel()
-        if vals.size != 1:
-            raise InputError(f"LPIPS output {self.output_name!r} has {vals.size} values, expected one distance", self.path)
-        if not np.isfinite(vals[0]):
-            raise InputError(f"LPIPS output is not finite ({vals[0]})", self.path)
-        return float(vals[0])
+        return out, (h, w)
 
 
-def _to_nchw(img: np.ndarray) -> np.ndarray:
-    """(H, W, C) [0, 1] -> float32 (1, 3, H, W) in [-1, 1] (gray repeated to 3 channels)."""
+def _declared_spatial(shape: tuple) -> bool | None:
+    """From an LPIPS export's declared output shape: a map (True), one distance (False), or open (None)."""
+    if len(shape) < 4:
+        return False if all(isinstance(d, int) for d in shape) else None
+    hw = shape[-2:]
+    if all(isinstance(d, int) for d in hw):
+        return hw != (1, 1)
+    return True if any(isinstance(d, int) and d > 1 for d in hw) else None
+
+
+def script_mask_weights(mask) -> np.ndarray:
+    """(H, W, C) float64 pixel weights of an object mask, as the 360-USID script makes them.
+
+    ``aura_eval.py`` reads the mask PNG with ``to_tensor`` (uint8 / 255), keeps up to 3
+    channels, then sets values above 0.5 to 1: values in (0, 0.5] keep their fraction.
+    mask: (H, W) or (H, W, C) with C <= 3 (the channels ``to_tensor`` gives the PNG), uint8,
+    bool (0 / 1) or float in [0, 1].
+    """
+    m = np.asarray(mask)
+    if m.ndim == 2:
+        m = m[:, :, None]
+    if m.ndim != 3 or not 1 <= m.shape[2] <= 3:
+        raise InputError(f"object mask must be (H, W) or (H, W, C <= 3), got shape {m.shape}")
+    if m.dtype == np.uint8:
+        w = m.astype(np.float64) / 255.0
+    elif m.dtype == np.bool_:
+        w = m.astype(np.float64)
+    elif m.dtype.kind == "f":
+        w = m.astype(np.float64)
+        if not np.isfinite(w).all() or w.min() < 0.0 or w.max() > 1.0:
+            raise InputError("object mask has values outside [0, 1] or non-finite values")
+    else:
+        raise InputError(f"object mask must be uint8, bool or float in [0, 1], got {m.dtype}")
+    w[w > 0.5] = 1.0
+    return w
+
+
+def masked_lpips(lpips_map, mask) -> float | None:
+    """LPIPS inside an object mask: ``sum(map * w) / sum(w)`` with the 360-USID script's weights.
+
+    lpips_map: (H, W) (or (1, 1, H, W)) from `LpipsModel.distance_map`; mask: as
+    `script_mask_weights` takes it.  A multi-channel mask weights each pixel by the sum
+    of its channels' weights (the script's broadcast of the 1-channel map over the mask's
+    channels).  An empty mask (no weight) gives None: the script's 0 / 0 is NaN, which
+    makes its per-scene mean NaN; the caller reports the view as excluded.
+    """
+    lmap = np.asarray(lpips_map, np.float64)
+    if lmap.ndim > 2 and all(d == 1 for d in lmap.shape[:-2]):
+        lmap = lmap.reshape(lmap.shape[-2:])
+    w = script_mask_weights(mask)
+    if lmap.ndim != 2 or lmap.shape != w.shape[:2]:
+        raise InputError(f"LPIPS map is {np.shape(lpips_map)}, the object mask {np.shape(mask)}: sizes differ")
+    total = float(w.sum())
+    if total == 0.0:
+        return None
+    return float(np.sum(lmap[:, :, None] * w) / total)
+
+
+def _to_nchw(img: np.ndarray, normalize: bool = True) -> np.ndarray:
+    """(H, W, C) [0, 1] -> float32 (1, 3, H, W), in [-1, 1] when ``normalize`` (gray repeated to 3 channels)."""
     if img.shape[2] == 1:
         img = np.repeat(img, 3, axis=2)
-    return np.ascontiguousarray((img * 2.0 - 1.0).transpose(2, 0, 1)[None].astype(np.float32))
+    if normalize:
+        img = img * 2.0 - 1.0
+    return np.ascontiguousarray(img.transpose(2, 0, 1)[None].astype(np.float32))
 
 
 @dataclass(frozen=True)
