@@ -163,11 +163,12 @@ class UnchangedMasks:
 
     def message(self, paths: dict | None = None) -> str:
         paths = paths or {}
-        named = ", ".join(f"{paths.get(v, f'view {v!r}')} ({100 * s:.0f}%)" for v, s in self.doubtful.items())
-        return (f"the masks of {named} cover pixels where pre and the reference show the same surface (colour and "
-                f"depth): something the removal left in place, e.g. an occluder in front of the object (masks made "
-                f"by rendering the object alone cover it) or masks wider than the object. Give masks of the "
-                f"visible object only, or drop those views")
+        named = ", ".join(f"{paths.get(v, f'view {v!r}')} ({100 * s:.0f}% of its pixels)"
+                          for v, s in self.doubtful.items())
+        return (f"given masks cover pixels where pre and the reference show the same surface (colour and depth), "
+                f"so something the removal left in place: {named}. That is an occluder in front of the object "
+                f"(masks made by rendering the object alone cover it) or masks wider than the object. Give masks "
+                f"of the visible object only, or drop those views")
 
 
 def unchanged_masks(masks: dict, pre_images: dict, reference_images: dict) -> UnchangedMasks:
