@@ -22,7 +22,11 @@ silhouette, including where something in front of it hides it, so the
 occluder is lifted too.  The occluder check that scoring runs
 (:func:`r360gpu.lift.occluders.find_occluders`) is printed for either kind,
 and the figures below are printed again with the Gaussians it flags dropped
-(``after drop``).
+(``after drop``).  So is the check against a reference that scoring runs when
+the scene has one (:func:`r360gpu.lift.occluders.unchanged_masks`, the
+reference being the scene without the ball): each given mask's share of
+pixels the removal left unchanged, and the figures for the given masks
+trimmed to the pixels it changed.
 
 ``--given`` of those masks (views spread around the ring) are lifted onto the
 scene's Gaussians with :func:`r360gpu.lift.lift_target`; the lifted target's
