@@ -1,4 +1,4 @@
-"""`r360gpu demo`, first run (nothing kept from before), against the 20 s goal (issue 27) and another source tree.
+"""`r360gpu demo`, first run (nothing kept from before), against the 20 s goal and another source tree.
 
     python bench/bench_demo.py [--rounds 3] [--against PATH] [--processes N] [--orbit N] [--goal 20]
 
@@ -55,7 +55,7 @@ def main() -> int:
     ap.add_argument("--processes", type=int, default=None,
                     help="also run this tree's demo with --processes N, alternately")
     ap.add_argument("--orbit", type=int, default=None, help="run every demo with --orbit N")
-    ap.add_argument("--goal", type=float, default=20.0, help="wall-time goal in s (issue 27: 20)")
+    ap.add_argument("--goal", type=float, default=20.0, help="wall-time goal in s (default 20)")
     args = ap.parse_args()
     common = [] if args.orbit is None else ["--orbit", str(args.orbit)]
     trees = {"this": (ROOT, common)}

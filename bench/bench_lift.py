@@ -1,4 +1,4 @@
-"""Cost of target lifting and of rendering target masks against a plain render (issue 25).
+"""Cost of target lifting and of rendering target masks against a plain render.
 
 The scene is bench_render.py's synthetic one (uniform in the frustum,
 log-normal scales, bimodal opacities, SH degree 3); the views turn a little
@@ -10,9 +10,9 @@ set of views it times, with the device waited on at the end of each:
 * mask: :meth:`TargetMaskRenderer.device` of every view (the lifted target's
   masks).
 
-and prints the medians and the ratios lift / plain and mask / plain (goal of
-issue 25: each <= 1.5).  Mask uploads are part of lifting (they are part of
-the work).  The issue's full case is 1M Gaussians, 24 views, 1920x1080;
+and prints the medians and the ratios lift / plain and mask / plain (goal:
+each <= 1.5).  Mask uploads are part of lifting (they are part of
+the work).  The full case is 1M Gaussians, 24 views, 1920x1080;
 on a shared 2-core lavapipe machine use a smaller one (``--n``, ``--views``,
 ``--width``, ``--height``) and say so.  The defaults are the full case (on a
 GPU: ``python bench/bench_lift.py``; the last line says how long the whole

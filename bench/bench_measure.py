@@ -85,12 +85,13 @@ def previous_way(target, ref, pre_depth, sem_pre, first, methods, ctx):
 
 
 def batched(target, ref, pre_depth, sem_pre, first, methods, ctx):
-    from r360gpu.metrics.measure import measure_view_methods
+    from r360gpu.metrics.measure import MeasureJob, MeasureSettings, measure_view_methods
     from r360gpu.metrics.sensitivity import _TARGETS
 
     _TARGETS.clear()  # each view is new: the sweep's targets are recomputed
-    return measure_view_methods(view="v", scene="s", target=target, methods=methods, semantic_pre=sem_pre,
-                                structural_first=first, mode="reference", pre_depth=pre_depth, ref_rgb=ref, ctx=ctx)
+    return measure_view_methods(MeasureJob(view="v", scene="s", target=target, methods=methods, semantic_pre=sem_pre,
+                                           structural_first=first, pre_depth=pre_depth, ref_rgb=ref),
+                                MeasureSettings(mode="reference", ctx=ctx))
 
 
 def best_of(fn, repeat):

@@ -67,7 +67,7 @@ def main() -> int:
     width = P.panel_width_for(args.width)
 
     def panels():
-        return P.view_panels(width=width, **view)
+        return P.view_panels(P.SheetView(**view), width=width)
 
     ours = best(panels, args.repeat)
     keep = P.rgb8_at

@@ -1,4 +1,4 @@
-"""Benchmark of the WGSL 3DGS renderer (issue 3).
+"""Benchmark of the WGSL 3DGS renderer: ms per frame and per stage, against the numpy oracle.
 
 Renders a synthetic scene at 1920x1080 with 100k and 1M Gaussians and prints
 milliseconds per frame and per stage (project, sort = depth sort + binning +
@@ -21,7 +21,7 @@ milliseconds per kernel, their sum, and the rest of the frame's wall time
 (host recording, submissions and waits).
 
 ``--host-recording`` measures instead what the host spends recording and
-submitting one frame (issue 37): frames of one camera rendered to the device
+submitting one frame: frames of one camera rendered to the device
 with the sorts recorded as WGSL passes (``R360GPU_SORT=gpu``, the blocks
 variant: what a GPU adapter records), the main thread's CPU seconds per frame
 outside its waits for the device (``time.thread_time``, so the load of other
@@ -62,7 +62,7 @@ from r360gpu.render.rasterize import image_to_numpy  # noqa: E402
 from r360gpu.render.sort import VARIANT_ENV, VARIANTS  # noqa: E402
 
 WIDTH, HEIGHT, FOCAL = 1920, 1080, 1000.0
-#: Goal of issue 3: 1M Gaussians at 1080p in at most this many seconds on lavapipe.
+#: Goal: 1M Gaussians at 1080p in at most this many seconds on lavapipe.
 GOAL_1M_S = 2.0
 #: Floating-point operations per evaluated pixel-Gaussian pair in the
 #: rasteriser's inner loop (offset 2, quadratic form 8, exp ~10, min/compares

@@ -1,4 +1,4 @@
-"""The renderer's two sort paths in one run: WGSL radix sort vs the host sort (issue 13); keys/s.
+"""The renderer's two sort paths in one run: WGSL radix sort vs the host sort; keys/s.
 
 On a CPU adapter the renderer sorts depth keys and tile keys in numpy
 (``render.sort.host_argsort``; ``GpuContext.kernel_backend("sort")``).  This
@@ -12,7 +12,7 @@ Scenes are bench_render.py's synthetic scene; the default size is the demo's
 
 Then the WGSL radix sort alone, per variant, in keys/s (wall time of the
 recorded sort and its wait, and the device time of its passes from timestamp
-queries where the adapter has them), issue 37:
+queries where the adapter has them):
 
 * ``1M pairs``: 1,000,000 random (u32 key, u32 value) pairs by all 32 bits,
   the size of wgpu_sort's published figure (1M pairs in 317 us on an RTX

@@ -3,7 +3,7 @@
 A bundle of ``--n`` random Gaussians (pre; the method = pre without 10% of
 them) is written to a temporary folder; the viewer then draws frames while
 the camera orbits (every frame re-renders), at full resolution (no
-progressive reduction: the number the issue's ">= 30 frames/s at 1280x720
+progressive reduction: the number the goal ">= 30 frames/s at 1280x720
 with 1 M Gaussians" refers to) and with the default progressive policy,
 each with and without the |dD| + changed overlays, and with the panels.
 

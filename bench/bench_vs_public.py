@@ -23,7 +23,7 @@ running the four in turn, each round starting one later so that each meets the s
 * input floor: one fresh Python process per core, all started together; process k of n imports
   numpy and OpenCV, decodes every n-th PNG of the folder (from the k-th, in sorted order) with
   ``cv2.imread(path, cv2.IMREAD_UNCHANGED)`` and reads every n-th JSON file's bytes once; the
-  floor is the wall time from the launch to the last exit (issue 27's definition);
+  floor is the wall time from the launch to the last exit;
 * r360gpu: ``r360gpu score FOLDER --out OUT --no-pictures`` and the same with default options,
   with the same precomputed masks (``--semantic-probe png:FOLDER/gsam2
   --structural-probe sam-json:pre=FOLDER/masks,post=FOLDER/sam/after``), on the generated folder
@@ -33,7 +33,7 @@ running the four in turn, each round starting one later so that each meets the s
 Every timed process reads its bytecode from ``__pycache__``, compiled beforehand for r360gpu and
 the public checkout (``common.bytecode_env``), as for any user after a first run.
 Prints the machine's load average before, during and after, each run's time, and a table: the
-floor, both r360gpu times with their ratio to the floor (issue 27's goals: <= 1.5x without
+floor, both r360gpu times with their ratio to the floor (the goals: <= 1.5x without
 pictures, <= 2.5x with), and the public scripts' time with its ratio to r360gpu's default run; then the CPU-seconds of the floor and of both r360gpu runs, and
 the least wall time that CPU would allow on the machine's cores, as a multiple of the floor.
 """

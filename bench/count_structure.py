@@ -1,4 +1,4 @@
-"""Structure counts of a checkout of r360gpu (issue 28's closing note), reproducible.
+"""Structure counts of a checkout of r360gpu: long functions, wide signatures, protocol constants defined twice.
 
     python bench/count_structure.py [PACKAGE_DIR]      # default: this checkout's r360gpu/
 

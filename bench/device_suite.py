@@ -116,7 +116,7 @@ def last(pattern: str, text: str):
     return found[-1] if found else None
 
 
-#: wgpu_sort's published figure (issue 37): 1M (key, value) pairs sorted in this many microseconds on an RTX A5000.
+#: wgpu_sort's published figure: 1M (key, value) pairs sorted in this many microseconds on an RTX A5000.
 WGPU_SORT_1M_US = 317
 
 

@@ -1,5 +1,5 @@
 """Every 3D output of the synthetic room, unframed vs every splat file moved by one similarity and its
-frame declared (issue 35): they must be equal.
+frame declared: they must be equal.
 
     ./r360 python bench/frame_invariance.py [--views 6] [--size 240x180] [--detail 0.25] [--orbit 4] [--seed 1]
 
@@ -83,7 +83,7 @@ def outputs(bundle_dir: Path, work: Path, args, ctx) -> dict:
 
         from r360gpu.lift.resolve import lifted_target
 
-        # before issue 35's frame fix lifted_target had no frame: it lifted with the cameras as they are
+        # a checkout whose lifted_target takes no frame lifts with the cameras as they are
         kw = {"frame": pre.frame} if "frame" in inspect.signature(lifted_target).parameters else {}
         lifted, _ = lifted_target(tb, pre.gaussians, ctx=ctx, options=pre.render_options, **kw)
         idx = lifted.indices

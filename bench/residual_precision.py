@@ -17,7 +17,7 @@ counted as flagging evidence, in three settings:
 The floaters method's Gaussians are the scene's background followed by the
 floaters (the generator builds it so), so the floaters are the indices from the
 background's count on.  Printed: the share of floaters among the floater-count
-highest residuals (the issue's goal: >= 0.9).
+highest residuals (the goal: >= 0.9).
 """
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ def precision(bundle, n_background: int) -> tuple[float, int]:
     real = lift_residuals.flagged_views
     lift_residuals.flagged_views = every_view
     try:
-        _, values = scene_residuals(bundle, {"methods": {m: {"views": []} for m in bundle.methods}}, None)
+        _, values = scene_residuals(bundle, {m: {"views": []} for m in bundle.methods}, None)
     finally:
         lift_residuals.flagged_views = real
     r = values["floaters"]

@@ -6,11 +6,17 @@ Runs, in a scratch folder, with the r360gpu that ``PYTHONPATH`` (or the installe
   bootstrap and permutations cut down so it takes well under a minute on a CPU;
 * ``public-compat``: ``r360gpu score --compat public tests/data/compat_public/office_chair`` (the public
   Remove360 layout; its adversarial depth PNGs are only readable the public scripts' way, so compat only);
-* ``public-default``: the same folder with ``--compat public-default``.
+* ``public-default``: the same folder with ``--compat public-default``;
+* ``demo-whatif``: the demo with ``--orbit 12 --prune-residuals 0.1`` and ``--layouts`` (the orbit and the
+  pruned what-ifs in results.json; its public Remove360 folders are what the next three runs score);
+* ``layout-compat`` / ``layout-default``: one of those public-layout folders in both compat modes;
+* ``benchmark``: ``r360gpu score --benchmark`` on the root of those folders (every method of the scene).
 
 The snapshot of a run keeps ``results.json`` without its timing fields (``created``, ``timing``) and with
 the scratch folder and checkout in its source paths replaced by ``<WORK>`` / ``<ROOT>``, the sha256 of
-``results.csv``, ``tables.md`` and ``tables.tex``, and of every picture and plot PNG.  Left out:
+``results.csv``, ``tables.md`` and ``tables.tex``, and of every picture and plot PNG, and the order
+results.json lists its keys in (``key_order``: every object's dotted key paths, in document order, so
+two documents that hold the same values in another order differ too).  Left out:
 ``report.html`` (it prints the run's timing) and the hidden per-view cache (its keys hold paths).
 
     python bench/results_equal.py snapshot before.json       # on the old tree
@@ -40,6 +46,14 @@ RUNS = {
     "demo": ["demo", "--n-views", "4", "--width", "160", "--height", "120", *STATS],
     "public-compat": ["score", "--compat", "public", str(PUBLIC), *STATS],
     "public-default": ["score", "--compat", "public-default", str(PUBLIC), *STATS],
+    "demo-whatif": ["demo", "--n-views", "4", "--width", "160", "--height", "120", "--layouts", "--orbit", "12",
+                    "--prune-residuals", "0.1", *STATS],
+    # {work}: the scratch folder, where demo-whatif (run before these) wrote its layouts
+    "layout-compat": ["score", "--compat", "public", "{work}/demo-whatif/layouts/public/floaters/room_sofa",
+                      *STATS],
+    "layout-default": ["score", "--compat", "public-default",
+                       "{work}/demo-whatif/layouts/public/floaters/room_sofa", *STATS],
+    "benchmark": ["score", "--benchmark", "{work}/demo-whatif/layouts/public", *STATS],
 }
 TIMING_KEYS = ("created", "timing")
 #: Paths that name where a run happened, not what it computed: the scratch folder and the checkout.
@@ -54,7 +68,22 @@ def normalise(run: dict) -> dict:
     for pat, repl in _WHERE:
         text = pat.sub(repl, text)
     files = {k: v for k, v in run["files"].items() if not any(part.startswith(".") for part in k.split("/"))}
-    return {"results": json.loads(text), "files": files}
+    results = json.loads(text)
+    return {"results": results, "files": files, "key_order": key_order(results)}
+
+
+def key_order(doc, path: str = "") -> list[str]:
+    """Every object's keys as dotted paths, in the order the document lists them (list items by index)."""
+    out: list[str] = []
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            p = f"{path}.{k}" if path else str(k)
+            out.append(p)
+            out += key_order(v, p)
+    elif isinstance(doc, list):
+        for i, v in enumerate(doc):
+            out += key_order(v, f"{path}[{i}]")
+    return out
 
 
 def _sha(path: Path) -> str:
@@ -67,6 +96,7 @@ def _report_dir(out: Path) -> Path:
 
 def snapshot_run(name: str, args: list[str], work: Path) -> dict:
     out = work / name
+    args = [a.replace("{work}", str(work)) for a in args]
     cmd = [sys.executable, "-m", "r360gpu", *args[:1], "--out", str(out), *args[1:]]
     proc = subprocess.run(cmd, capture_output=True, text=True, env=os.environ.copy())
     if proc.returncode != 0:
@@ -121,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.cmd == "snapshot":
         with tempfile.TemporaryDirectory(prefix="r360-equal-") as tmp:
             snap = {name: snapshot_run(name, RUNS[name], Path(tmp)) for name in a.runs.split(",")}
-        Path(a.out).write_text(json.dumps(snap, indent=1, sort_keys=True))
+        Path(a.out).write_text(json.dumps(snap, indent=1))  # not sorted: key_order keeps the document's
         for name, run in snap.items():
             print(f"{name}: results.json {len(json.dumps(run['results']))} chars, {len(run['files'])} files")
         return 0

@@ -77,9 +77,11 @@ BOUNDARY_PX: tuple[int, ...] = (5, 10, 15)
 #: Schema names (name/version) of the documents r360gpu writes.
 RESULTS_SCHEMA: str = "r360gpu.results/1"
 VIEW_RECORD_SCHEMA: str = "r360gpu.view_record/1"
+#: results.json of the ``inpaint`` command (the inpainting benchmarks: 360-USID, SPIn-NeRF).
+INPAINT_SCHEMA: str = "r360gpu.inpaint/1"
 
 __all__ = [
-    "AXES", "BOUNDARY_PX", "CI_LEVEL", "GHT_BINS", "GHT_KAPPA", "GHT_NU", "GHT_OMEGA", "GHT_TAU",
+    "AXES", "BOUNDARY_PX", "CI_LEVEL", "GHT_BINS", "GHT_KAPPA", "GHT_NU", "GHT_OMEGA", "GHT_TAU", "INPAINT_SCHEMA",
     "MIN_SCENES_TO_RANK", "N_BOOT", "N_PERM", "RESULTS_SCHEMA", "RETAIN_IOU", "STRUCTURAL_MODES",
     "VIEW_RECORD_SCHEMA", "XI_DEFAULT", "XI_PUBLIC", "XI_SWEEP",
 ]

@@ -1,11 +1,11 @@
 // Target lifting: per-Gaussian compositing weight inside and outside a 2D
 // target mask (r360gpu/lift/device.py; numpy reference tests/lift_oracle.py).
 //
-// The same front-to-back compositing as render_rasterize.wgsl, on the same
+// The same front-to-back compositing as render_rasterize.wgsl (composite.wgsl), on the same
 // tile lists and the same pixels per thread (tile_pixels.wgsl), but instead of colours it sums, per Gaussian g,
 //   w_in[g]  += alpha T m(p)        w_out[g] += alpha T (1 - m(p))
 // over the tile's pixels p, with m the mask value in [0, 1] and alpha T the
-// weight the rasteriser blends g with at p (same skip and stop rules).
+// weight the rasteriser blends g with at p (the same rule, included).
 // WGSL has no float atomics: each thread's sum over its eight pixels is
 // rounded to fixed point (SCALE units per unit weight) and added into a
 // workgroup atomic per batch slot; after the batch one thread per slot adds
@@ -16,6 +16,7 @@
 
 //!include common.wgsl
 //!include tile_pixels.wgsl
+//!include composite.wgsl
 
 struct Params {
     width: u32,
@@ -26,11 +27,6 @@ struct Params {
     row_base: u32,     // pixel row stored first in the mask (row bands)
     scale: f32,        // fixed-point units per unit of weight
 }
-
-// Set by the host from r360gpu/render/conventions.py (as render_rasterize).
-override ALPHA_MAX: f32;
-override ALPHA_MIN: f32;
-override T_MIN: f32;
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> ranges: array<u32>;
@@ -131,16 +127,11 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>,
                 for (var q = 0u; q < GROUPS; q++) {
                     let dy = vec4<f32>(po.y) - pix_y[q];
                     let power = cxx - 0.5 * co.z * dy * dy - cxy * dy;
-                    let alpha = min(vec4<f32>(ALPHA_MAX), po.w * exp(power));
-                    let use_it = !done[q] & (power <= zero) & (alpha >= vec4<f32>(ALPHA_MIN));
-                    let test_t = t_rem[q] * (1.0 - alpha);
-                    let stop = use_it & (test_t < vec4<f32>(T_MIN));
-                    done[q] = done[q] | stop;
-                    let blend = use_it & !stop;
-                    let w = select(zero, alpha * t_rem[q], blend);
-                    w_in += dot(w, m_in[q]);
-                    w_all += dot(w, vec4<f32>(1.0));
-                    t_rem[q] = select(t_rem[q], test_t, blend);
+                    let c = composite(power, po.w, t_rem[q], !done[q]);
+                    done[q] = done[q] | c.stop;
+                    w_in += dot(c.w, m_in[q]);
+                    w_all += dot(c.w, vec4<f32>(1.0));
+                    t_rem[q] = select(t_rem[q], c.t_next, c.blend);
                     all_done = all_done && all(done[q]);
                 }
                 let q_in = u32(round(w_in * p.scale));

@@ -1,13 +1,11 @@
 // Front-to-back alpha compositing of one 16x16 tile per workgroup (INRIA 3DGS
 // forward pass), plus expected and median depth.
 //
-// The tile's pixels, threads and batches are tile_pixels.wgsl's.  Per pixel and Gaussian:
+// The tile's pixels, threads and batches are tile_pixels.wgsl's; the compositing rule (alpha
+// clamps, the transmittance stop, the weight w = alpha T) is composite.wgsl's.  Per pixel and Gaussian:
 //   power = -0.5 (a dx^2 + c dy^2) - b dx dy      (d = mean - pixel)
-//   skip if power > 0;  alpha = min(0.99, opacity * exp(power));  skip if alpha < 1/255
-//   stop (before blending) if T * (1 - alpha) < 1e-4
-//   w = alpha * T: colour += w * rgb, sum_w += w, sum_wz += w * z
-//   the median depth is z of the first blended Gaussian with T * (1 - alpha) <= 0.5
-//   T *= 1 - alpha
+//   where it blends: colour += w * rgb, sum_w += w, sum_wz += w * z
+//   the median depth is z of the first blended Gaussian with T * (1 - alpha) <= MEDIAN_T
 // Outputs (each a separate plane of f32, row-major, width floats per row, its
 // first row pixel row p.row_base: the host renders images beyond one binding
 // in bands of whole tile rows):
@@ -18,6 +16,7 @@
 
 //!include common.wgsl
 //!include tile_pixels.wgsl
+//!include composite.wgsl
 
 struct Params {
     width: u32,
@@ -33,9 +32,6 @@ struct Params {
 }
 
 // Set by the host from r360gpu/render/conventions.py (SHADER_CONSTANTS).
-override ALPHA_MAX: f32;
-override ALPHA_MIN: f32;
-override T_MIN: f32;
 override MEDIAN_T: f32;
 
 @group(0) @binding(0) var<uniform> p: Params;
@@ -141,7 +137,7 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>,
             for (var j = 0u; j < count; j++) {
                 let po = s_pos_op[j];
                 let co = s_conic[j];
-                let c = s_rgb[j];
+                let col = s_rgb[j];
                 let dx = vec4<f32>(po.x) - pix_x;
                 let cxx = -0.5 * co.x * dx * dx;
                 let cxy = co.y * dx;
@@ -149,25 +145,22 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>,
                 for (var q = 0u; q < GROUPS; q++) {
                     let dy = vec4<f32>(po.y) - pix_y[q];
                     let power = cxx - 0.5 * co.z * dy * dy - cxy * dy;
-                    let alpha = min(vec4<f32>(ALPHA_MAX), po.w * exp(power));
                     let live = !done[q];
                     evaluated += count_true(live);
-                    let use_it = live & (power <= zero) & (alpha >= vec4<f32>(ALPHA_MIN));
-                    let test_t = t_rem[q] * (1.0 - alpha);
-                    let stop = use_it & (test_t < vec4<f32>(T_MIN));
-                    done[q] = done[q] | stop;
-                    let blend = use_it & !stop;
-                    let w = select(zero, alpha * t_rem[q], blend);
-                    col_r[q] += w * c.x;
-                    col_g[q] += w * c.y;
-                    col_b[q] += w * c.z;
+                    let c = composite(power, po.w, t_rem[q], live);
+                    done[q] = done[q] | c.stop;
+                    let blend = c.blend;
+                    let w = c.w;
+                    col_r[q] += w * col.x;
+                    col_g[q] += w * col.y;
+                    col_b[q] += w * col.z;
                     sum_w[q] += w;
                     sum_wz[q] += w * po.z;
-                    let first_median = blend & !median_found[q] & (test_t <= vec4<f32>(MEDIAN_T));
+                    let first_median = blend & !median_found[q] & (c.t_next <= vec4<f32>(MEDIAN_T));
                     median[q] = select(median[q], vec4<f32>(po.z), first_median);
                     median_found[q] = median_found[q] | first_median;
                     blended += count_true(blend);
-                    t_rem[q] = select(t_rem[q], test_t, blend);
+                    t_rem[q] = select(t_rem[q], c.t_next, blend);
                     all_done = all_done && all(done[q]);
                 }
                 if (all_done) {

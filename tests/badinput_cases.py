@@ -789,7 +789,7 @@ def _(root):
     return score(b, "--structural-probe", f"sam-json:{root / 'sj'}"), "view_00.json"
 
 
-# --- issue 26: each class closed where the input enters ---------------------------------------------
+# --- each class of docs/input-validation.md, refused where the input enters -------------------------
 
 @case("score-pre-depth-all-inf", "warning", "pre has no valid depth", verify=_notes("no valid pre depth"))
 def _(root):

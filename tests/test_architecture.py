@@ -11,8 +11,9 @@ import pytest
 PKG = Path(__file__).resolve().parent.parent / "r360gpu"
 DOC = PKG.parent / "docs" / "architecture.md"
 
-#: Leaves every package may import: the error types, the protocol's constants, the version string.
-LEAVES = {"errors", "protocol", "__version__"}
+#: Leaves every package may import: the error types, the protocol's constants, the stages' data types,
+#: the version string.
+LEAVES = {"errors", "protocol", "schema", "__version__"}
 #: What each package (or top-level module) imports besides LEAVES, and so may import: the data flow
 #: io/bundle (load) -> render -> probes -> metrics -> aggregate -> report, pipeline running them,
 #: the generator, viewer and command line on top.  Exactly the edges some import uses
@@ -21,6 +22,7 @@ LEAVES = {"errors", "protocol", "__version__"}
 ALLOWED: dict[str, set[str]] = {
     "errors": set(),
     "protocol": set(),
+    "schema": set(),
     "util": set(),
     "gpu": set(),
     "io": {"util"},
@@ -221,3 +223,117 @@ def test_no_private_name_is_imported_across_packages():
 ])
 def test_private_import_parser(pkg, src, expect):
     assert private_imports(src, ["r360gpu", pkg]) == expect
+
+
+# ---- private attributes: a package's ``_names`` are used inside it only -------------------------
+# Imports are checked above; this checks attribute access (``renderer._prepare(...)``) and the
+# overriding of another package's private methods in a subclass, which need no import of the name.
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def private_definitions(sources: dict[str, list[str]]) -> dict[str, set[str]]:
+    """{private name: packages defining it} over ``sources`` ({package: its modules' sources}):
+    functions, classes, methods, assigned attributes and names."""
+    out: dict[str, set[str]] = {}
+    for unit, texts in sources.items():
+        for text in texts:
+            for node in ast.walk(ast.parse(text)):
+                if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                    names = [node.name]
+                elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+                    names = [node.attr]
+                elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+                    names = [node.id]
+                else:
+                    continue
+                for name in names:
+                    if _private(name):
+                        out.setdefault(name, set()).add(unit)
+    return out
+
+
+def _import_units(tree: ast.AST, pkg: list[str]) -> tuple[dict[str, str], set[str]]:
+    """({local name: r360gpu package it was imported from}, {names bound by imports from outside r360gpu})."""
+    ours, outside = {}, set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = pkg[: len(pkg) - (node.level - 1)] + (node.module.split(".") if node.module else [])
+            else:
+                base = (node.module or "").split(".")
+            for a in node.names:
+                if base[0] == "r360gpu":
+                    ours[a.asname or a.name] = _unit(".".join(base + [a.name]))
+                else:
+                    outside.add(a.asname or a.name)
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.split(".")[0] != "r360gpu":
+                    outside.add(a.asname or a.name.split(".")[0])
+    return ours, outside
+
+
+def private_attributes(source: str, pkg: list[str], defined: dict[str, set[str]], unit: str) -> list[str]:
+    """Uses, in ``source`` (a module of package ``pkg``, part ``unit`` of the table), of private attributes
+    that another r360gpu package defines and this one does not (``line: name``), and methods of a subclass
+    of another package's class that override a private name of that package (``line: overrides pkg.name``)."""
+    tree = ast.parse(source)
+    ours, outside = _import_units(tree, pkg)
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and _private(node.attr):
+            owners = defined.get(node.attr, set())
+            if isinstance(node.value, ast.Name) and node.value.id in outside:
+                continue  # e.g. os._exit: not an r360gpu name
+            if owners and unit not in owners:
+                out.append(f"{node.lineno}: {node.attr} (defined in {', '.join(sorted(owners))})")
+        elif isinstance(node, ast.ClassDef):
+            bases = {ours[b.id] for b in node.bases if isinstance(b, ast.Name) and b.id in ours} - {unit}
+            for item in node.body:
+                if isinstance(item, (ast.FunctionDef, ast.AsyncFunctionDef)) and _private(item.name):
+                    for base in sorted(bases & defined.get(item.name, set())):
+                        out.append(f"{item.lineno}: overrides {base}.{item.name}")
+    return out
+
+
+def _modules() -> dict[Path, tuple[list[str], str, str]]:
+    """{path: (its package, its unit of the table, its source)} of every r360gpu module."""
+    out = {}
+    for path in sorted(PKG.rglob("*.py")):
+        mod = _module_name(path)
+        out[path] = (mod if path.name == "__init__.py" else mod[:-1], _unit(".".join(mod)),
+                     path.read_text(encoding="utf-8"))
+    return out
+
+
+def test_no_private_attribute_is_used_across_packages():
+    files = _modules()
+    by_unit: dict[str, list[str]] = {}
+    for _, unit, text in files.values():
+        by_unit.setdefault(unit, []).append(text)
+    defined = private_definitions(by_unit)
+    bad = [f"{path.relative_to(PKG)}:{use}" for path, (pkg, unit, text) in files.items()
+           for use in private_attributes(text, pkg, defined, unit)]
+    assert not bad, ("another package's private attributes used (give them a public name, or use the "
+                     "package's public interface):\n" + "\n".join(bad))
+
+
+_RENDERER = "class Renderer:\n    def _prepare(self):\n        self._frames = 1\n    def _record_tiles(self):\n        pass\n"
+
+
+@pytest.mark.parametrize("pkg, src, expect", [
+    ("lift", "def f(renderer):\n    return renderer._prepare()\n", ["2: _prepare (defined in render)"]),
+    ("lift", "class L:\n    def g(self):\n        return self._frames\n", ["3: _frames (defined in render)"]),
+    ("lift", "from ..render.renderer import Renderer\nclass L(Renderer):\n    def _record_tiles(self):\n        pass\n",
+     ["3: overrides render._record_tiles"]),
+    ("lift", "import os\ndef f():\n    os._exit(1)\n", []),  # not an r360gpu name
+    ("lift", "class L:\n    def _prepare(self):\n        pass\n    def g(self):\n        return self._prepare()\n",
+     []),  # lift's own _prepare
+    ("render", "def f(r):\n    return r._record_tiles()\n", []),  # inside its own package
+    ("lift", "def f(r):\n    return r._unknown_elsewhere\n", []),  # no r360gpu package defines it
+])
+def test_private_attribute_parser(pkg, src, expect):
+    defined = private_definitions({"render": [_RENDERER], pkg: [src]})
+    assert private_attributes(src, ["r360gpu", pkg], defined, pkg) == expect

@@ -1,5 +1,5 @@
 """The view cache holds what was read: any change of any input's bytes at any moment of a run changes the
-next run's result exactly as a fresh run would (issue 26, class 1).
+next run's result exactly as a fresh run would (class 1 of docs/input-validation.md).
 
 Generated, not picked: hypothesis chooses which input file changes (a mask, pre's or the method's RGB or
 depth), at which read of the run (the k-th call of :func:`r360gpu.util.filehash.read_file`, the one
@@ -124,7 +124,7 @@ def test_change_during_a_run_then_next_run_is_fresh(rel, on_own_read, moment, re
 
 
 def test_replaced_and_restored_during_a_read_is_not_cached(tmp_path, monkeypatch, capsys):
-    """The issue's example: the method's depth of one view is replaced (by pre's: nothing removed)
+    """The method's depth of one view is replaced (by pre's: nothing removed)
     while the run reads it, then restored.  Its cell must not be kept under the original key."""
     bundle = renders_bundle(tmp_path / "b")
     target = bundle / "a" / "depth" / "view_01.npy"

@@ -1,4 +1,4 @@
-"""Options and addresses checked before any work (issue 26, classes 5, 6 and 10)."""
+"""Options and addresses checked before any work (classes 5, 6 and 10 of docs/input-validation.md)."""
 from __future__ import annotations
 
 import socket

@@ -8,8 +8,9 @@ the cameras, shifts up to 1.5 orbit radii).  A case is *wrong* when the moved ob
 overlaps its target masks by an IoU under 0.5 at the checked views (median): the masks then do
 not mark the object, and the run must not go on as if they did.  The same moved splats with the
 cameras moved into their frame (what ``frame = ...`` / ``--frame`` does), and the scenes as they
-are, are correctly framed and must be "ok".  bench/frame_check_scenes.py draws 50 per scene and
-adds the PlayCanvas scans (docs/your-scene.md, "The check")."""
+are, are correctly framed and must be "ok".  With the reference (the scene without its target) in
+the same frame, every wrong frame must be refused.  bench/frame_check_scenes.py draws 100 per scene
+and adds the PlayCanvas scans (docs/your-scene.md, "The check")."""
 from __future__ import annotations
 
 import numpy as np
@@ -35,17 +36,22 @@ def demo_scene(request, ctx):
     return scene, masks, cams, pick
 
 
-def _verdict(gaussians, frame, scene_masks_cams_pick, ctx):
+def _verdict(gaussians, frame, scene_masks_cams_pick, ctx, reference=None):
+    """The check on ``gaussians`` as pre, the cameras moved by ``frame``; with ``reference``
+    (Gaussians in the same frame) the reference's removal is read too."""
     _, masks, cams, pick = scene_masks_cams_pick
     src = SceneSource(gaussians, ctx=ctx, frame=frame)
+    ref = None if reference is None else SceneSource(reference, ctx=ctx, frame=frame)
     try:
         views = []
         for v in pick:
             img = src.images(v, cams[v])
-            views.append((v, cams[v], img.alpha, img.depth, masks[v]))
-        return frame_check.check_views(views)
+            views.append((v, cams[v], img.alpha, img.depth, masks[v], img.rgb))
+        return frame_check.check_views(views, None if ref is None else (lambda v: ref.images(v, cams[v])))
     finally:
         src.release()
+        if ref is not None:
+            ref.release()
 
 
 def _object_iou(target, demo, ctx) -> float:
@@ -96,6 +102,24 @@ def test_wrong_frames_are_refused_and_correct_ones_are_not(demo_scene, ctx):
     assert len(verdicts) >= N_RANDOM // 2  # the class is mostly wrong: the test sees it
 
 
+def test_with_a_reference_every_wrong_frame_is_refused(demo_scene, ctx):
+    """The same class with the reference (the scene without its target, in the same frame as pre):
+    every wrong frame refused, the correct ones and the declared frames not."""
+    scene = demo_scene[0]
+    assert _verdict(scene.pre, None, demo_scene, ctx, scene.background).level == "ok"
+    wrong, correct = [], []
+    for label, m in _cases(scene):
+        frame = Frame.from_matrix(m, label)
+        moved, moved_ref = moved_gaussians(scene.pre, frame), moved_gaussians(scene.background, frame)
+        if _object_iou(moved_gaussians(scene.target, frame), demo_scene, ctx) < IOU_MISMATCH:
+            v = _verdict(moved, None, demo_scene, ctx, moved_ref)
+            wrong.append((label, v.level, v.cones, v.removed))
+        correct.append((label, _verdict(moved, frame, demo_scene, ctx, moved_ref).level))
+    assert all(level == "ok" for _, level in correct), f"correctly framed scenes flagged: {correct}"
+    assert all(level == "refuse" for _, level, _, _ in wrong), f"wrong frames not refused: {wrong}"
+    assert len(wrong) >= N_RANDOM // 2
+
+
 def test_the_refusal_names_what_it_saw_and_the_fix(demo_scene, ctx):
     """gsplat's normalised world scored with the unmoved cameras: refused, naming the cause and
     the remedy, the numbers kept in the verdict."""
@@ -131,3 +155,22 @@ def test_a_flat_outline_is_a_quiet_note_in_results_json(tmp_path, ctx):
     assert check["cones"] >= frame_check.CONES_MIN and "little depth step" in check["note"]
     assert not [w for w in res["warnings"] if "frame" in w["message"]]
     assert res["scenes"]["room"]["methods"]["clean"]["axes"]["rqs"] is not None
+
+
+def test_a_reference_that_still_holds_the_object_is_refused_before_scoring(tmp_path, ctx):
+    """The room framed right, but its reference is pre itself: pre and the reference render the
+    same thing under the masks, so the run stops before scoring, naming the reading."""
+    import shutil
+
+    from r360gpu.errors import InputError
+    from r360gpu.pipeline import EvaluateOptions, evaluate
+    from r360gpu.synthetic import write_bundle
+
+    scene = make_scene("room", seed=0, n_views=5, width=96, height=72, detail=0.1)
+    folder = write_bundle(scene, tmp_path / "room", methods=["clean"], ctx=ctx)
+    opts = EvaluateOptions(n_boot=50, n_perm=20, boundary=False, pictures=False, controls=False)
+    assert evaluate(folder, options=opts, ctx=ctx, progress=False)["scenes"]["room"]["frame_check"]["pre"][
+        "removed"] >= frame_check.REMOVED_MIN
+    shutil.copy(folder / "pre.ply", folder / "reference.ply")
+    with pytest.raises(InputError, match="the reference render the same thing under the target masks"):
+        evaluate(folder, options=opts, ctx=ctx, progress=False)

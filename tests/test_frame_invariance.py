@@ -1,5 +1,5 @@
 """Every 3D output is unchanged when every splat source is moved into another world frame and the frame
-declared (issue 35): a property test over seeded random similarities (rotation, shift, scale 0.1 to 10).
+declared: a property test over seeded random similarities (rotation, shift, scale 0.1 to 10).
 
 The synthetic room (clean and floaters, 5 views at 160x120) is scored once as generated and once per
 draw with every splat file moved by the similarity and a ``dataparser_transforms.json`` named by

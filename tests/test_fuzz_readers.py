@@ -1,4 +1,4 @@
-"""Every reader fuzzed with structured mutations of a valid file (issue 26, "prove it by generating").
+"""Every reader fuzzed with structured mutations of a valid file, generated rather than picked.
 
 For each reader a valid file is written with r360gpu's own writers (or taken from the test data), then
 hypothesis mutates it: truncation, byte flips, inserted and deleted bytes, huge counts in the header

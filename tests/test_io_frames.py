@@ -13,9 +13,9 @@ from r360gpu.io import Camera, load_cameras, save_colmap, save_transforms_json
 from r360gpu.io.colmap_points import read_points3d, save_points3d
 from r360gpu.io.frames import Frame, gsplat_frame, gsplat_normalization, nerfstudio_frame, resolve_frame
 from r360gpu.io.rotation import quat_to_rotmat
-from r360gpu.metrics.frame_check import (CONES_MIN, STEP_NOTE, FrameVerdict, ViewCoverage, backprojected, check_views,
-                                         cone_agreement, frame_verdict, mismatch_message, note_message, outline_step,
-                                         view_coverage)
+from r360gpu.metrics.frame_check import (CONES_MIN, REMOVED_MIN, STEP_NOTE, FrameVerdict, ViewCoverage, backprojected,
+                                         check_views, cone_agreement, frame_verdict, mismatch_message, note_message,
+                                         outline_step, removal, view_coverage)
 
 
 def look_at(centre, target=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), name="v", w=40, h=30) -> Camera:
@@ -259,6 +259,46 @@ def test_frame_verdicts():
     assert "renders nothing" in msg and "dataparser_transforms" in msg and "gsplat" in msg
     nan = view_coverage("x", np.full((3, 3), np.nan, np.float32), np.zeros((3, 3), bool))
     assert nan.coverage == 0.0 and nan.target is None
+    # the reference decides too where the geometry does not refuse, whatever the outline's step
+    assert frame_verdict(covered, cones=1.0, removed=REMOVED_MIN).level == "ok"
+    assert frame_verdict(flat, cones=1.0, removed=REMOVED_MIN).level == "note"
+    for views in (covered, flat):
+        same = frame_verdict(views, cones=1.0, removed=REMOVED_MIN - 0.01)
+        assert same.level == "refuse" and "the reference render the same thing" in mismatch_message(
+            same, source="p", frame=None, cameras=None)
+    assert "differs from pre at 90%" in note_message(frame_verdict(flat, cones=1.0, removed=0.9))
+    assert "no reference" in note_message(frame_verdict(flat, cones=1.0))
+    v = frame_verdict(flat, cones=1.0, removed=0.25)
+    assert FrameVerdict.from_dict(json.loads(json.dumps(v.to_dict()))) == v
+
+
+def _images(rgb, depth):
+    from r360gpu.render.sources import ViewImages
+
+    return ViewImages(np.asarray(rgb, np.float32), np.asarray(depth, np.float32), np.ones(np.shape(depth), np.float32))
+
+
+def test_removal_is_where_the_reference_differs_from_pre_under_the_mask():
+    """A red box at depth 1 before a grey wall at depth 2; the reference is the wall alone."""
+    rgb, depth = np.full((60, 80, 3), 0.5), np.full((60, 80), 2.0)
+    box = np.zeros((60, 80), bool)
+    box[20:40, 30:50] = True
+    pre = _images(np.where(box[..., None], [1.0, 0.0, 0.0], rgb), np.where(box, 1.0, depth))
+    wall = _images(rgb, depth)
+    assert removal(pre, wall, box) == 1.0
+    assert removal(pre, wall, np.roll(box, 30, axis=1)) == 0.0  # the masks away from the box: the wall both
+    wide = np.zeros_like(box)
+    wide[18:42, 28:52] = True
+    assert removal(pre, wall, wide) == 1.0  # masks two pixels wide of the box count the box only
+    grey_box = _images(rgb, np.where(box, 1.0, depth))
+    assert removal(grey_box, wall, box) == 1.0  # the same colour, nearer: told by depth
+    faint = _images(rgb + 0.05, depth)
+    assert removal(faint, wall, box) == 0.0  # under DIFFERS
+    assert removal(pre, wall, np.zeros_like(box)) is None
+    assert removal(pre, _images(rgb[:30], depth[:30]), box) is None  # sizes differ
+    tiny = np.zeros_like(box)
+    tiny[25:28, 35:38] = True
+    assert removal(pre, wall, tiny) == 1.0  # eroded to its centre pixel
 
 
 # --- the frame keys of scene.toml -------------------------------------------------------------------
@@ -419,3 +459,16 @@ def test_check_views_flags_a_mask_off_the_object():
     assert f"cone agreement {off.cones:.2f}" in msg
     one = check_views(views((0.0, 0.0, 0.0))[:1])
     assert one.cones is None and one.level == "ok"  # one view: coverage only
+
+    def with_rgb(vs):  # the ball white, the backdrop black
+        return [(*v, np.repeat((v[3] < 6.0)[..., None], 3, axis=-1).astype(np.float32)) for v in vs]
+
+    backdrop = _images(np.zeros((60, 80, 3)), np.full((60, 80), 6.0))
+    removed = check_views(with_rgb(views((0.0, 0.0, 0.0))), lambda name: backdrop)
+    assert removed.level == "ok" and removed.removed == 1.0
+    pre = {v[0]: _images(v[5], v[3]) for v in with_rgb(views((0.0, 0.0, 0.0)))}
+    unremoved = check_views(with_rgb(views((0.0, 0.0, 0.0))), pre.get)
+    assert unremoved.level == "refuse" and unremoved.removed == 0.0 and unremoved.cones == 1.0
+    asked = []
+    check_views(with_rgb(views((1.5, -1.5, 0.0))), lambda name: asked.append(name))
+    assert not asked  # the cones refuse already: the reference is not rendered

@@ -82,7 +82,7 @@ def test_keys_over_one_binding_give_the_same_weights(ctx):
     small = GpuContext(ctx.device, limit_binding_bytes=16384)
     lifter = MaskLifter(g, ctx=small)
     lifter.add_view(cam, mask)
-    assert lifter.stats.windows > 1
+    assert lifter.renderer.stats.windows > 1
     got = lifter.weights()
     lifter.release()
     whole = MaskLifter(g, ctx=ctx)

@@ -6,10 +6,10 @@ import pytest
 
 from r360gpu.metrics.fidelity import fidelity_view
 from r360gpu.metrics.geometric import acc_depth_view
-from r360gpu.metrics.measure import MethodOutputs, measure_view_methods
+from r360gpu.metrics.measure import MeasureJob, MeasureSettings, MethodOutputs, measure_view_methods
 from r360gpu.metrics.record import ViewRecord
 from r360gpu.metrics.semantic import semantic_view
-from r360gpu.metrics.sensitivity import NOT_GIVEN, BoundaryInput, boundary_sensitivity
+from r360gpu.metrics.sensitivity import NOT_GIVEN, BoundaryInput, BoundarySweep, boundary_sensitivity
 from r360gpu.metrics.structural import structural_view
 
 
@@ -41,9 +41,9 @@ def test_batched_equals_per_method(ctx, mode):
             semantic={"s": _blobs(rng, i, h, w)},
             structural={"t": _blobs(rng, 3, h, w)},
         )
-    got = measure_view_methods(view="v", scene="sc", target=target, methods=methods, semantic_pre=sem_pre,
-                               structural_first=first, mode=mode, pre_depth=pre_depth, ref_rgb=ref,
-                               xis=(0.3, 0.5), ctx=ctx)
+    got = measure_view_methods(MeasureJob(view="v", scene="sc", target=target, methods=methods,
+                                          semantic_pre=sem_pre, structural_first=first, pre_depth=pre_depth,
+                                          ref_rgb=ref), MeasureSettings(mode=mode, xis=(0.3, 0.5), ctx=ctx))
     for name, mo in methods.items():
         sem = [semantic_view(sem_pre["s"], mo.semantic["s"], target, view="v", ctx=ctx)]
         a, b = (mo.structural["t"], first["t"]) if mode == "reference" else (first["t"], mo.structural["t"])
@@ -55,7 +55,7 @@ def test_batched_equals_per_method(ctx, mode):
         table = boundary_sensitivity(
             [BoundaryInput(target, pred_pre=sem_pre["s"], pred_post=mo.semantic["s"], masks_a=a, masks_b=b,
                            geometric=geo if geo is not None else NOT_GIVEN, view="v")],
-            geometric=geo is not None, structural_mode=mode, xis=(0.3, 0.5), ctx=ctx)
+            BoundarySweep(geometric=geo is not None, structural_mode=mode, xis=(0.3, 0.5)), ctx=ctx)
         assert got[name].boundary == {row: table.row(row) for row in table.rows}
         assert (got[name].geometric is None) == (geo is None)
 
@@ -63,14 +63,15 @@ def test_batched_equals_per_method(ctx, mode):
 def test_without_reference_depth_or_probes(ctx):
     rng = np.random.default_rng(5)
     target = _blobs(rng, 1, 20, 30)[0]
-    got = measure_view_methods(view="v", scene="sc", target=target,
-                               methods={"m": MethodOutputs(rgb=np.zeros((20, 30, 3), np.uint8))},
-                               semantic_pre={}, structural_first={}, mode="reference", ctx=ctx)
+    settings = MeasureSettings(mode="reference", ctx=ctx)
+    got = measure_view_methods(MeasureJob(view="v", scene="sc", target=target,
+                                          methods={"m": MethodOutputs(rgb=np.zeros((20, 30, 3), np.uint8))},
+                                          semantic_pre={}, structural_first={}), settings)
     r = got["m"]
     assert r.boundary is None and r.geometric is None
     assert r.record.fidelity is None and r.record.geometric is None
-    assert measure_view_methods(view="v", scene="sc", target=target, methods={}, semantic_pre={},
-                                structural_first={}, mode="reference", ctx=ctx) == {}
+    assert measure_view_methods(MeasureJob(view="v", scene="sc", target=target, methods={}, semantic_pre={},
+                                           structural_first={}), settings) == {}
 
 
 @pytest.mark.parametrize("ssim_backend", ["cpu", "gpu"])
@@ -99,13 +100,14 @@ def test_fidelity_overlap_keeps_values_and_errors(ctx, monkeypatch, ssim_backend
         return real(*a, **k)
 
     monkeypatch.setattr("r360gpu.metrics.measure.fidelity_views", spy)
-    kw = dict(view="v", scene="sc", target=target, semantic_pre={}, structural_first={}, mode="reference",
-              pre_depth=pre_depth, ref_rgb=ref, ctx=ctx)
-    got = measure_view_methods(methods=methods, **kw)
+    kw = dict(view="v", scene="sc", target=target, semantic_pre={}, structural_first={}, pre_depth=pre_depth,
+              ref_rgb=ref)
+    settings = MeasureSettings(mode="reference", ctx=ctx)
+    got = measure_view_methods(MeasureJob(methods=methods, **kw), settings)
     assert threads == (["r360-fidelity_0"] if ssim_backend == "cpu" else [threading.current_thread().name])
     for m, mo in methods.items():
         assert got[m].record.fidelity == fidelity_view(mo.rgb, ref, ctx=ctx)
     bad = dict(methods)
     bad["b"] = MethodOutputs(rgb=np.where(target[:, :, None], np.nan, ref).astype(np.float32), depth=pre_depth)
     with pytest.raises(InputError, match="method b's I_post contains NaN"):
-        measure_view_methods(methods=bad, **kw)
+        measure_view_methods(MeasureJob(methods=bad, **kw), settings)

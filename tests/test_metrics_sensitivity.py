@@ -14,6 +14,7 @@ from r360gpu.metrics.semantic import semantic_summary, semantic_view
 from r360gpu.metrics.sensitivity import (
     BOUNDARY_OFFSETS,
     BoundaryInput,
+    BoundarySweep,
     boundary_label,
     boundary_sensitivity,
     perturb_mask,
@@ -126,7 +127,8 @@ def test_boundary_table_equals_recomputing_each_axis(ctx):
         for i, (v, g) in enumerate(zip(views, geos))
     ]
     offs = (-10, -5, 0, 5, 15)
-    table = boundary_sensitivity(inputs, structural_mode="reference", offsets=offs, xis=(0.3, 0.5), ctx=ctx)
+    table = boundary_sensitivity(inputs, BoundarySweep(structural_mode="reference", offsets=offs, xis=(0.3, 0.5)),
+                                 ctx=ctx)
     assert table.labels == ("E10", "E5", "Original", "D5", "D15")
     for k, o in enumerate(offs):
         ts = [perturb_mask(v["target"], o) for v in views]
@@ -157,7 +159,7 @@ def test_boundary_hand_values(ctx):
     d_post = d_pre.copy()
     d_post[20:40, 20:30] = 5.0  # left half of the object removed from the depth
     inp = BoundaryInput(t, pred_pre=t, pred_post=None, geometric=(d_pre, d_post))
-    table = boundary_sensitivity([inp], offsets=(-5, 0), ctx=ctx)
+    table = boundary_sensitivity([inp], BoundarySweep(offsets=(-5, 0)), ctx=ctx)
     assert table.row("iou_pre") == {"E5": 0.25, "Original": 1.0}
     assert table.row("iou_post") == {"E5": 0.0, "Original": 0.0}
     assert table.row("acc_seg@0.3") == {"E5": 1.0, "Original": 1.0}
@@ -175,13 +177,14 @@ def test_eroded_away_target_is_excluded(ctx):
         BoundaryInput(small, small, None, small[None], small[None], (depth, depth * 1.5)),
         BoundaryInput(big, big, big, big[None], None, (depth, depth)),
     ]
-    table = boundary_sensitivity(inputs, structural_mode="reference_free", offsets=(-5, 0), ctx=ctx)
+    table = boundary_sensitivity(inputs, BoundarySweep(structural_mode="reference_free", offsets=(-5, 0)), ctx=ctx)
     assert table.n_scored == {"semantic": [1, 2], "geometric": [1, 2], "structural": [1, 2]}
     assert table.row("acc_seg@0.3") == {"E5": 0.0, "Original": 0.5}
     # Reference-free: the big view has one retained mask against none -> sim 0, s_str 1.
     assert table.row("s_str") == {"E5": 1.0, "Original": 0.5}
     kept = boundary_sensitivity(
-        inputs, geometric=False, structural_mode="reference_free", offsets=(-5,), include_empty_targets=True, ctx=ctx
+        inputs, BoundarySweep(geometric=False, structural_mode="reference_free", offsets=(-5,),
+                              include_empty_targets=True), ctx=ctx
     )
     assert kept.n_scored == {"semantic": [2], "structural": [2]}
     assert kept.rows["acc_seg@0.3"] == [0.5]  # the empty view counts as "not detected"
@@ -195,12 +198,14 @@ def test_missing_inputs_are_errors_not_empty_predictions(ctx):
         boundary_sensitivity([BoundaryInput(t, None, None, view="x")], ctx=ctx)
     with pytest.raises(InputError, match="masks_b"):
         boundary_sensitivity(
-            [BoundaryInput(t, masks_a=None)], semantic=False, geometric=False, structural_mode="reference", ctx=ctx
+            [BoundaryInput(t, masks_a=None)],
+            BoundarySweep(semantic=False, geometric=False, structural_mode="reference"), ctx=ctx
         )
     with pytest.raises(InputError, match="GeometricView or a"):
         boundary_sensitivity([BoundaryInput(t, None, None, geometric=t)], ctx=ctx)
     with pytest.raises(InputError):
-        boundary_sensitivity([BoundaryInput(t)], semantic=False, geometric=False, structural_mode="both", ctx=ctx)
+        boundary_sensitivity([BoundaryInput(t)], BoundarySweep(semantic=False, geometric=False, structural_mode="both"),
+                             ctx=ctx)
 
 
 def test_structural_rows_equal_the_whole_iou_matrix_way(ctx):
@@ -218,8 +223,9 @@ def test_structural_rows_equal_the_whole_iou_matrix_way(ctx):
             stack[k, r0 : r0 + rng.integers(3, 40), c0 : c0 + rng.integers(3, 60)] = True
     offs = (-12, -6, 0, 6, 12)
     for mode in ("reference", "reference_free"):
-        table = boundary_sensitivity([BoundaryInput(t, masks_a=a, masks_b=b)], semantic=False, geometric=False,
-                                     structural_mode=mode, offsets=offs, ctx=ctx)
+        table = boundary_sensitivity([BoundaryInput(t, masks_a=a, masks_b=b)],
+                                     BoundarySweep(semantic=False, geometric=False, structural_mode=mode, offsets=offs),
+                                     ctx=ctx)
         whole = K.mask_iou(a, b, ctx=ctx).iou
         kept = []
         for k, o in enumerate(offs):

@@ -1,4 +1,4 @@
-"""One table of hostile names through every door a name comes in (issue 26, class 2).
+"""One table of hostile names through every door a name comes in (class 2 of docs/input-validation.md).
 
 The same names go through scene.toml (method and scene names), ``METHOD=FOLDER`` pairs on the command
 line, :func:`~r360gpu.bundle.scene_from_objects` (scene, method and view names) and

@@ -33,8 +33,8 @@ def test_overlapped_views_give_the_cells_of_one_view_at_a_time(tmp_path, ctx, la
     one_by_one = {v: score_view(run, v, PictureSink(None, False)) for v in run.views}
     run.release()
     for m, entry in res["scenes"][bundle.name]["methods"].items():
-        assert all(isinstance(one_by_one[v][m]["record"], ViewRecord) for v in run.views)
-        assert entry["views"] == [one_by_one[v][m]["record"].to_dict() for v in run.views]
+        assert all(isinstance(one_by_one[v].cells[m].record, ViewRecord) for v in run.views)
+        assert entry["views"] == [one_by_one[v].cells[m].record.to_dict() for v in run.views]
 
 
 def test_view_records_are_dicts_only_where_written(tmp_path, ctx):
@@ -52,7 +52,7 @@ def test_view_records_are_dicts_only_where_written(tmp_path, ctx):
     on_disk = json.loads(cell_file.read_text())
     assert on_disk["record"]["view"] == cell_file.stem and on_disk["record"]["method"] == "after"
     cell = ViewCache(cell_file.parent.parent, out).load_cell("after", cell_file.stem)
-    assert isinstance(cell["record"], ViewRecord) and cell["record"].to_dict() == on_disk["record"]
+    assert isinstance(cell.record, ViewRecord) and cell.record.to_dict() == on_disk["record"]
     entry = first["scenes"][bundle.name]["methods"]["after"]["views"]
     assert on_disk["record"] in entry
     again = evaluate(bundle, out=out, options=opts, ctx=ctx, progress=False)
@@ -209,7 +209,10 @@ def test_picture_sink_writes_the_sheet_of_the_full_size_inputs(tmp_path, size):
     must be byte for byte the one the report draws from the full-size inputs."""
     import numpy as np
 
+    from dataclasses import replace
+
     from r360gpu.metrics.compat import depth_delta
+    from r360gpu.pipeline.picture_sink import PictureJob
     from r360gpu.probes.base import MaskSet, SemanticPrediction
     from r360gpu.report.contact_sheets import panel_width_for, view_contact_sheet
 
@@ -231,10 +234,10 @@ def test_picture_sink_writes_the_sheet_of_the_full_size_inputs(tmp_path, size):
            SemanticPrediction(np.zeros((0, h, w), bool), np.zeros(0, np.float32), [], "s"))
     masks = MaskSet(np.stack([blob(h / 3, w / 3, h / 6), target, blob(h / 4, w / 2, h / 8)]), None, "t")
     sink = PictureSink(tmp_path / "out", True)
-    job = dict(scene="s", method="m", view="v", pre_rgb=pre, post_rgb=post, ref_rgb=ref, pre_depth=d_pre,
-               post_depth=d_post, mask=target, geo=Geo, compat=False, semantic=sem,
-               structural=[("a on I_pre", pre, masks), ("a on I_post", post, masks)])
-    sink.view([job, {**job, "method": "m2"}])
+    job = PictureJob(scene="s", method="m", view="v", pre_rgb=pre, post_rgb=post, ref_rgb=ref, pre_depth=d_pre,
+                     post_depth=d_post, mask=target, geo=Geo, compat=False, semantic=sem,
+                     structural=[("a on I_pre", pre, masks), ("a on I_post", post, masks)])
+    sink.view([job, replace(job, method="m2")])
     # the second method's sheet reuses the panels of the first where their arrays are the same
     for method in ("m", "m2"):
         direct = view_contact_sheet(

@@ -1,5 +1,5 @@
-"""The results document keeps each scene's probe descriptions (issue 28: with several scenes,
-results["probes"] used to hold only the last scene's, each fitted probe having its own model hash)."""
+"""The results document keeps each scene's probe descriptions: with several scenes, results["probes"]
+holds every scene's, not only the last scene's, each fitted probe with its own model hash."""
 from __future__ import annotations
 
 import json
@@ -8,6 +8,7 @@ import pytest
 
 from r360gpu.pipeline import EvaluateOptions, evaluate
 from r360gpu.pipeline.results_doc import ResultsDocument, run_probes
+from r360gpu.schema import SceneEntry
 from r360gpu.protocol import RESULTS_SCHEMA
 
 
@@ -35,14 +36,17 @@ def test_run_probes_keeps_what_every_scene_shares_and_names_the_rest():
 
 def test_document_keeps_each_scenes_probes_and_a_meaningful_run_entry():
     doc = ResultsDocument(adapter={"name": "x"}, options={"seed": 0}, created="2026-01-01T00:00:00Z")
-    doc.add_scene("room", {"methods": {}}, _desc("aa", 4))
-    doc.add_scene("garden", {"methods": {}}, _desc("bb", 4))
+    entry = SceneEntry(prompt="p", n_views=0, views=[], reference=False, structural_mode="reference_free",
+                       depth="expected", sources={})
+    doc.add_scene("room", entry, _desc("aa", 4))
+    doc.add_scene("garden", entry, _desc("bb", 4))
     d = doc.doc
     assert d["schema"] == RESULTS_SCHEMA
     assert d["scenes"]["room"]["probes"]["semantic"][0]["params"]["model_sha256"] == "aa"
     assert d["scenes"]["garden"]["probes"]["semantic"][0]["params"]["model_sha256"] == "bb"
     assert "model_sha256" not in d["probes"]["semantic"][0]["params"]
     doc.set_timing({"render": 1.23456}, 2.0, 8, executor={"kind": "ray"})
+    d = doc.doc
     assert d["timing"] == {"stages_s": {"render": 1.235}, "total_s": 2.0, "views": 8, "executor": {"kind": "ray"}}
     assert list(d)[:7] == ["schema", "r360gpu_version", "created", "adapter", "options", "probes", "scenes"]
 

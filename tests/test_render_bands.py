@@ -61,7 +61,7 @@ def test_host_memory_limit_is_a_clear_error(ctx, monkeypatch):
 
 
 def test_band_rows_for_a_16k_camera(ctx):
-    """The issue's 16384 x 16384 camera is planned in bands, before anything is allocated on the device."""
+    """A 16384 x 16384 camera is planned in bands, before anything is allocated on the device."""
     r = Renderer(random_gaussians(10, seed=3), ctx=ctx)
     rows = r.band_rows(camera(16384, 16384))
     assert 16 <= rows < 16384 and rows % 16 == 0

@@ -57,29 +57,38 @@ def test_frames_of_one_shape_create_nothing_and_render_the_same(ctx):
     compare(moved, render_oracle.render(g, b))
 
 
-class ListsRenderer(Renderer):
-    """A renderer that keeps a copy of every key window's tile lists (ranges, Gaussian per key)."""
+class CopyLists:
+    """A tile pass (the renderer's public extension point, r360gpu.render.tile_pass) that keeps a
+    copy of every key window's tile lists (ranges, Gaussian per key)."""
 
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
+    def __init__(self):
         self.lists = []
 
-    def _record_tiles(self, enc, lists, cam, band, work) -> None:
-        super()._record_tiles(enc, lists, cam, band, work)
+    def record(self, ctx, enc, lists, cam) -> None:
         tiles = lists.window.end - lists.window.begin
-        ranges = self.ctx.buffer(tiles * 8)
+        ranges = ctx.buffer(tiles * 8)
         enc.copy_buffer_to_buffer(lists.ranges.buffer, lists.ranges.offset, ranges, 0, tiles * 8)
-        vals = self.ctx.buffer(max(4, lists.num_keys * 4))
+        vals = ctx.buffer(max(4, lists.num_keys * 4))
         if lists.num_keys:
             enc.copy_buffer_to_buffer(lists.vals, 0, vals, 0, lists.num_keys * 4)
-        self.lists.append((lists.window, ranges, vals, lists.num_keys))
+        self.lists.append((ctx, lists.window, ranges, vals, lists.num_keys))
+
+
+class ListsRenderer(Renderer):
+    """A renderer whose render also runs :class:`CopyLists` over the view's tile lists."""
+
+    def render(self, camera):
+        out = super().render(camera)
+        self.copied = CopyLists()
+        self.run_pass(camera, self.copied)
+        return out
 
     def tile_lists(self) -> dict[int, np.ndarray]:
         """Gaussian indices per tile id, in blend order."""
         out = {}
-        for window, ranges, vals, k in self.lists:
-            r = self.ctx.read(ranges, np.uint32, 2 * (window.end - window.begin)).reshape(-1, 2)
-            v = self.ctx.read(vals, np.uint32, k) if k else np.zeros(0, np.uint32)
+        for ctx, window, ranges, vals, k in self.copied.lists:
+            r = ctx.read(ranges, np.uint32, 2 * (window.end - window.begin)).reshape(-1, 2)
+            v = ctx.read(vals, np.uint32, k) if k else np.zeros(0, np.uint32)
             for t, (s, e) in enumerate(r):
                 out[window.begin + t] = v[s:e]
         return out

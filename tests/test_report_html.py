@@ -265,7 +265,7 @@ def test_renders_in_headless_chromium(report, tmp_path):
         assert crop.size and crop.std() > 10, b
 
 
-# -- issue 16: first screen, per-view table, probe checks, known failures --------------
+# -- the report: first screen, per-view table, probe checks, known failures ------------
 
 from report_fake import add_expected, add_probe_checks, add_ranked_reliability  # noqa: E402
 

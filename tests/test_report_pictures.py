@@ -30,6 +30,7 @@ from r360gpu.report.contact_sheets import (
     rgb8_at,
     sheet_image,
     view_contact_sheet,
+    SheetView,
     view_panels,
 )
 from r360gpu.report.plots import axes_overview_png, view_axes_plot, view_axes_png, view_series
@@ -149,11 +150,12 @@ def test_no_depth_in_the_target_has_its_own_colour_count_and_legend(scene):
     assert no_depth_fraction(no_depth, np.zeros_like(t)) is None
     with pytest.raises(InputError, match="no-depth mask is"):
         changed_panel(changed, target, no_depth=no_depth[:10])
-    panels = view_panels(pre=pre, post=pre, target=target, changed=changed, no_depth=no_depth, width=W)
+    panels = view_panels(SheetView(pre=pre, post=pre, target=target, changed=changed, no_depth=no_depth), width=W)
     title = [t for t, _ in panels if t.startswith("changed")][0]
     assert f"no depth in {no_depth_fraction(no_depth, target):.0%} of M" in title
     assert any(c == NO_DEPTH_IN_TARGET_RGB for c, _ in legend_items(panels))
-    plain = view_panels(pre=pre, post=pre, target=target, changed=changed, no_depth=np.zeros_like(t), width=W)
+    plain = view_panels(SheetView(pre=pre, post=pre, target=target, changed=changed, no_depth=np.zeros_like(t)),
+                        width=W)
     assert not any(c == NO_DEPTH_IN_TARGET_RGB for c, _ in legend_items(plain))  # no hole: no legend entry
 
 
@@ -223,8 +225,9 @@ def test_contact_sheet_layout_and_png(tmp_path, scene):
 
 def test_view_contact_sheet_from_fake_view(tmp_path):
     pre, post, ref, d_pre, d_post, t = images("room", "ghost", "01")
-    panels = view_panels(pre=pre, post=post, ref=ref, target=t, delta=np.abs(d_pre - d_post), threshold=0.25,
-                         semantic_post=t, structural=[("masks", post, np.stack([t, ~t]))], width=96)
+    panels = view_panels(SheetView(pre=pre, post=post, ref=ref, target=t, delta=np.abs(d_pre - d_post),
+                                   threshold=0.25, semantic_post=t, structural=[("masks", post, np.stack([t, ~t]))]),
+                         width=96)
     assert [p[0] for p in panels] == ["I_pre (target outlined)", "I_post (target outlined)", "I_ref",
                                       "|dD|, t_depth (GHT) = 0.25", "changed |dD| > t_depth (legend below)",
                                       "semantic probe on I_post", "masks"]
@@ -320,12 +323,11 @@ def test_panels_of_the_same_arrays_are_made_once_per_view_and_equal_fresh_ones(s
     sheets = []
     for k in range(3):  # three methods of one view
         post = np.clip(rgb * (0.5 + 0.1 * k), 0, 1)
-        kw = dict(pre=rgb, post=post, target=target, ref=ref, delta=delta, threshold=0.5, semantic_pre=target,
-                  semantic_post=np.roll(target, k, axis=1),
-                  structural=[("masks on I_ref", ref, ref_masks), ("masks on I_post", post, ref_masks[:k + 1])],
-                  width=120)
-        got = view_panels(**kw, memo=memo)
-        fresh = view_panels(**kw)
+        view = SheetView(pre=rgb, post=post, target=target, ref=ref, delta=delta, threshold=0.5,
+                         semantic_pre=target, semantic_post=np.roll(target, k, axis=1),
+                         structural=[("masks on I_ref", ref, ref_masks), ("masks on I_post", post, ref_masks[:k + 1])])
+        got = view_panels(view, width=120, memo=memo)
+        fresh = view_panels(view, width=120)
         assert [t for t, _ in got] == [t for t, _ in fresh]
         for (_, a), (_, b) in zip(got, fresh):
             np.testing.assert_array_equal(a, b)
@@ -334,5 +336,5 @@ def test_panels_of_the_same_arrays_are_made_once_per_view_and_equal_fresh_ones(s
         assert sheets[0][title] is sheets[1][title] is sheets[2][title]
     for title in ("I_post (target outlined)", "semantic probe on I_post", "masks on I_post"):
         assert sheets[0][title] is not sheets[1][title]
-    other = view_panels(pre=rgb, post=rgb, target=target, width=100, memo=memo)  # another width: drawn anew
+    other = view_panels(SheetView(pre=rgb, post=rgb, target=target), width=100, memo=memo)  # another width: anew
     assert other[0][1].shape[1] == 100

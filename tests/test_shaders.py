@@ -109,3 +109,17 @@ def test_uniform_structs_are_packed_by_name():
         pack_words("render_rasterize", {k: v for k, v in values.items() if k != "row_base"})
     with pytest.raises(ValueError, match="unknown fields \\['rowbase'\\]"):
         pack_words("render_rasterize", {**values, "rowbase": 0})
+
+
+def test_the_compositing_rule_is_written_once():
+    """composite.wgsl declares the compositing constants and applies them; the rasteriser and the
+    lifting pass include it and name none of those constants themselves."""
+    declared = dict(_OVERRIDE.findall(_COMMENT.sub("", shader_path("composite").read_text(encoding="utf-8"))))
+    assert set(declared) == set(conventions.COMPOSITE_CONSTANTS)
+    for name in ("render_rasterize", "lift_accumulate"):
+        raw = shader_path(name).read_text(encoding="utf-8")
+        assert "//!include composite.wgsl" in raw, name
+        own = _COMMENT.sub("", raw)
+        assert "composite(" in own, name
+        for const in conventions.COMPOSITE_CONSTANTS:
+            assert const not in own, f"{name}.wgsl names {const}: the rule is composite.wgsl's"

@@ -86,7 +86,7 @@ def test_window_draws_scene_and_panels(display, tmp_path, ctx):
     assert title.sum() > 500
 
 
-# -- issue 16: panels beside the panes, labels, renders-only explanation, Esc / Q ------------
+# -- the viewer: panels beside the panes, labels, renders-only explanation, Esc / Q ----------
 
 PANES_ARTIFACT = ROOT / "test-output" / "viewer" / "side_by_side.png"
 HIDDEN_ARTIFACT = ROOT / "test-output" / "viewer" / "renders_only_hidden_panels.png"

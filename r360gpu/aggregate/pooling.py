@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..schema import Pooled
 from .results import axis_cells, common_methods
 from .summary import aggregate_tables
 
@@ -37,22 +38,22 @@ def pooled_sensitivity(scenes: dict, methods, scene_names) -> dict:
     return sens
 
 
-def aggregate_results(results: dict, *, n_boot: int, n_perm: int, seed: int) -> None:
-    """Add ``aggregate`` and ``sensitivity`` (or a note why not) to a results document, and
-    ``validity``: {axis: [scenes where the axis is "weak" or "blind"]}, the Overall cells to mark."""
+def aggregate_results(scenes: dict, *, n_boot: int, n_perm: int, seed: int) -> Pooled:
+    """The run's cross-scene values from its scene entries (``scenes`` as results.json holds them):
+    ``validity`` {axis: [scenes where the axis is "weak" or "blind"]}, the Overall cells to mark;
+    ``aggregate`` and ``sensitivity``, or notes why not."""
     from .validity import not_ok_cells
 
-    results["validity"] = not_ok_cells(results["scenes"])
-    cells = axis_cells(results["scenes"])
-    common, missing = common_methods(results["scenes"])
+    validity = not_ok_cells(scenes)
+    cells = axis_cells(scenes)
+    common, missing = common_methods(scenes)
+    notes = []
     if missing:
         left = "; ".join(f"{m} (missing from {', '.join(s)})" for m, s in missing.items())
-        results.setdefault("notes", []).append(
-            f"cross-scene tables use the methods every scene has ({', '.join(common) or 'none'}); left out: {left}")
+        notes.append(f"cross-scene tables use the methods every scene has ({', '.join(common) or 'none'}); "
+                     f"left out: {left}")
     if cells is None:
-        results["aggregate"] = None
-        results.setdefault("notes", []).append(
-            "aggregate tables need at least one method in every scene and all three axes")
-        return
-    results["aggregate"] = aggregate_tables(cells, n_boot=n_boot, n_perm=n_perm, seed=seed)
-    results["sensitivity"] = pooled_sensitivity(results["scenes"], cells.methods, cells.scenes)
+        notes.append("aggregate tables need at least one method in every scene and all three axes")
+        return Pooled(validity, None, None, notes, notes_first=bool(missing))
+    return Pooled(validity, aggregate_tables(cells, n_boot=n_boot, n_perm=n_perm, seed=seed),
+                  pooled_sensitivity(scenes, cells.methods, cells.scenes), notes, notes_first=bool(missing))

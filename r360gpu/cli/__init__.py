@@ -20,7 +20,7 @@ import traceback
 from ..errors import GpuUnavailableError, R360Error
 
 # Order is the order shown in --help.
-_COMMANDS = ["demo", "score", "check", "view", "tables", "convert", "doctor"]
+_COMMANDS = ["demo", "score", "check", "inpaint", "view", "tables", "convert", "doctor"]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -22,7 +22,7 @@ from pathlib import Path
 _PKG = Path(__file__).resolve().parent.parent  # .../r360gpu
 _INCLUDE = re.compile(r"^[ \t]*//!include[ \t]+(\S+)[ \t]*$", re.MULTILINE)
 #: Shader files that exist only to be included.
-INCLUDE_ONLY = ("common", "workgroup_scan", "radix_digits", "radix_pass", "tile_pixels")
+INCLUDE_ONLY = ("common", "workgroup_scan", "radix_digits", "radix_pass", "tile_pixels", "composite")
 
 
 def shader_dirs() -> list[Path]:

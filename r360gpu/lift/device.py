@@ -1,23 +1,26 @@
 """Host side of ``shaders/lift_accumulate.wgsl``: per-Gaussian compositing weight inside / outside a mask.
 
-:class:`MaskLifter` is a :class:`~r360gpu.render.Renderer` whose per-tile pass
-is the lifting kernel instead of the rasteriser: projection, depth sort,
-binning and tile sort are the renderer's own, so a Gaussian's weight at a
-pixel is exactly the ``alpha T`` the renderer blends it with there.  The
-accumulators live on the device across views (64-bit fixed point, see the
-shader); :meth:`MaskLifter.weights` reads them back once.
+:class:`MaskLifter` runs :class:`LiftPass`, a
+:class:`~r360gpu.render.tile_pass.TilePass`, through a
+:class:`~r360gpu.render.Renderer` (:meth:`~r360gpu.render.Renderer.run_pass`):
+projection, depth sort, binning and tile sort are the renderer's own, and the
+pass composites with the rasteriser's rule (``shaders/composite.wgsl``), so a
+Gaussian's weight at a pixel is exactly the ``alpha T`` the renderer blends it
+with there.  The accumulators live on the device across views (64-bit fixed
+point, see the shader); :meth:`MaskLifter.weights` reads them back once.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import InputError
-from ..gpu.context import BufferRange
+from ..gpu.context import BufferRange, GpuContext
 from ..gpu.uniforms import uniform
-from ..render.conventions import ALPHA_MAX, ALPHA_MIN, T_MIN
 from ..render.binning import TileLists
-from ..render.project import tile_grid
-from ..render.rasterize import Band
+from ..render.conventions import COMPOSITE_CONSTANTS
+from ..render.project import camera_arrays
 from ..render.renderer import Renderer
 
 #: Fixed-point units per unit of compositing weight (the shader's ``scale``): a tile's sum of at most
@@ -25,23 +28,47 @@ from ..render.renderer import Renderer
 #: below any weight that matters (the renderer skips alphas under 1/255).
 SCALE = float(1 << 20)
 
-#: The override constants of lift_accumulate.wgsl, the rasteriser's compositing rules.
-CONSTANTS = {"ALPHA_MAX": ALPHA_MAX, "ALPHA_MIN": ALPHA_MIN, "T_MIN": T_MIN}
+#: The WGSL names of lift_accumulate.wgsl's bindings, in the order the pass binds them.
+BINDINGS = ("p", "ranges", "vals", "pos_op", "conic", "mask", "acc")
 
 
-class MaskLifter(Renderer):
+@dataclass(frozen=True)
+class LiftPass:
+    """The lifting kernel as a tile pass: adds each Gaussian's weight at the view's pixels, split by
+    ``mask`` (H x W float32 shares), into ``acc`` (N x 4 u32, see :class:`MaskLifter`)."""
+
+    mask: BufferRange
+    acc: object
+
+    def record(self, ctx: GpuContext, enc, lists: TileLists, cam: dict) -> None:
+        window, proj = lists.window, lists.proj
+        # row_base 0: run_pass records the whole image in one band
+        params = uniform(ctx, "lift_accumulate", width=cam["width"], height=cam["height"], tiles_x=lists.tiles_x,
+                         tile_begin=window.begin, num_tiles=window.end - window.begin, row_base=0, scale=SCALE)
+        per_gaussian = max(16, lists.n * 16)
+        ctx.dispatch(enc, ctx.pipeline("lift_accumulate", "main", COMPOSITE_CONSTANTS, bindings=BINDINGS),
+                     [params, lists.ranges, ctx.span(lists.vals, 0, max(4, lists.num_keys * 4)),
+                      BufferRange(proj.pos_op, 0, per_gaussian), BufferRange(proj.conic, 0, per_gaussian),
+                      self.mask, BufferRange(self.acc, 0, per_gaussian)],
+                     ctx.grid(window.end - window.begin))
+
+
+class MaskLifter:
     """Accumulates, per Gaussian, its compositing weight inside and outside target masks.
 
     Parameters as `Renderer` (``background`` is
     irrelevant: weights do not depend on it).  Call `add_view` per
     (camera, mask), then `weights`.  ``acc`` is the device buffer of
     N x 4 u32: (in low, in high, out low, out high) words of the 64-bit
-    fixed-point sums (`SCALE` units per unit weight).
+    fixed-point sums (`SCALE` units per unit weight); ``renderer`` the
+    renderer whose tile lists the pass walks.
     """
 
     def __init__(self, scene, **kwargs):
-        super().__init__(scene, **kwargs)
-        self.acc = self.ctx.buffer(max(16, self.scene.n * 16), label="lift.acc")
+        self.renderer = Renderer(scene, **kwargs)
+        self.ctx = self.renderer.ctx
+        self.n = self.renderer.scene.n
+        self.acc = self.ctx.buffer(max(16, self.n * 16), label="lift.acc")
         self.views = 0
 
     def reset(self) -> None:
@@ -59,7 +86,7 @@ class MaskLifter(Renderer):
         the same row-major order.  InputError on a wrong size or non-finite
         values (a device buffer is taken as is; values are clamped to [0, 1]).
         """
-        cam = self._camera(camera)
+        cam = camera_arrays(camera)
         width, height = cam["width"], cam["height"]
         if width * height * 4 > self.ctx.max_binding_bytes:
             raise InputError(f"{cam['name']}: a {width}x{height} mask exceeds one "
@@ -78,31 +105,16 @@ class MaskLifter(Renderer):
                 raise InputError(f"{cam['name']}: mask buffer holds {mask.size} bytes, "
                                  f"a {width}x{height} float32 mask needs {width * height * 4}")
             buf = mask
-        self._mask = BufferRange(buf, 0, max(4, width * height * 4))
-        with self._frame():
-            prep, t0 = self._prepare(cam, whole=True)
-            self._render_rows(prep, cam, (0, tile_grid(width, height)[1]), buf, width * height, t0)
+        self.renderer.run_pass(camera, LiftPass(BufferRange(buf, 0, max(4, width * height * 4)), self.acc))
         self.views += 1
-
-    def _record_tiles(self, enc, lists: TileLists, cam: dict, band: Band, work) -> None:
-        ctx, n, window, proj = self.ctx, self.scene.n, lists.window, lists.proj
-        params = uniform(ctx, "lift_accumulate", width=cam["width"], height=cam["height"], tiles_x=lists.tiles_x,
-                         tile_begin=window.begin, num_tiles=window.end - window.begin, row_base=band.row_base,
-                         scale=SCALE)
-        per_gaussian = max(16, n * 16)
-        ctx.dispatch(enc, ctx.pipeline("lift_accumulate", "main", CONSTANTS),
-                     [params, lists.ranges, ctx.span(lists.vals, 0, max(4, lists.num_keys * 4)),
-                      BufferRange(proj.pos_op, 0, per_gaussian), BufferRange(proj.conic, 0, per_gaussian),
-                      self._mask, BufferRange(self.acc, 0, per_gaussian)],
-                     ctx.grid(window.end - window.begin))
 
     def weights(self) -> tuple[np.ndarray, np.ndarray]:
         """(w_in, w_out): (N,) float64 summed compositing weight inside / outside the masks."""
-        words = self.ctx.read(self.acc, np.uint32, 4 * self.scene.n).reshape(-1, 4).astype(np.float64)
+        words = self.ctx.read(self.acc, np.uint32, 4 * self.n).reshape(-1, 4).astype(np.float64)
         w_in = (words[:, 0] + words[:, 1] * 4294967296.0) / SCALE
         w_out = (words[:, 2] + words[:, 3] * 4294967296.0) / SCALE
         return w_in, w_out
 
     def release(self) -> None:
         self.acc.destroy()
-        super().release()
+        self.renderer.release()

@@ -87,7 +87,7 @@ def check_view(scene: str, method: str, view: str, d_pre, d_post, mask, *, sourc
                          file=source, scene=scene, method=method, view=view)
         return NOTE_NO_DEPTH
     key = ("depth-unit", scene, method)
-    r = None if key in _unit_done() else unit_ratio(pre, post, mask)
+    r = None if warning_log.seen(key) else unit_ratio(pre, post, mask)
     if r is None:
         return None
     warning_log.once(key)
@@ -98,11 +98,6 @@ def check_view(scene: str, method: str, view: str, d_pre, d_post, mask, *, sourc
                          file=source, scene=scene, method=method, view=view)
         return NOTE_UNIT
     return None
-
-
-def _unit_done() -> set:
-    log = warning_log.active()
-    return warning_log._done_outside_runs if log is None else log.done
 
 
 def annotate(record, note: str | None) -> None:

@@ -1,6 +1,7 @@
 """The measure stage of one view: every method at once.
 
-Given the probe outputs already at hand, :func:`measure_view_methods` returns
+Given the probe outputs already at hand (a :class:`MeasureJob`) and how the run
+measures (:class:`MeasureSettings`, the same for every view), :func:`measure_view_methods` returns
 each method's :class:`~r360gpu.metrics.record.ViewRecord` and boundary-sweep
 rows, computing what the methods share once per view:
 
@@ -28,7 +29,7 @@ from .geometric import GeometricView, GhtParams, acc_depth_views
 from .record import ViewRecord
 from ..protocol import XI_DEFAULT
 from .semantic import semantic_view
-from .sensitivity import NOT_GIVEN, BoundaryInput, boundary_sensitivity, boundary_targets
+from .sensitivity import NOT_GIVEN, BoundaryInput, BoundarySweep, boundary_sensitivity, boundary_targets
 from .structural import check_mode, structural_view
 
 
@@ -58,34 +59,53 @@ class MethodMeasures:
     geometric: GeometricView | None
 
 
-def measure_view_methods(
-    *,
-    view: str,
-    scene: str,
-    target,
-    methods: Mapping[str, MethodOutputs],
-    semantic_pre: Mapping[str, object],
-    structural_first: Mapping[str, object],
-    mode: str,
-    pre_depth=None,
-    ref_rgb=None,
-    probes: Sequence[dict] = (),
-    boundary: bool = True,
-    xis: Sequence[float] = (XI_DEFAULT,),
-    compat: bool = False,
-    ght_params: GhtParams = GhtParams(),
-    lpips_model: LpipsModel | None = None,
-    ctx=None,
-) -> dict[str, MethodMeasures]:
+@dataclass
+class MeasureJob:
+    """One view to measure: its target, the methods' outputs and what they are compared with.
+
+    target: M^v (H, W).  methods: {method: MethodOutputs}.  semantic_pre: {probe: prediction on
+    I_pre}, in probe order.  structural_first: {probe: masks} on I_ref (mode "reference") or on
+    I_pre ("reference_free"), in probe order.  pre_depth: D_pre or None; ref_rgb: I_ref or None
+    (no fidelity).
+    """
+
+    view: str
+    scene: str
+    target: object
+    methods: Mapping[str, MethodOutputs]
+    semantic_pre: Mapping[str, object]
+    structural_first: Mapping[str, object]
+    pre_depth: object = None
+    ref_rgb: object = None
+
+
+@dataclass(frozen=True)
+class MeasureSettings:
+    """How every view of a run is measured: the structural mode, the probe descriptions for the
+    records, the boundary sweep (on or off), the xi sweep, the compat depth rule, GHT's parameters,
+    the LPIPS model (None: no LPIPS) and the GPU context."""
+
+    mode: str
+    probes: Sequence[dict] = ()
+    boundary: bool = True
+    xis: Sequence[float] = (XI_DEFAULT,)
+    compat: bool = False
+    ght_params: GhtParams = GhtParams()
+    lpips_model: LpipsModel | None = None
+    ctx: object = None
+
+
+def measure_view_methods(job: MeasureJob, settings: MeasureSettings) -> dict[str, MethodMeasures]:
     """Measure every method of one view (see the module docstring).
 
-    target: M^v (H, W).  semantic_pre: {probe: prediction on I_pre}, in probe
-    order.  structural_first: {probe: masks} on I_ref (mode "reference") or on
-    I_pre ("reference_free"), in probe order.  pre_depth: D_pre or None;
-    ref_rgb: I_ref or None (no fidelity).  probes: the probe descriptions for
-    the records.  The boundary sweep uses the first semantic and the first
-    structural probe, and runs only when both exist.
+    The boundary sweep uses the first semantic and the first structural probe, and runs only when
+    both exist (and ``settings.boundary``).
     """
+    view, scene, target, methods = job.view, job.scene, job.target, job.methods
+    semantic_pre, structural_first, pre_depth, ref_rgb = (job.semantic_pre, job.structural_first, job.pre_depth,
+                                                          job.ref_rgb)
+    mode, probes, boundary, xis = settings.mode, settings.probes, settings.boundary, settings.xis
+    compat, ght_params, lpips_model, ctx = settings.compat, settings.ght_params, settings.lpips_model, settings.ctx
     check_mode(mode)
     names = list(methods)
     sem_names, str_names = list(semantic_pre), list(structural_first)
@@ -118,7 +138,8 @@ def measure_view_methods(
                 table = boundary_sensitivity(
                     [BoundaryInput(target, pred_pre=semantic_pre[sem_names[0]], pred_post=mo.semantic[sem_names[0]],
                                    masks_a=a, masks_b=b, geometric=g if g is not None else NOT_GIVEN, view=view)],
-                    geometric=g is not None, structural_mode=mode, xis=xis, compat=compat, ght_params=ght_params,
+                    BoundarySweep(geometric=g is not None, structural_mode=mode, xis=xis, compat=compat,
+                                  ght_params=ght_params),
                     ctx=ctx, packs=packs,
                 )
                 rows = {row: table.row(row) for row in table.rows}

@@ -241,35 +241,46 @@ def _acc_seg_row(xi: float) -> str:
     return f"acc_seg@{json_values.xi_key(xi)}"
 
 
-def boundary_sensitivity(
-    inputs: Sequence[BoundaryInput],
-    *,
-    semantic: bool = True,
-    geometric: bool = True,
-    structural_mode: str | None = None,
-    offsets: Sequence[int] = BOUNDARY_OFFSETS,
-    xis: Iterable[float] = (XI_DEFAULT,),
-    retain_iou: float = RETAIN_IOU,
-    compat: bool = False,
-    ght_params: GhtParams = GhtParams(),
-    include_empty_targets: bool = False,
-    ctx=None,
-    packs: K.PackMemo | None = None,
-) -> BoundaryTable:
-    """Recompute the axes of one (scene, method) with eroded / dilated targets.
+@dataclass(frozen=True)
+class BoundarySweep:
+    """What :func:`boundary_sensitivity` scores and with which thresholds.
 
-    inputs: one :class:`BoundaryInput` per view.
     semantic, geometric: whether to score these axes (their inputs must then
         be present in every view).
     structural_mode: "reference" / "reference_free" to score the structural
         axis, None to skip it.
     offsets: boundary offsets in px (negative = erode).
     xis: acc_seg thresholds (0.3 always included).
+    retain_iou: the structural axis' retention threshold on IoU(mask, M^v).
     compat, ght_params: passed to acc_depth_view when depths (not a
         GeometricView) are given.
+    include_empty_targets: score views whose target is empty on the semantic and structural axes.
+    """
+
+    semantic: bool = True
+    geometric: bool = True
+    structural_mode: str | None = None
+    offsets: Sequence[int] = BOUNDARY_OFFSETS
+    xis: Iterable[float] = (XI_DEFAULT,)
+    retain_iou: float = RETAIN_IOU
+    compat: bool = False
+    ght_params: GhtParams = GhtParams()
+    include_empty_targets: bool = False
+
+
+def boundary_sensitivity(inputs: Sequence[BoundaryInput], sweep: BoundarySweep = BoundarySweep(), *, ctx=None,
+                         packs: K.PackMemo | None = None) -> BoundaryTable:
+    """Recompute the axes of one (scene, method) with eroded / dilated targets.
+
+    inputs: one :class:`BoundaryInput` per view; sweep: what is scored, at which offsets
+    (:class:`BoundarySweep`).
     packs: packs kept across the calls of one view (see :class:`~r360gpu.kernels.mask_iou.PackMemo`).
     Returns a :class:`BoundaryTable`.
     """
+    semantic, geometric, structural_mode = sweep.semantic, sweep.geometric, sweep.structural_mode
+    offsets, xis, retain_iou = sweep.offsets, sweep.xis, sweep.retain_iou
+    compat, ght_params = sweep.compat, sweep.ght_params
+    include_empty_targets = sweep.include_empty_targets
     offs = tuple(int(o) for o in offsets)
     thresholds = sorted({check_xi(x) for x in xis} | {XI_DEFAULT})
     if structural_mode is not None:

@@ -13,8 +13,9 @@ Read in this order:
 * :mod:`.writer`    -- :class:`~.writer.BackgroundWriter`: pictures and cache cells off the GPU thread;
 * :mod:`.evaluate`  -- :func:`evaluate`: scenes in, the results document out; the views of a
   scene overlapped (GPU thread renders and measures, host threads read and probe ahead);
-* :mod:`.results_doc` -- :class:`~.results_doc.ResultsDocument`: the results document and its
-  schema, built in one place (each scene's probe descriptions kept with the scene);
+* :mod:`.results_doc` -- :class:`~.results_doc.ResultsDocument`: the results document, filled
+  with the stages' typed values (:mod:`r360gpu.schema`) and turned into JSON in this one place
+  (each scene's probe descriptions kept with the scene);
 * :mod:`.chunks`    -- :func:`~.chunks.score_chunk`: a chunk of views from picklable inputs,
   for executors in other processes;
 * :mod:`.distributed` -- the Ray executor: uncached views scored as Ray tasks (optional ``ray``),

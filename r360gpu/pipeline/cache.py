@@ -37,6 +37,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
+from ..schema import ScoredView, ViewCell
 from ..util import code_id
 
 CACHE_DIR = ".r360cache"
@@ -112,7 +113,8 @@ class ViewCache:
     def _path(self, method: str, view: str) -> Path:
         return self.folder / method / f"{view}.json"
 
-    def load_cell(self, method: str, view: str) -> dict | None:
+    def _load(self, method: str, view: str) -> dict | None:
+        """A cell file as written (:func:`cell_json`), its record a ViewRecord; None when missing or damaged."""
         p = self._path(method, view)
         if not p.is_file():
             return None
@@ -121,32 +123,41 @@ class ViewCache:
         except (OSError, ValueError, KeyError, TypeError):
             return None  # a damaged cache entry is recomputed
 
-    def load_view(self, methods, view: str, *, pictures: bool) -> dict | None:
-        """Every method's cell of ``view``, or None when any is missing (or its picture is, or a
+    def load_cell(self, method: str, view: str) -> ViewCell | None:
+        """The :class:`~r360gpu.schema.ViewCell` of (method, view), or None."""
+        d = self._load(method, view)
+        return None if d is None else _cell(d)
+
+    def load_view(self, methods, view: str, *, pictures: bool) -> ScoredView | None:
+        """Every method's cell of ``view`` as a :class:`~r360gpu.schema.ScoredView` (the view's
+        warnings stored with its first cell), or None when any is missing (or its picture is, or a
         precomputed probe file it was scored from has changed since: the cells' ``inputs``)."""
         from ..util.filehash import changed_stamps
 
-        cells, inputs = {}, {}
+        cells, inputs, warnings = {}, {}, None
         for m in methods:
-            cell = self.load_cell(m, view)
-            if not cell:
+            d = self._load(m, view)
+            if not d:
                 return None
-            if pictures and not (cell.get("picture") and (self.out / cell["picture"]).is_file()):
+            if pictures and not (d.get("picture") and (self.out / d["picture"]).is_file()):
                 return None
-            cells[m] = cell
-            inputs.update(cell.get("inputs") or {})
-        return None if changed_stamps(inputs) else cells
+            cells[m] = _cell(d)
+            inputs.update(cells[m].inputs)
+            if warnings is None:
+                warnings = d.get("warnings")
+        return None if changed_stamps(inputs) else ScoredView(cells, warnings)
 
-    def load_scored(self, methods, controls, view: str, *, pictures: bool) -> dict | None:
+    def load_scored(self, methods, controls, view: str, *, pictures: bool) -> ScoredView | None:
         """Every cell of ``view`` (the methods', whose pictures are checked, and the controls'), or None."""
-        cells = self.load_view(methods, view, pictures=pictures)
-        if cells is None:
+        scored = self.load_view(methods, view, pictures=pictures)
+        if scored is None:
             return None
         ctl = self.load_view(controls, view, pictures=False)
-        return None if ctl is None else {**cells, **ctl}
+        return None if ctl is None else ScoredView({**scored.cells, **ctl.cells}, scored.warnings)
 
-    def store_view(self, view: str, cells: dict, changed: list) -> bool:
-        """Store every cell of ``view`` unless ``changed`` names an input whose decoded bytes are not
+    def store_view(self, view: str, scored: ScoredView, changed: list) -> bool:
+        """Store every cell of ``view`` (a :class:`~r360gpu.schema.ScoredView`; its warnings go into
+        the first cell's file) unless ``changed`` names an input whose decoded bytes are not
         those the key was computed from (:func:`changed_inputs`), or a precomputed probe file the
         view was scored from has another stamp now than before it was read (the cells' ``inputs``);
         then warn and store nothing.  A probe file written within the last 2 s (its stamp proves
@@ -154,8 +165,8 @@ class ViewCache:
         from ..util.filehash import UNSETTLED, changed_stamps
 
         inputs: dict = {}
-        for cell in cells.values():
-            inputs.update(cell.get("inputs") or {})
+        for cell in scored.cells.values():
+            inputs.update(cell.inputs)
         if any(s == UNSETTLED for s in inputs.values()):
             return False
         changed = list(changed) + changed_stamps(inputs)
@@ -167,29 +178,40 @@ class ViewCache:
                                  f"than the run's cache key says, so its result is not cached (the next run "
                                  f"scores it again)", file=f, view=view)
             return False
-        for m, cell in cells.items():
-            self.store(m, view, cell)
+        for i, (m, cell) in enumerate(scored.cells.items()):
+            self.store(m, view, cell, scored.warnings if i == 0 else None)
         return True
 
-    def store(self, method: str, view: str, cell: dict) -> None:
+    def store(self, method: str, view: str, cell: ViewCell, warnings: dict | None = None) -> None:
         from ..util.atomic import write_json
 
         # compact (no indent): written for every method and view, read back by this class only;
         # a damaged cell is recomputed
-        write_json(self._path(method, view), cell_json(cell), allow_nan=False, sync=False, indent=None)
+        write_json(self._path(method, view), cell_json(cell, warnings), allow_nan=False, sync=False, indent=None)
 
 
-def cell_json(cell: dict) -> dict:
-    """A view's cell as it is written: its ViewRecord as a dict (:meth:`~r360gpu.metrics.record.ViewRecord.to_dict`)."""
-    return {**cell, "record": cell["record"].to_dict()}
+def cell_json(cell: ViewCell, warnings: dict | None = None) -> dict:
+    """A :class:`~r360gpu.schema.ViewCell` as a cache file holds it: its ViewRecord as a dict
+    (:meth:`~r360gpu.metrics.record.ViewRecord.to_dict`), "inputs" only when some file was read,
+    and the view's ``warnings`` when given (its first cell's file holds them)."""
+    d = {"record": cell.record.to_dict(), "boundary": cell.boundary, "picture": cell.picture}
+    if cell.inputs:
+        d["inputs"] = cell.inputs
+    if warnings is not None:
+        d["warnings"] = warnings
+    return d
 
 
 def cell_from_json(d: dict) -> dict:
-    """A cell read back (:func:`cell_json`): its record a ViewRecord again (InputError, a ValueError,
+    """A cell file read back (:func:`cell_json`): its record a ViewRecord again (InputError, a ValueError,
     when it is not one)."""
     from ..metrics.record import ViewRecord
 
     return {**d, "record": ViewRecord.from_dict(d["record"])}
+
+
+def _cell(d: dict) -> ViewCell:
+    return ViewCell(d["record"], d.get("boundary"), d.get("picture"), d.get("inputs") or {})
 
 
 def fingerprint(bundle, sources, digests: dict | None = None) -> str | None:

@@ -40,6 +40,6 @@ def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, a
         if unknown:
             raise InputError(f"scene {b.name}: views {unknown[:5]} are not among its evaluation views")
         sink = PictureSink(None, False)
-        return {v: {m: cell_json(c) for m, c in score_view(run, v, sink).items()} for v in views}
+        return {v: {m: cell_json(c) for m, c in score_view(run, v, sink).cells.items()} for v in views}
     finally:
         run.release()

@@ -304,7 +304,7 @@ class RayExecutor(ChunkExecutor):
 
     # -- one scene ------------------------------------------------------------
     def score_scene(self, run, view_cache, sink, progress: bool) -> dict:
-        """{view: cells} for the views of ``run`` the view cache lacks; stored there as they arrive."""
+        """{view: ScoredView} for the views of ``run`` the view cache lacks; stored there as they arrive."""
         bundle = run.bundle
         _check_sendable(bundle)
         todo = self.todo(run, view_cache, sink)
@@ -444,12 +444,10 @@ def _score_task(common, views, ctx, timer, node) -> dict:
             cells = {}
             for v in views:
                 with warning_log.where(view=v):
-                    cells[v] = score_view(run, v, sink)
-                # the view's warnings go with its first cell, as in a serial run (replayed from the cache)
-                next(iter(cells[v].values()))["warnings"] = warning_log.for_view(run.bundle.name, v)
+                    cells[v] = score_view(run, v, sink)  # with the view's warnings, replayed from the cache
                 run.done(v)
-            pictures = {c["picture"]: (Path(tmp) / c["picture"]).read_bytes()
-                        for vc in cells.values() for c in vc.values() if c.get("picture")}
+            pictures = {c.picture: (Path(tmp) / c.picture).read_bytes()
+                        for scored in cells.values() for c in scored.cells.values() if c.picture}
             # what each view was decoded from here, for the driver's check against its cache key
             decoded = {v: decoded_digests(run.view_files(v)) for v in views}
     finally:

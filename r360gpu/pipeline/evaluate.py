@@ -3,10 +3,13 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 from ..errors import InputError
+from ..schema import SceneEntry
 from ..util import warning_log
 from .cache import RunCache
 from .options import EvaluateOptions, default_probes
@@ -61,47 +64,57 @@ def evaluate(
     # One collector from the first file read: warnings of loading (a COLMAP model's distortion,
     # a BOM in prompt.txt) reach results.json as the pipeline's do.
     with warning_log.collecting():
-        return _load_and_evaluate(bundles, _Call(
-            opts=options or EvaluateOptions(), ctx=ctx, probes=(semantic_probes, structural_probes, None), out=out,
-            progress=progress, log=log, executor=executor, kept=kept), adapter=adapter, device=device, force=force,
-            ray_address=ray_address)
+        opts = options or EvaluateOptions()
+        opts._check()  # before any work, also when a field was changed after the options were built
+        host_threads()  # R360GPU_HOST_THREADS too
+        if executor is not None or ray_address is not None:
+            from .distributed import open_executor
+
+            executor = open_executor(executor, ray_address=ray_address, adapter=adapter, device=device, log=log)
+        if ctx is None:
+            from ..gpu import get_context
+
+            ctx = get_context(adapter, device=device)
+        # None: not given; each scene then takes its folder's probe outputs or the defaults
+        # (probes.registry.scene_probes)
+        defaults = default_probes() if semantic_probes is None or structural_probes is None else None
+        plan = _Plan(opts=opts, ctx=ctx, semantic=semantic_probes, structural=structural_probes, defaults=defaults,
+                     out=Path(out) if out is not None else None, progress=progress, log=log, executor=executor,
+                     kept=kept)
+        return _load_and_evaluate(bundles, plan, force=force)
 
 
-@dataclass
-class _Call:
-    """What one evaluate() call runs with, from the caller's arguments to the opened context.
+@dataclass(frozen=True)
+class _Plan:
+    """What one evaluate() call runs with, built once from the caller's arguments: the options,
+    the opened GPU context and executor, and the probes.
 
-    probes: (semantic, structural, defaults); a list given for an axis is used for
-    every scene, None lets each scene take its folder's probe outputs or ``defaults``.
+    semantic / structural: the probes given for an axis, used for every scene; None lets each
+    scene take its folder's probe outputs or ``defaults``.
     """
 
     opts: EvaluateOptions
-    ctx: object
-    probes: tuple
+    ctx: Any
+    semantic: list | None
+    structural: list | None
+    defaults: tuple | None
     out: Path | None
     progress: bool
-    log: object
-    executor: object = None
-    kept: object = None
+    log: Callable[[str], Any]
+    executor: Any = None
+    kept: Any = None
+
+    def scene_probes(self, bundle, compat) -> tuple:
+        """(semantic, structural, selection) of ``bundle`` (:func:`r360gpu.probes.registry.scene_probes`)."""
+        from ..probes.registry import scene_probes
+
+        return scene_probes(bundle, self.semantic, self.structural, compat=compat, defaults=self.defaults)
 
 
-def _load_and_evaluate(bundles, call: _Call, *, adapter, device, force, ray_address) -> dict:
+def _load_and_evaluate(bundles, plan: _Plan, *, force: bool) -> dict:
     from ..bundle import Bundle, load_bundle
-    from ..gpu import get_context
 
-    opts = call.opts
-    opts._check()  # before any work, also when a field was changed after the options were built
-    host_threads()  # R360GPU_HOST_THREADS too
-    log = call.log
-    if call.executor is not None or ray_address is not None:
-        from .distributed import open_executor
-
-        call.executor = open_executor(call.executor, ray_address=ray_address, adapter=adapter, device=device, log=log)
-    call.ctx = call.ctx or get_context(adapter, device=device)
-    semantic_probes, structural_probes, _ = call.probes
-    # None: not given; each scene then takes its folder's probe outputs or the defaults (probes.registry.scene_probes)
-    defaults = default_probes() if semantic_probes is None or structural_probes is None else None
-    call.probes = (semantic_probes, structural_probes, defaults)
+    opts, log = plan.opts, plan.log
     if isinstance(bundles, (str, Path, Bundle)):
         bundles = [bundles]
     # --views, applied here and only here: a folder is loaded with it (checked as `check --views` does),
@@ -122,44 +135,39 @@ def _load_and_evaluate(bundles, call: _Call, *, adapter, device, force, ray_addr
         raise InputError(f"two bundles share a scene name (names are compared ignoring case): {names}")
     for line in missing_methods(loaded):
         log(f"note: {line}")
-    call.out = out = Path(call.out) if call.out is not None else None
-    cache = RunCache(out, force=force)
-    sink = PictureSink(out, opts.pictures, embed_cache=cache.embed)
+    cache = RunCache(plan.out, force=force)
+    sink = PictureSink(plan.out, opts.pictures, embed_cache=cache.embed)
     with warning_log.collecting():
         try:
-            return _evaluate(loaded, call, cache, sink)
+            return _evaluate(loaded, plan, cache, sink)
         finally:
-            if call.kept is not None:
-                call.kept.clear()
+            if plan.kept is not None:
+                plan.kept.clear()
 
 
-def _evaluate(loaded, call: _Call, cache: RunCache, sink: PictureSink) -> dict:
+def _evaluate(loaded, plan: _Plan, cache: RunCache, sink: PictureSink) -> dict:
     from ..util.imports import ImportAhead
 
-    opts, ctx, probes, out, progress, log = call.opts, call.ctx, call.probes, call.out, call.progress, call.log
-    executor, kept = call.executor, call.kept
+    opts, ctx, out, progress, log, executor = plan.opts, plan.ctx, plan.out, plan.progress, plan.log, plan.executor
 
     # the cross-scene statistics (two scenes or more) use scipy.stats, first needed once every view is scored
     later = ImportAhead(*(["scipy.stats"] if len(loaded) >= 2 else []))
     timer = Timer()
     document = ResultsDocument(adapter=ctx.describe(), options={**opts.scoring_key(), "n_boot": opts.n_boot,
                                                                 "n_perm": opts.n_perm, "seed": opts.seed})
-    results = document.doc
     t_start = time.perf_counter()
     n_views_done = 0
     views_of: dict = {}
 
-    from ..probes.registry import scene_probes
-
     def open_run(bundle) -> SceneRun:
-        sem, stru, selection = scene_probes(bundle, probes[0], probes[1], compat=opts.compat, defaults=probes[2])
+        sem, stru, selection = plan.scene_probes(bundle, opts.compat)
         with warning_log.where(scene=bundle.name):
-            run = SceneRun(bundle, opts, ctx, sem, stru, cache=cache, timer=timer, kept=kept)
-        run.probe_selection = selection
+            run = SceneRun(bundle, opts, ctx, sem, stru, cache=cache, timer=timer, kept=plan.kept)
+        run.probe_selection = selection or {}
         return run
 
     def open_what_if(b, o) -> SceneRun:  # a scene seen elsewhere (orbit) or a method changed (pruned)
-        sem, stru, _ = scene_probes(b, probes[0], probes[1], compat=o.compat, defaults=probes[2])
+        sem, stru, _ = plan.scene_probes(b, o.compat)
         # no frame check: a what-if sees through the capture's cameras (checked with the scene) or poses
         # derived from them (the orbit)
         return SceneRun(b, o, ctx, sem, stru, cache=cache, timer=timer, check_frames=False)
@@ -177,14 +185,15 @@ def _evaluate(loaded, call: _Call, cache: RunCache, sink: PictureSink) -> dict:
                 finally:
                     run.release()
             with warning_log.where(scene=bundle.name):
-                _reusable_target(run, scene_res, call.out)
-                _what_ifs(run.bundle, scene_res, call, open_what_if,
-                          lambda r, pictures=True: evaluate_scene(r, cache, sink if pictures else quiet, progress,
-                                                                  what_if=True))
+                target = _reusable_target(run, scene_res, out)
+                what_ifs = _what_ifs(run.bundle, scene_res, plan, open_what_if,
+                                     lambda r, pictures=True: evaluate_scene(r, cache, sink if pictures else quiet,
+                                                                             progress, what_if=True))
             views_of[bundle.name] = {v: k for k, v in enumerate(run.views)}
-            document.add_scene(bundle.name, scene_res, run.probes_desc, selection=run.probe_selection)
+            document.add_scene(bundle.name, replace(scene_res, target=target, **what_ifs), run.probes_desc,
+                               selection=run.probe_selection)
             n_views_done += len(run.views)
-            plots.draw(bundle.name, scene_res)
+            plots.draw(bundle.name, document.scene(bundle.name))
         document.set_timing(timer.totals, time.perf_counter() - t_start, n_views_done,
                             executor.describe() if executor is not None else None)
         if executor is not None:
@@ -193,6 +202,7 @@ def _evaluate(loaded, call: _Call, cache: RunCache, sink: PictureSink) -> dict:
         document.aggregate(n_boot=opts.n_boot, n_perm=opts.n_perm, seed=opts.seed)
         document.set_warnings(in_run_order(warning_log.records(), [b.name for b in loaded], views_of),
                               warning_log.counts())
+        results = document.doc
         if out is not None:
             from ..report.outputs import write_run_outputs
 
@@ -203,42 +213,45 @@ def _evaluate(loaded, call: _Call, cache: RunCache, sink: PictureSink) -> dict:
     return results
 
 
-def _what_ifs(bundle, scene_res: dict, call: _Call, open_what_if, score) -> None:
-    """The scene beyond its capture views, into ``scene_res``: the orbit (``--orbit N``, under
-    scenes.S.orbit), the residual Gaussians and the unranked METHOD+pruned what-ifs."""
-    opts, ctx = call.opts, call.ctx
+def _what_ifs(bundle, scene_res: SceneEntry, plan: _Plan, open_what_if, score) -> dict:
+    """The scene beyond its capture views, as :class:`~r360gpu.schema.SceneEntry` fields: the orbit
+    (``--orbit N``, ``orbit``), the residual Gaussians (``residuals``) and the unranked METHOD+pruned
+    what-ifs (``pruned``)."""
+    opts, ctx, out = plan.opts, plan.ctx, plan.out
+    fields: dict = {}
     if opts.orbit:  # --orbit N: the scene from all around (pipeline.orbit)
         from .orbit import score_orbit
 
-        scene_res["orbit"] = score_orbit(bundle, opts, open_what_if, score, ctx=ctx, warn=warning_log.warn,
-                                         out=call.out)
+        fields["orbit"] = score_orbit(bundle, opts, open_what_if, score, ctx=ctx, warn=warning_log.warn, out=out)
     if opts.residuals or opts.prune_residuals:  # the Gaussians behind the evidence (pipeline.residuals)
         from .residuals import scene_residuals, score_pruned
 
-        scene_res["residuals"], values = scene_residuals(bundle, scene_res, call.out, ctx=ctx, xis=opts.xis,
-                                                         warn=warning_log.warn)
+        fields["residuals"], values = scene_residuals(bundle, scene_res.methods, out, ctx=ctx, xis=opts.xis,
+                                                      warn=warning_log.warn)
         if opts.prune_residuals:  # the what-ifs have no contact sheets
-            scene_res["pruned"] = score_pruned(bundle, values, opts, open_what_if,
-                                               lambda r: score(r, pictures=False), call.out)
+            fields["pruned"] = score_pruned(bundle, values, opts, open_what_if, lambda r: score(r, pictures=False),
+                                            out)
+    return fields
 
 
-def _reusable_target(run, scene_res: dict, out) -> None:
-    """A ``[target]``'s lifted set and rendered masks written under ``out`` (pipeline.reusable), their
-    paths under scenes.S.target.files."""
-    if out is None or run.target_lifted is None or "target" not in scene_res:
-        return
+def _reusable_target(run, scene_res: SceneEntry, out) -> dict | None:
+    """The scene's ``target`` entry, with the paths of a ``[target]``'s lifted set and rendered masks
+    written under ``out`` (pipeline.reusable) under ``files``."""
+    if out is None or run.target_lifted is None or scene_res.target is None:
+        return scene_res.target
     from .reusable import write_target
 
-    rendered = {v: run.bundle.masks[v] for v in scene_res["target"]["rendered"]}
-    scene_res["target"]["files"] = write_target(out, run.bundle.name, run.pre.gaussians, run.target_lifted.target,
-                                                rendered, source=getattr(run.bundle.pre, "path", None))
+    rendered = {v: run.bundle.masks[v] for v in scene_res.target["rendered"]}
+    return {**scene_res.target,
+            "files": write_target(out, run.bundle.name, run.pre.gaussians, run.target_lifted.target, rendered,
+                                  source=getattr(run.bundle.pre, "path", None))}
 
 
 def _say_probes(run: SceneRun, log) -> None:
     """On the console: which probes a public folder's scene runs and why (its own outputs or not)."""
     if getattr(run.bundle, "layout", None) != "remove360":
         return
-    for axis, sel in (getattr(run, "probe_selection", None) or {}).items():
+    for axis, sel in run.probe_selection.items():
         log(f"probes: {run.bundle.name} {axis}: {', '.join(sel['probes'])} ({sel['source']}) -- {sel['why']}")
 
 

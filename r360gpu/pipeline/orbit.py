@@ -21,6 +21,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import InputError
+from ..schema import OrbitEntry
 
 RENDERINGS_ONLY = "no orbit (renderings only)"
 
@@ -162,8 +163,8 @@ def _orbit(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
     return orbit, info, (g, lifted)
 
 
-def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None, out=None) -> dict:
-    """The ``scenes.S.orbit`` entry: the orbit bundle scored like a scene, with ``info`` merged in.
+def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None, out=None) -> OrbitEntry:
+    """The ``scenes.S.orbit`` entry: the orbit bundle scored like a scene, with its poses' ``info``.
 
     open_run(bundle, opts) opens a SceneRun; evaluate_scene(run) scores it (the pipeline's own).
     out: the output folder (None: nothing written), where the kept poses' cameras.json and target
@@ -176,7 +177,7 @@ def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None, 
     except InputError as e:
         if warn is not None:
             warn(f"orbit: {e.problem}")
-        return {"requested": int(opts.orbit), "kept": 0, "note": f"no orbit: {e.problem}"}
+        return OrbitEntry({"requested": int(opts.orbit), "kept": 0, "note": f"no orbit: {e.problem}"})
     problem = None if orbit is None else orbit_renders_problem(orbit)
     if problem is not None:  # an error, not a warning: the user's renderings would be scored at other poses
         raise InputError(problem)
@@ -187,11 +188,11 @@ def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None, 
         if orbit is not None:
             files.update(write_orbit(out, bundle.name, [orbit.cameras[v] for v in orbit.views], orbit.masks))
     if orbit is None:
-        return info
+        return OrbitEntry(info)
     # views=None: the orbit's views are its own cameras, and its cache key names no capture selection
     run = open_run(orbit, replace(opts, views=None, orbit=0))
     try:
         res = evaluate_scene(run)
     finally:
         run.release()
-    return {**res, **info}
+    return OrbitEntry(info, res)

@@ -7,11 +7,39 @@ the sheet as, here in the writer thread rather than at the end of the run.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..util.memo import ByIdentity
+
+
+@dataclass
+class PictureJob:
+    """One method's contact sheet at one view, on host arrays only.
+
+    pre_depth / post_depth: D_pre, D_post (None without a geometric view); geo: the GeometricView or
+    None; compat: the heat map in the public scripts' 8-bit gray levels; semantic: (pre, post)
+    predictions of the first semantic probe or None; structural: [(title, rgb, MaskSet)] of the
+    first structural probe; record: the view's :class:`~r360gpu.metrics.record.ViewRecord` (its
+    numbers are drawn on the sheet, so they survive copying it) or None.
+    """
+
+    scene: str
+    method: str
+    view: str
+    pre_rgb: object
+    post_rgb: object
+    ref_rgb: object
+    pre_depth: object
+    post_depth: object
+    mask: object
+    geo: object
+    compat: bool
+    semantic: tuple | None = None
+    structural: list = field(default_factory=list)
+    record: object = None
 
 
 class PictureSink:
@@ -26,51 +54,49 @@ class PictureSink:
         """Where the sheet of (scene, method, view) goes, relative to ``out`` (None without pictures)."""
         return (Path("pictures") / scene / method / f"{view}.png").as_posix() if self.enabled else None
 
-    def method_view(self, *, scene: str, method: str, view: str, pre_rgb, post_rgb, ref_rgb, pre_depth, post_depth,
-                    mask, geo, compat: bool, semantic, structural, record=None,
-                    _shrink=None, _panels=None) -> str:
-        """Write the sheet of one method at one view (host arrays only); returns its relative path.
+    def method_view(self, job: PictureJob, *, shrink=None, panels=None) -> str:
+        """Write the sheet of one method at one view; returns its relative path.
 
-        geo: GeometricView or None; semantic: (pre, post) predictions of the
-        first semantic probe or None; structural: [(title, rgb, MaskSet)] of
-        the first structural probe; record: the view's
-        :class:`~r360gpu.metrics.record.ViewRecord` (its numbers are drawn on the
-        sheet, so they survive copying it).
+        shrink / panels: a view's :class:`_Shrink` and panel memo, shared by its methods' sheets
+        (:meth:`view`).
         """
         from ..kernels.depth_change import no_depth
         from ..metrics.compat import compat_quantise, depth_delta
         from ..report.contact_sheets import view_contact_sheet
 
+        geo, pre_rgb, post_rgb, ref_rgb, mask = job.geo, job.pre_rgb, job.post_rgb, job.ref_rgb, job.mask
+        semantic, record, post_depth = job.semantic, job.record, job.post_depth
         delta = threshold = changed = None
         if geo is not None:
-            delta = depth_delta(pre_depth, post_depth)
+            delta = depth_delta(job.pre_depth, post_depth)
             changed, threshold = geo.changed, geo.threshold
-            if compat:  # the heat map then shows the 8-bit gray levels the threshold applies to
+            if job.compat:  # the heat map then shows the 8-bit gray levels the threshold applies to
                 delta = compat_quantise(delta)
         # Everything but the heat map is brought to the panel size first (once per array
         # and view when a _Shrink is shared): the panels resize exactly so, so the sheet is the same.
-        small = _shrink or _Shrink.for_view(pre_rgb)
-        rel = self.path_for(scene, method, view)
+        small = shrink or _Shrink.for_view(pre_rgb)
+        rel = self.path_for(job.scene, job.method, job.view)
         view_contact_sheet(
-            self.out / rel, title=f"{scene} / {method} / {view}", pre=small.rgb(pre_rgb), post=small.rgb(post_rgb),
+            self.out / rel, title=f"{job.scene} / {job.method} / {job.view}", pre=small.rgb(pre_rgb),
+            post=small.rgb(post_rgb),
             target=small.mask(mask), ref=None if ref_rgb is None else small.rgb(ref_rgb), delta=delta,
             threshold=threshold, changed=None if changed is None else small.mask(changed),
             no_depth=None if geo is None else small.mask(no_depth(post_depth)),
             semantic_pre=None if semantic is None else small.union(semantic[0]),
             semantic_post=None if semantic is None else small.union(semantic[1]),
-            structural=[(t, small.rgb(rgb), small.masks(ms.masks)) for t, rgb, ms in structural],
+            structural=[(t, small.rgb(rgb), small.masks(ms.masks)) for t, rgb, ms in job.structural],
             width=small.width, record=None if record is None else record.to_dict(), embed_cache=self.embed_cache,
-            memo=_panels,
+            memo=panels,
         )
         return rel
 
-    def view(self, jobs: list) -> None:
+    def view(self, jobs: list[PictureJob]) -> None:
         """Write the sheets of one view's methods, converting the images they share once."""
         if not jobs:
             return
-        shrink, panels = _Shrink.for_view(jobs[0]["pre_rgb"]), ByIdentity()  # panels of I_pre, I_ref: made once
+        shrink, panels = _Shrink.for_view(jobs[0].pre_rgb), ByIdentity()  # panels of I_pre, I_ref: made once
         for job in jobs:
-            self.method_view(**job, _shrink=shrink, _panels=panels)
+            self.method_view(job, shrink=shrink, panels=panels)
 
 
 class _Shrink:

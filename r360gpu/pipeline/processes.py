@@ -165,7 +165,7 @@ class ProcessExecutor(ChunkExecutor):
             self._claims = None
 
     def score_scene(self, run, view_cache, sink, progress: bool) -> dict:
-        """{view: cells} for the views of ``run`` the view cache lacks; stored there as they arrive."""
+        """{view: ScoredView} for the views of ``run`` the view cache lacks; stored there as they arrive."""
         from concurrent.futures import FIRST_COMPLETED, wait
         from concurrent.futures.process import BrokenProcessPool
 

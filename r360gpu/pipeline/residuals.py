@@ -104,9 +104,10 @@ def _behind(bundle, cams, ctx, warn):
             "in front of pre's surface behind the target")
 
 
-def scene_residuals(bundle, scene_res: dict, out, *, ctx=None, xis=(XI_DEFAULT,), warn=None) -> tuple[dict, dict]:
+def scene_residuals(bundle, methods: dict, out, *, ctx=None, xis=(XI_DEFAULT,), warn=None) -> tuple[dict, dict]:
     """({method: {"file", "flagged_views", "top", "max", "gate"} or {"note"}}, {method: (N,) residual})
-    for ``bundle`` scored as ``scene_res``; the PLYs are written under ``out`` (None: not written)."""
+    for ``bundle`` scored as ``methods`` (the scene entry's: {method: {"views": [view record dicts]}});
+    the PLYs are written under ``out`` (None: not written)."""
     from ..aggregate.results import per_view_axes
     from ..lift.residuals import flagged_views, residuals, top_residuals, write_residual_ply
 
@@ -122,7 +123,7 @@ def scene_residuals(bundle, scene_res: dict, out, *, ctx=None, xis=(XI_DEFAULT,)
     masks = _masks(bundle, cams)
     behind, gate = _behind(bundle, cams, ctx, warn)
     for m, spec in splat.items():
-        flagged = flagged_views(per_view_axes(scene_res["methods"][m]["views"], xis=xis))
+        flagged = flagged_views(per_view_axes(methods[m]["views"], xis=xis))
         g, options, frame = _gaussians(spec)
         r = residuals(g, cams, masks, flagged, behind=behind, ctx=ctx, options=options, frame=frame)
         values[m] = r
@@ -195,5 +196,5 @@ def score_pruned(bundle, values: dict, opts, open_run, evaluate_scene, out) -> d
         finally:
             run.release()
         for name in b.methods:
-            out_entry[name].update(axes=res["methods"][name]["axes"], views=res["methods"][name]["views"])
+            out_entry[name].update(axes=res.methods[name]["axes"], views=res.methods[name]["views"])
     return out_entry

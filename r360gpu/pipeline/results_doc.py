@@ -1,4 +1,7 @@
-"""The results document (results.json): built here, and only here, while a run goes.
+"""The results document (results.json): turned into JSON here, and only here.
+
+The stages hand on typed values (:mod:`r360gpu.schema`): a run's :class:`~r360gpu.schema.ResultsDoc`
+is filled while it goes (:class:`ResultsDocument`) and written from :func:`results_json`.
 
 Schema :data:`r360gpu.protocol.RESULTS_SCHEMA`; top-level keys, in the order they are written::
 
@@ -6,7 +9,8 @@ Schema :data:`r360gpu.protocol.RESULTS_SCHEMA`; top-level keys, in the order the
     probes      {"semantic": [...], "structural": [...]}: the probes of the run, described by what
                 every scene shares (see :func:`run_probes`),
     scenes      {SCENE: {..., "probes": that scene's own probe descriptions, as fitted there}},
-    timing, validity, aggregate, sensitivity, [notes,] warnings, warning_counts.
+    timing, validity, aggregate, sensitivity (notes where :func:`pooled_json` puts them),
+    warnings, warning_counts.
 
 Why per scene: a probe that learns from the scene (the built-in appearance probe) is fitted
 on each scene's pre renders, so its description (``fit`` counts, ``params.model_sha256``)
@@ -17,9 +21,11 @@ scene, or probes that fit nothing, the run-level entry is the probes' full descr
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 from .. import __version__
 from ..protocol import RESULTS_SCHEMA
+from ..schema import SCENE_KEYS, OrbitEntry, Pooled, ResultsDoc, SceneEntry
 
 #: The probe kinds a description lists, in document order.
 PROBE_KINDS = ("semantic", "structural")
@@ -79,49 +85,94 @@ _MISSING = object()
 
 
 class ResultsDocument:
-    """One run's results document, filled in stage by stage; :attr:`doc` is the dict written out."""
+    """One run's results document (a :class:`~r360gpu.schema.ResultsDoc`), filled in stage by stage;
+    :attr:`doc` is the dict written out."""
 
     def __init__(self, *, adapter: dict, options: dict, created: str | None = None):
-        self.doc: dict = {
-            "schema": RESULTS_SCHEMA,
-            "r360gpu_version": __version__,
-            "created": created or time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-            "adapter": adapter,
-            "options": options,
-            "probes": {},
-            "scenes": {},
-        }
-        self._scene_probes: list[dict] = []
-        self._selection: dict = {}
+        self.data = ResultsDoc(adapter=adapter, options=options,
+                               created=created or time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
 
-    def add_scene(self, name: str, entry: dict, probes: dict, selection: dict | None = None) -> None:
+    @property
+    def doc(self) -> dict:
+        """The document as results.json holds it (:func:`results_json`)."""
+        return results_json(self.data)
+
+    def add_scene(self, name: str, entry: SceneEntry, probes: dict, selection: dict | None = None) -> None:
         """Scene ``name``'s entry, with its own probe descriptions; the run-level ``probes`` follow.
 
         selection: which probes the scene ran and why ({axis: {"probes", "source", "why"}},
         :func:`r360gpu.probes.registry.scene_probes`), kept in ``probes["selection"][name]``.
         """
-        entry["probes"] = probes
-        self.doc["scenes"][name] = entry
-        self._scene_probes.append(probes)
+        self.data.scenes[name] = replace(entry, probes=probes)
         if selection:
-            self._selection[name] = selection
-        self.doc["probes"] = run_probes(self._scene_probes)
-        if self._selection:
-            self.doc["probes"]["selection"] = dict(self._selection)
+            self.data.selection[name] = selection
+
+    def scene(self, name: str) -> dict:
+        """Scene ``name``'s entry as results.json holds it."""
+        return scene_json(self.data.scenes[name])
 
     def set_timing(self, stages_s: dict, total_s: float, views: int, executor: dict | None = None) -> None:
         """Stage totals and wall time (seconds, rounded to ms); left out when runs are compared."""
-        self.doc["timing"] = {"stages_s": {k: round(v, 3) for k, v in stages_s.items()},
-                              "total_s": round(total_s, 3), "views": views}
+        self.data.timing = {"stages_s": {k: round(v, 3) for k, v in stages_s.items()},
+                            "total_s": round(total_s, 3), "views": views}
         if executor is not None:  # what ran where
-            self.doc["timing"]["executor"] = executor
+            self.data.timing["executor"] = executor
 
     def aggregate(self, *, n_boot: int, n_perm: int, seed: int) -> None:
         """The cross-scene tables, sensitivity and validity cells (:mod:`r360gpu.aggregate.pooling`)."""
         from ..aggregate.pooling import aggregate_results
 
-        aggregate_results(self.doc, n_boot=n_boot, n_perm=n_perm, seed=seed)
+        scenes = {name: scene_json(e) for name, e in self.data.scenes.items()}
+        self.data.pooled = aggregate_results(scenes, n_boot=n_boot, n_perm=n_perm, seed=seed)
 
     def set_warnings(self, records: list[dict], counts: dict) -> None:
-        self.doc["warnings"] = records
-        self.doc["warning_counts"] = counts
+        self.data.warnings, self.data.warning_counts = records, counts
+
+
+def results_json(d: ResultsDoc) -> dict:
+    """The results document as results.json holds it (the module docstring's keys, in that order)."""
+    doc = {"schema": RESULTS_SCHEMA, "r360gpu_version": __version__, "created": d.created, "adapter": d.adapter,
+           "options": d.options}
+    doc["probes"] = run_probes([e.probes for e in d.scenes.values()])
+    if d.selection:
+        doc["probes"]["selection"] = dict(d.selection)
+    doc["scenes"] = {name: scene_json(e) for name, e in d.scenes.items()}
+    if d.timing is not None:
+        doc["timing"] = d.timing
+    if d.pooled is not None:
+        doc.update(pooled_json(d.pooled))
+    if d.warnings is not None:
+        doc["warnings"], doc["warning_counts"] = d.warnings, d.warning_counts
+    return doc
+
+
+#: The scene entry's fields written even when None; the others only when set.
+_ALWAYS = {"prompt", "n_views", "views", "reference", "structural_mode", "depth", "sources", "methods", "validity",
+           "validity_notes", "detectability"}
+
+
+def scene_json(e: SceneEntry) -> dict:
+    """A scene's entry as results.json holds it (:data:`r360gpu.schema.SCENE_KEYS`, in that order); the
+    orbit's own scene entry with its pose counts after it."""
+    out = {}
+    for key in SCENE_KEYS:
+        value = getattr(e, key)
+        if isinstance(value, OrbitEntry):
+            value = {**(scene_json(value.scene) if value.scene is not None else {}), **value.info}
+        if value is not None or key in _ALWAYS:
+            out[key] = value
+    return out
+
+
+def pooled_json(p: Pooled) -> dict:
+    """The run's cross-scene values as results.json holds them: validity, aggregate, sensitivity (when
+    there are tables), notes (before the tables when they name methods some scene lacks)."""
+    out: dict = {"validity": p.validity}
+    if p.notes and p.notes_first:
+        out["notes"] = p.notes
+    out["aggregate"] = p.aggregate
+    if p.notes and not p.notes_first:
+        out["notes"] = p.notes
+    if p.sensitivity is not None:
+        out["sensitivity"] = p.sensitivity
+    return out

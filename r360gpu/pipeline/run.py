@@ -115,6 +115,7 @@ class SceneRun:
             timer.add("target", t0)
         self._masks: dict = {}
         self._fit_renders: dict = {}
+        self._checked_refs: dict = {}  # {view: the reference's render the frame check made}
         require_target(self.views, self.mask, bundle.masks)
         # The digests the key is made of, kept to check, before a view's cells are stored, that the
         # bytes decoded for it are these (cache.changed_inputs: hash while reading, util.filehash).
@@ -125,6 +126,9 @@ class SceneRun:
         # the driver checks that pre's cameras see its splats (workers score what the driver accepted);
         # a what-if's cameras are the capture's, already checked, or derived from them (the orbit)
         self.frame_check = self.check_frames(cache) if fit and check_frames else {}
+        #: which probes the scene runs and why ({axis: {"probes", "source", "why"}}: the third value of
+        #: :func:`r360gpu.probes.registry.scene_probes`, given by whoever chose the probes; {}: not told)
+        self.probe_selection: dict = {}
         self._open_probes(sem_probes, str_probes, cache, fit)
         self.lpips = (LpipsModel(opts.lpips_model, choose(opts.probe_device, ctx.adapter_info))
                       if opts.lpips_model and self.reference is not None else None)
@@ -186,6 +190,17 @@ class SceneRun:
                 self.fit_pending = True
         self.probes_desc = recorded if self.fit_pending else self._describe()
 
+    def measure_settings(self, *, boundary_sweep: bool = True):
+        """How the run measures a view (:class:`~r360gpu.metrics.measure.MeasureSettings`), with the
+        probes as described now (a pending fit changes their description); ``boundary_sweep`` False:
+        without the sweep (the controls)."""
+        from ..metrics.measure import MeasureSettings
+
+        opts = self.opts
+        return MeasureSettings(mode=self.mode, probes=self.probes_desc["semantic"] + self.probes_desc["structural"],
+                               boundary=boundary_sweep and opts.boundary, xis=opts.xis, compat=opts.compat,
+                               ght_params=opts.ght, lpips_model=self.lpips, ctx=self.ctx)
+
     @property
     def pre(self):
         """The scene's own pre-removal source."""
@@ -224,6 +239,11 @@ class SceneRun:
         hit = self._fit_renders.pop((name, view), None)
         return hit if hit is not None else self.images(self.pres[name], view)
 
+    def render_reference(self, view: str):
+        """The view rendered by the reference; the frame check's render is used once more, not redone."""
+        hit = self._checked_refs.pop(view, None)
+        return hit if hit is not None else self.images(self.reference, view)
+
     def images(self, source, view: str):
         """``source`` rendered at the view's camera: a kept render when there is one."""
         cam = self.camera(view)
@@ -233,6 +253,7 @@ class SceneRun:
     def done(self, view: str) -> None:
         """Drop what was kept for ``view``."""
         self._masks.pop(view, None)
+        self._checked_refs.pop(view, None)
         for key in [k for k in list(self._fit_renders) if k[1] == view]:
             self._fit_renders.pop(key, None)
 
@@ -305,8 +326,8 @@ class SceneRun:
                 for v in pick:
                     img = self.images(src, v)
                     self._fit_renders[name, v] = img  # render_pre takes it when the view is scored
-                    seen.append((v, self.camera(v), img.alpha, host_depth(img.depth, self.ctx), self.mask(v)))
-                verdict = frame_check.check_views(seen)
+                    seen.append((v, self.camera(v), img.alpha, host_depth(img.depth, self.ctx), self.mask(v), img.rgb))
+                verdict = frame_check.check_views(seen, self._reference_images)
                 self.timer.add("frame check", t0)
                 if self.fingerprint is not None:
                     cache.store_fit(key, verdict.to_dict(), "frames")
@@ -319,6 +340,15 @@ class SceneRun:
                     verdict, source=str(src.path), frame=None if frame is None else frame.origin,
                     cameras=None if self.bundle.cameras_path is None else str(self.bundle.cameras_path)))
         return out
+
+    def _reference_images(self, view: str):
+        """The reference at ``view`` for the frame check (host arrays), or None without one."""
+        from ..render.sources import ViewImages, host_depth
+
+        if self.reference is None:
+            return None
+        img = self._checked_refs[view] = self.render_reference(view)  # render_reference takes it when scored
+        return ViewImages(img.rgb, host_depth(img.depth, self.ctx), img.alpha)
 
     def describe_sources(self) -> dict:
         out = {"pre": self.pre.describe(),

@@ -13,6 +13,7 @@ import contextvars
 
 from ..errors import InputError
 from ..protocol import XI_DEFAULT
+from ..schema import SceneEntry, ScoredView
 from ..util import warning_log
 from .cache import RunCache
 from .picture_sink import PictureSink
@@ -52,7 +53,7 @@ def host_threads() -> int:
 
 
 def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: bool, executor=None,
-                   rendered=None, what_if: bool = False) -> dict:
+                   rendered=None, what_if: bool = False) -> SceneEntry:
     """Every view of one scene (from the view cache where it has them); the scene's results entry.
 
     rendered: called (once, on this thread) when the last view to score here is rendered.
@@ -65,7 +66,7 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
         # the fit record no longer holds: the key changes, so look the views up again
         view_cache, cells_of, todo = _cached_views(run, cache, sink)
     for v in cells_of:
-        warning_log.replay(next(iter(cells_of[v].values())).get("warnings"))
+        warning_log.replay(cells_of[v].warnings)
         run.done(v)
     if executor is not None and todo:
         # The executor hook: the views the cache lacks are scored elsewhere (.distributed.RayExecutor),
@@ -78,17 +79,17 @@ def evaluate_scene(run: SceneRun, cache: RunCache, sink: PictureSink, progress: 
     # thread is then closed, every picture written) before the scene is assembled.
     ticks = iter(_progress(todo, f"scoring {bundle.name}{done}", progress))
     next(ticks, None)
-    for v, cells in score_views(run, todo, sink, view_cache, rendered=rendered):
-        cells_of[v] = cells
+    for v, scored in score_views(run, todo, sink, view_cache, rendered=rendered):
+        cells_of[v] = scored
         next(ticks, None)
     return scene_entry(run, cells_of, what_if=what_if)
 
 
-def scene_entry(run: SceneRun, cells_of: dict, *, what_if: bool = False) -> dict:
-    """The scene's results entry from the cells of its views ({view: {method: cell}}): the
-    per-view records and the axes of every method and control, the controls' validity verdicts,
+def scene_entry(run: SceneRun, cells_of: dict, *, what_if: bool = False) -> SceneEntry:
+    """The scene's :class:`~r360gpu.schema.SceneEntry` from the cells of its views ({view: ScoredView}):
+    the per-view records and the axes of every method and control, the controls' validity verdicts,
     and in a compat mode the public scripts' values (:mod:`r360gpu.aggregate.compat`).  The
-    records (ViewRecord objects) become dicts here, in the entry results.json is written from."""
+    records (ViewRecord objects) become dicts here."""
     from ..aggregate.compat import scene_compat
     from ..aggregate.results import method_axes
     from ..aggregate.validity import scene_validity
@@ -99,37 +100,34 @@ def scene_entry(run: SceneRun, cells_of: dict, *, what_if: bool = False) -> dict
     boundaries: dict = {m: [] for m in scored}
     pictures: dict = {m: {} for m in scored}
     for v in run.views:
-        for m, cell in cells_of[v].items():
-            records[m].append(cell["record"])
-            boundaries[m].append(cell.get("boundary"))
-            if cell.get("picture"):
-                pictures[m][v] = cell["picture"]
-    scene = _scene_header(run)
+        for m, cell in cells_of[v].cells.items():
+            records[m].append(cell.record)
+            boundaries[m].append(cell.boundary)
+            if cell.picture:
+                pictures[m][v] = cell.picture
     own = {m: {"axes": method_axes(records[m], xis=opts.xis, boundary=boundaries[m] if opts.boundary else None),
                "views": [r.to_dict() for r in records[m]]} for m in bundle.methods}
-    if run.controls:
-        scene["controls"] = {c: {"source": src, "axes": method_axes(records[src], xis=opts.xis),
-                                 "views": [r.to_dict() for r in records[src]]}
-                             for c, src in run.controls.items()}
+    controls = {c: {"source": src, "axes": method_axes(records[src], xis=opts.xis),
+                    "views": [r.to_dict() for r in records[src]]}
+                for c, src in run.controls.items()} if run.controls else None
     # The verdicts weigh r360gpu's own readings (its probes, on the controls as on the methods),
     # also in a compat mode, whose method axes are the public scripts'.
-    scene["validity"], scene["validity_notes"], scene["detectability"] = scene_validity(
-        {"methods": own, "controls": scene.get("controls")}, xi=XI_DEFAULT)
+    validity, validity_notes, detectability = scene_validity({"methods": own, "controls": controls}, xi=XI_DEFAULT)
     compat = None if what_if else scene_compat(bundle, list(bundle.methods), opts.compat, xis=opts.xis,
                                                ght=opts.ght)
-    for m, entry in own.items():
-        scene["methods"][m] = {"axes": compat.axes(entry["axes"]) if compat else entry["axes"],
-                               "views": [compat.view(d) for d in entry["views"]] if compat else entry["views"],
-                               "pictures": pictures[m]}
-    if compat is not None:
-        scene["notes"] = compat.notes
-    return scene
+    methods = {m: {"axes": compat.axes(entry["axes"]) if compat else entry["axes"],
+                   "views": [compat.view(d) for d in entry["views"]] if compat else entry["views"],
+                   "pictures": pictures[m]} for m, entry in own.items()}
+    return SceneEntry(**_scene_header(run), methods=methods, controls=controls, validity=validity,
+                      validity_notes=validity_notes, detectability=detectability,
+                      notes=compat.notes if compat is not None else None)
 
 
 def _scene_header(run: SceneRun) -> dict:
-    """The scene entry's description of the run, before its measures ("methods" filled in after)."""
+    """The scene entry's description of the run (the :class:`~r360gpu.schema.SceneEntry` fields before
+    its measures)."""
     bundle = run.bundle
-    scene = {
+    return {
         "prompt": bundle.prompt,
         "n_views": len(run.views),
         "views": run.views,
@@ -137,19 +135,15 @@ def _scene_header(run: SceneRun) -> dict:
         "structural_mode": run.mode,
         "depth": run.depth_mode,
         "sources": run.describe_sources(),
-        "methods": {},
+        "frame_check": run.frame_check or None,  # do pre's cameras see its splats (r360gpu.metrics.frame_check)
+        "target": run.target_record,  # [target]: which views' masks were given, which rendered
+        # scene.toml [expected.METHOD]: known failures, checked by the report
+        "expected": getattr(bundle, "expected", None) or None,
     }
-    if getattr(run, "frame_check", None):  # do pre's cameras see its splats (r360gpu.metrics.frame_check)
-        scene["frame_check"] = run.frame_check
-    if run.target_record is not None:  # [target]: which views' masks were given, which rendered
-        scene["target"] = run.target_record
-    if getattr(bundle, "expected", None):  # scene.toml [expected.METHOD]: known failures, checked by the report
-        scene["expected"] = bundle.expected
-    return scene
 
 
 def _cached_views(run: SceneRun, cache: RunCache, sink: PictureSink):
-    """(view cache, {view: cells} of the views it has, views to score)."""
+    """(view cache, {view: ScoredView} of the views it has, views to score)."""
     if run.fingerprint is None:  # renders held on the device: what they hold is not known, nothing is cached
         return None, {}, list(run.views)
     view_cache = cache.views(run.bundle.name, {
@@ -157,19 +151,18 @@ def _cached_views(run: SceneRun, cache: RunCache, sink: PictureSink):
         "depth": run.depth_mode, "lpips": run.lpips.describe() if run.lpips else None})
     cells_of, todo = {}, []
     for v in run.views:
-        cells = view_cache.load_view(run.bundle.methods, v, pictures=sink.enabled) if view_cache else None
-        if cells is not None and run.controls:  # the controls' cells (no pictures) must be there too
-            ctl = view_cache.load_view(run.controls.values(), v, pictures=False)
-            cells = None if ctl is None else {**cells, **ctl}
-        if cells is None:
+        # the controls' cells (no pictures) must be there too
+        scored = view_cache.load_scored(run.bundle.methods, run.controls.values(), v, pictures=sink.enabled) \
+            if view_cache else None
+        if scored is None:
             todo.append(v)
         else:
-            cells_of[v] = cells
+            cells_of[v] = scored
     return view_cache, cells_of, todo
 
 
 def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rendered=None):
-    """Score ``views``, yielding (view, cells) in order, with the stages overlapped:
+    """Score ``views``, yielding (view, ScoredView) in order, with the stages overlapped:
 
     this (the GPU) thread renders on the device and measures; :func:`host_threads`
     threads read renders, masks and run the probes, one view ahead per thread
@@ -225,11 +218,10 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rende
             with warning_log.where(view=v):
                 cells, geos = measure(run, data, sink)
                 jobs = picture_jobs(run, data, geos, cells) if sink.enabled else []
-            # a view's warnings go with its first cell (once: counts add up on replay)
-            next(iter(cells.values()))["warnings"] = warning_log.for_view(run.bundle.name, v)
-            writer.submit(contextvars.copy_context().run, _finish_view, run, sink, view_cache, v, cells, jobs)
+            scored = ScoredView(cells, warning_log.for_view(run.bundle.name, v))
+            writer.submit(contextvars.copy_context().run, _finish_view, run, sink, view_cache, v, scored, jobs)
             run.done(v)
-            yield v, cells
+            yield v, scored
         ok = True
     finally:
         for _, fut in inflight:
@@ -270,7 +262,7 @@ def writer_threads(threads: int) -> int:
     return max(1, threads // 2)
 
 
-def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, cells: dict, jobs: list) -> None:
+def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, scored: ScoredView, jobs: list) -> None:
     """Writer thread: the view's pictures, then its cache cells."""
     import time
 
@@ -280,7 +272,7 @@ def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, cells:
     if jobs:
         run.timer.add("pictures", t)
     if view_cache is not None:
-        view_cache.store_view(view, cells, run.changed_inputs(view))
+        view_cache.store_view(view, scored, run.changed_inputs(view))
 
 
 def _progress(views, desc, enabled):

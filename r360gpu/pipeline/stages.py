@@ -21,6 +21,8 @@ import time
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from ..schema import ScoredView, ViewCell
+from ..util import warning_log
 
 
 @dataclass
@@ -64,7 +66,7 @@ def _render(run, data: ViewData, slot, key, source) -> None:
     if slot == "pre":
         data.pres[key] = run.render_pre(key, data.view)
     elif slot == "ref":
-        data.ref = run.images(source, data.view)
+        data.ref = run.render_reference(data.view)
     else:
         data.posts[key] = run.images(source, data.view)
 
@@ -166,26 +168,23 @@ def measure_methods(run, data: ViewData, methods: list, *, boundary_sweep: bool 
     the perturbed targets are prepared once), with the same values as one
     method at a time.
     """
-    from ..metrics.measure import MethodOutputs, measure_view_methods
+    from ..metrics.measure import MeasureJob, MethodOutputs, measure_view_methods
 
-    opts = run.opts
     groups: dict = {}
     for m in methods:
         groups.setdefault(run.pre_of[m], []).append(m)
+    settings = run.measure_settings(boundary_sweep=boundary_sweep)
     out = {}
     for pre_name, group in groups.items():
         pre, ref = data.pres[pre_name], data.ref
         first = data.str_ref if run.mode == "reference" else data.str_pre[pre_name]
         outs = {m: MethodOutputs(rgb=data.posts[m].rgb, depth=data.posts[m].depth, semantic=data.sem_post[m],
                                  structural=data.str_post[m]) for m in group}
-        measured = measure_view_methods(
+        measured = measure_view_methods(MeasureJob(
             view=data.view, scene=run.bundle.name, target=data.mask, methods=outs,
             semantic_pre={p.name: data.sem_pre[pre_name][p.name] for p in run.sem},
-            structural_first={p.name: first[p.name] for p in run.stru}, mode=run.mode,
-            pre_depth=pre.depth, ref_rgb=None if ref is None else ref.rgb,
-            probes=run.probes_desc["semantic"] + run.probes_desc["structural"],
-            boundary=boundary_sweep and opts.boundary, xis=opts.xis, compat=opts.compat, ght_params=opts.ght,
-            lpips_model=run.lpips, ctx=run.ctx)
+            structural_first={p.name: first[p.name] for p in run.stru},
+            pre_depth=pre.depth, ref_rgb=None if ref is None else ref.rgb), settings)
         for m, res in measured.items():
             if res.geometric is not None:
                 _check_depth(run, data, m, res.record, pre, data.posts[m])
@@ -221,38 +220,33 @@ def _depth_file(spec, view: str):
 
 
 def measure(run, data: ViewData, sink) -> tuple[dict, dict]:
-    """Every method's cell of the view, and its GeometricView (for the pictures).
+    """Every method's and control's :class:`~r360gpu.schema.ViewCell` of the view ({source: cell}),
+    and the methods' GeometricViews (for the pictures).
 
-    cells: {method: {"record", "boundary", "picture"[, "inputs"]}}: the view's
-    :class:`~r360gpu.metrics.record.ViewRecord` (kept as one until a cell or
-    results.json is written), its boundary table, the path the sink will
-    write the picture to (None without pictures), and the stamps of the
-    precomputed probe files read for the view (``data.inputs``, when there are
-    any: the view cache serves the cell only while they are unchanged).
+    A method's cell has its boundary table and the path the sink will write its picture to (None
+    without pictures); a control's has neither.  Every cell gets the stamps of the precomputed
+    probe files read for the view (``data.inputs``).
     """
     t = time.perf_counter()
     cells, geos = {}, {}
     for m, res in measure_methods(run, data, list(run.methods)).items():
         geos[m] = res.geometric
-        cells[m] = {"record": res.record, "boundary": res.boundary,
-                    "picture": sink.path_for(run.bundle.name, m, data.view)}
+        cells[m] = ViewCell(res.record, res.boundary, sink.path_for(run.bundle.name, m, data.view), data.inputs)
     controls = list(run.controls.values())
     for src, res in measure_methods(run, data, controls, boundary_sweep=False).items():  # no sweep, no picture
-        cells[src] = {"record": res.record, "boundary": None, "picture": None}
-    if data.inputs:
-        for cell in cells.values():
-            cell["inputs"] = data.inputs
+        cells[src] = ViewCell(res.record, None, None, data.inputs)
     run.timer.add("measure", t)
     return cells, geos
 
 
 def picture_jobs(run, data: ViewData, geos: dict, cells: dict | None = None) -> list:
-    """Keyword arguments of :meth:`~.picture_sink.PictureSink.method_view`, one per method.
+    """The view's picture jobs (:class:`~.picture_sink.PictureJob`), one per method.
 
     Reads device depth back here (the GPU thread), so the sink works on host arrays only: each
     image's once, however many methods share it (a pre source is every method's).
     """
     from ..render.sources import host_depth
+    from .picture_sink import PictureJob
 
     read: dict = {}
 
@@ -275,20 +269,22 @@ def picture_jobs(run, data: ViewData, geos: dict, cells: dict | None = None) -> 
         d_pre = d_post = None
         if geo is not None:
             d_pre, d_post = depth_of(pre), depth_of(post)
-        jobs.append(dict(scene=run.bundle.name, method=m, view=data.view, pre_rgb=pre.rgb, post_rgb=post.rgb,
-                         ref_rgb=None if ref is None else ref.rgb, pre_depth=d_pre, post_depth=d_post,
-                         mask=data.mask, geo=geo, compat=run.opts.compat, semantic=semantic,
-                         structural=structural, record=(cells or {}).get(m, {}).get("record")))
+        cell = (cells or {}).get(m)
+        jobs.append(PictureJob(scene=run.bundle.name, method=m, view=data.view, pre_rgb=pre.rgb, post_rgb=post.rgb,
+                               ref_rgb=None if ref is None else ref.rgb, pre_depth=d_pre, post_depth=d_post,
+                               mask=data.mask, geo=geo, compat=run.opts.compat, semantic=semantic,
+                               structural=structural, record=None if cell is None else cell.record))
     return jobs
 
 
-def score_view(run, view: str, sink) -> dict:
-    """Every method's cell of one view, stage after stage in this thread (pictures written here too)."""
+def score_view(run, view: str, sink) -> ScoredView:
+    """One view's :class:`~r360gpu.schema.ScoredView`, stage after stage in this thread (pictures
+    written here too), with the warnings raised for it."""
     data = gather(run, render_on_device(run, view))
     cells, geos = measure(run, data, sink)
     if sink.enabled:
         t = time.perf_counter()
         for job in picture_jobs(run, data, geos, cells):
-            sink.method_view(**job)
+            sink.method_view(job)
         run.timer.add("pictures", t)
-    return cells
+    return ScoredView(cells, warning_log.for_view(run.bundle.name, view))

@@ -14,7 +14,9 @@ Public API::
         or DeviceRender (output="device": six f32 planes in one wgpu buffer, see DeviceRender)
     render_views(scene, cameras, *, ..., progress=False) -> iterator of the same, one per camera
     Renderer(scene, ...)  keeps the scene on the device; .render(camera) (images beyond one device
-        buffer in row bands), .render_device(camera)
+        buffer in row bands), .render_device(camera), .run_pass(camera, tile_pass)
+    TilePass             the extension point: a pass over a view's depth-sorted tile lists
+        (.record(ctx, enc, lists, cam) per key window; r360gpu.render.tile_pass)
     RenderOptions        the conventions above as one object (r360gpu.render.conventions)
     doctor_checks(ctx, rng) -> [(name, check)]   self-checks for ``r360gpu doctor``
 """
@@ -24,6 +26,7 @@ from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA, RenderOptions
 from .doctor import doctor_checks
 from .renderer import DeviceRender, Render, Renderer, RenderStats, render, render_views
 from .rasterize import PLANES
+from .tile_pass import TilePass
 
 __all__ = [
     "NEAR_PLANE",
@@ -33,6 +36,7 @@ __all__ = [
     "Render",
     "RenderOptions",
     "RenderStats",
+    "TilePass",
     "doctor_checks",
     "Renderer",
     "render",

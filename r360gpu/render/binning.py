@@ -30,6 +30,9 @@ from .scratch import Scratch
 COUNT_WG = workgroup_threads("render_bin", "count")
 EMIT_WG = workgroup_threads("render_bin", "emit")
 RANGES_WG = workgroup_threads("render_ranges")
+#: The WGSL names of the bindings of render_bin.wgsl (both passes) and render_ranges.wgsl, in binding order.
+BIN_BINDINGS = ("p", "order", "rect", "counts", "keys", "vals", "pos_op", "conic")
+RANGES_BINDINGS = ("p", "keys", "ranges")
 
 
 @dataclass(frozen=True)
@@ -98,7 +101,7 @@ def record_counts(ctx: GpuContext, enc, proj, order, n: int, tiles_x: int, windo
     """
     counts = scratch.window("bin.counts", n * 4)
     params = uniform(ctx, "render_bin", n=n, tiles_x=tiles_x, tile_begin=window.begin, tile_end=window.end)
-    ctx.dispatch(enc, pipeline(ctx, "render_bin", "count"),
+    ctx.dispatch(enc, pipeline(ctx, "render_bin", "count", BIN_BINDINGS),
                  [params, BufferRange(order, 0, counts.size), _per_gaussian(proj.rect, n), counts, None, None,
                   _per_gaussian(proj.pos_op, n), _per_gaussian(proj.conic, n)],
                  ctx.grid(-(-n // COUNT_WG)))
@@ -115,7 +118,7 @@ def record_emit(ctx: GpuContext, enc, proj, order, offsets: BufferRange, n: int,
     keys = scratch.get("bin.keys", k * 4)
     vals = scratch.get("bin.vals", k * 4)
     params = uniform(ctx, "render_bin", n=n, tiles_x=tiles_x, tile_begin=window.begin, tile_end=window.end)
-    ctx.dispatch(enc, pipeline(ctx, "render_bin", "emit"),
+    ctx.dispatch(enc, pipeline(ctx, "render_bin", "emit", BIN_BINDINGS),
                  [params, BufferRange(order, 0, offsets.size), _per_gaussian(proj.rect, n), offsets,
                   ctx.span(keys, 0, k * 4), ctx.span(vals, 0, k * 4),
                   _per_gaussian(proj.pos_op, n), _per_gaussian(proj.conic, n)],
@@ -128,7 +131,7 @@ def record_ranges(ctx: GpuContext, enc, keys, num_keys: int, num_tiles: int, scr
     ranges = scratch.window("bin.ranges", num_tiles * 8)
     enc.clear_buffer(ranges.buffer, 0, ranges.size)
     if num_keys > 0:
-        ctx.dispatch(enc, pipeline(ctx, "render_ranges"),
+        ctx.dispatch(enc, pipeline(ctx, "render_ranges", "main", RANGES_BINDINGS),
                      [uniform(ctx, "render_ranges", n=num_keys), ctx.span(keys, 0, num_keys * 4), ranges],
                      ctx.grid(-(-num_keys // RANGES_WG)))
     return ranges

@@ -145,10 +145,14 @@ class RenderOptions:
         return RenderOptions(**d)
 
 
+#: The ``override`` constants of shaders/composite.wgsl, the compositing rule every pass over the tile
+#: lists that blends as the renderer does includes (the rasteriser, target lifting).
+COMPOSITE_CONSTANTS = {"ALPHA_MAX": ALPHA_MAX, "ALPHA_MIN": ALPHA_MIN, "T_MIN": T_MIN}
+
 #: The constants the render kernels declare as WGSL ``override``s, by their WGSL name.
 SHADER_CONSTANTS = {
     "render_project": {"TILE": float(TILE), "COV2D_BLUR": COV2D_BLUR, "ALPHA_MIN": ALPHA_MIN,
                        "AA_MIN_RATIO": AA_MIN_RATIO, "SIGMA_EXTENT": SIGMA_EXTENT},
     "render_bin": {"TILE": float(TILE), "ALPHA_MIN": ALPHA_MIN},
-    "render_rasterize": {"ALPHA_MAX": ALPHA_MAX, "ALPHA_MIN": ALPHA_MIN, "T_MIN": T_MIN, "MEDIAN_T": MEDIAN_T},
+    "render_rasterize": {**COMPOSITE_CONSTANTS, "MEDIAN_T": MEDIAN_T},
 }

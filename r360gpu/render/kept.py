@@ -31,7 +31,7 @@ def _nbytes(images) -> int:
 
 def _key(source, camera) -> tuple | None:
     """What a render of ``source`` at ``camera`` depends on; None for sources that are not splat files."""
-    if getattr(source, "kind", None) != "scene" or camera is None or source.path == "<in memory>":
+    if source.kind != "scene" or camera is None or source.path == "<in memory>":
         return None
     path = Path(source.path).resolve()
     try:

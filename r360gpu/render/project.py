@@ -21,6 +21,8 @@ from .scratch import Scratch
 
 #: Invocations per workgroup of render_project.wgsl, one per Gaussian (the shader states it).
 WG = workgroup_threads("render_project")
+#: The WGSL names of render_project.wgsl's bindings, in the order the projection binds them.
+PROJECT_BINDINGS = ("p", "params", "sh", "pos_op", "conic", "rgb", "rect", "depth_key", "idx", "row_counts")
 
 # Chunks start at multiples of this many Gaussians so every window offset is a
 # multiple of 32 bytes (8 x 12 bytes for degree-0 SH).
@@ -99,7 +101,7 @@ def project(ctx: GpuContext, enc, scene: DeviceScene, cam: dict, tiles: tuple[in
     guard_x = FRUSTUM_GUARD * 0.5 * w / fx
     guard_y = FRUSTUM_GUARD * 0.5 * h / fy
     lims = (cx / fx + guard_x, (w - cx) / fx + guard_x, cy / fy + guard_y, (h - cy) / fy + guard_y)
-    pipe = pipeline(ctx, "render_project")
+    pipe = pipeline(ctx, "render_project", "main", PROJECT_BINDINGS)
     per = chunk_size(ctx, scene.sh_stride)
     whole = [BufferRange(b, 0, max(16, n * s)) for b, s in
              ((out.pos_op, 16), (out.conic, 16), (out.rgb, 16), (out.rect, 16), (out.depth_key, 4), (out.idx, 4))]

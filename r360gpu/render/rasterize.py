@@ -14,12 +14,18 @@ from ..gpu.context import BufferRange, GpuContext
 from ..gpu.shaders import workgroup_threads
 from ..gpu.uniforms import uniform
 from .binning import TileLists
+from .scratch import Scratch
 from .shader_pipelines import pipeline
 
 #: Plane order in the output buffer.
 PLANES = ("r", "g", "b", "alpha", "depth", "median_depth")
 #: Invocations per workgroup of render_interleave.wgsl (the shader states it).
 INTERLEAVE_WG = workgroup_threads("render_interleave")
+#: The WGSL names of render_rasterize.wgsl's bindings, in binding order (the output planes in PLANES order).
+RASTERIZE_BINDINGS = ("p", "ranges", "vals", "pos_op", "conic", "rgb", "out_r", "out_g", "out_b", "out_alpha",
+                      "out_depth", "out_median", "work")
+#: The WGSL names of render_interleave.wgsl's bindings, in binding order.
+INTERLEAVE_BINDINGS = ("p", "plane_r", "plane_g", "plane_b", "out")
 
 
 def plane_stride(width: int, height: int) -> int:
@@ -42,6 +48,27 @@ class Band:
     row_base: int
 
 
+@dataclass
+class RasterPass:
+    """The rasteriser as a :class:`~r360gpu.render.tile_pass.TilePass`: composites each window's
+    tiles into ``band`` over ``background``; depth is 0 where alpha < ``min_alpha``.
+
+    ``work`` is the window last recorded's work counters (see :func:`record_rasterize`), in
+    ``scratch``'s buffer ``render.work``.
+    """
+
+    band: Band
+    background: tuple
+    min_alpha: float
+    scratch: Scratch
+    work: BufferRange | None = None
+
+    def record(self, ctx: GpuContext, enc, lists: TileLists, cam: dict) -> None:
+        self.work = self.scratch.window("render.work", (lists.window.end - lists.window.begin) * 8)
+        record_rasterize(ctx, enc, lists, self.band, width=cam["width"], height=cam["height"],
+                         background=self.background, min_alpha=self.min_alpha, work=self.work)
+
+
 def record_rasterize(ctx: GpuContext, enc, lists: TileLists, band: Band, *, width: int, height: int, background,
                      min_alpha: float, work: BufferRange) -> None:
     """Record the rasterisation of the tiles of ``lists.window`` into ``band`` of a width x height view.
@@ -57,7 +84,7 @@ def record_rasterize(ctx: GpuContext, enc, lists: TileLists, band: Band, *, widt
     per_gaussian = max(16, lists.n * 16)
     proj = lists.proj
     ctx.dispatch(
-        enc, pipeline(ctx, "render_rasterize"),
+        enc, pipeline(ctx, "render_rasterize", "main", RASTERIZE_BINDINGS),
         [params, lists.ranges, ctx.span(lists.vals, 0, max(4, lists.num_keys * 4)),
          BufferRange(proj.pos_op, 0, per_gaussian), BufferRange(proj.conic, 0, per_gaussian),
          BufferRange(proj.rgb, 0, per_gaussian), *plane_windows(band.image, band.stride), work],
@@ -95,7 +122,7 @@ def image_to_numpy(ctx: GpuContext, image, width: int, height: int, stride: int)
     first = PLANES.index("alpha")
     out = ctx.reusable("render.interleaved", 3 * pixels * 4)
     enc = ctx.encoder()
-    ctx.dispatch(enc, pipeline(ctx, "render_interleave"),
+    ctx.dispatch(enc, pipeline(ctx, "render_interleave", "main", INTERLEAVE_BINDINGS),
                  [uniform(ctx, "render_interleave", n=pixels), *plane_windows(image, stride)[:first],
                   BufferRange(out, 0, 3 * pixels * 4)],
                  ctx.grid(-(-pixels // wg)))

@@ -22,6 +22,10 @@ less work only where K < 2N up to 65,536 tiles (K is 6.4N for 1M Gaussians
 at 1080p), and Gaussians whose depths share a bucket would blend in index
 order (bench/bench_render_sort.py times both).
 
+The last step, the pass over each tile's sorted list, is a
+:class:`~r360gpu.render.tile_pass.TilePass`: the rasteriser for a render,
+any other pass through :meth:`Renderer.run_pass` (target lifting).
+
 Host recording is done once per frame shape, not per frame: wgpu cannot
 replay a command buffer, but a frame records its passes with the bind groups
 and uniform buffers of the frame before (`r360gpu.gpu.recording.FrameCache`;
@@ -44,10 +48,11 @@ from ..gpu.recording import FrameCache
 from .binning import COUNT_WG, RANGES_WG, TileLists, TileWindow, plan_windows, record_counts, record_emit, record_ranges
 from .conventions import NEAR_PLANE, NO_COVERAGE_ALPHA, TILE, RenderOptions
 from .project import WG as PROJECT_WG, Projected, camera_arrays, project, tile_grid
-from .rasterize import PLANES, Band, image_to_numpy, plane_stride, planes_to_numpy, record_rasterize
+from .rasterize import PLANES, Band, RasterPass, image_to_numpy, plane_stride, planes_to_numpy
 from .scene import DeviceScene
 from .scratch import Scratch
 from .sort import host_sort, radix_sort
+from .tile_pass import TilePass
 
 #: Bits of the depth sort key (the float bits of the camera depth).
 DEPTH_BITS = 32
@@ -216,8 +221,24 @@ class Renderer:
         if image is None:
             image = self.ctx.buffer(stride * len(PLANES) * 4, label="render.image")
         prep, t0 = self._prepare(cam, whole=True)
-        self._render_rows(prep, cam, (0, len(prep.row_counts)), image, stride, t0)
+        self._render_rows(prep, cam, (0, len(prep.row_counts)), self._raster(Band(image, stride, 0)), t0)
         return DeviceRender(buffer=image, width=width, height=height, plane_stride=stride)
+
+    def run_pass(self, camera, tile_pass: TilePass) -> None:
+        """Project and sort ``camera``'s view and record ``tile_pass`` over all of its tiles.
+
+        The extension point (:mod:`r360gpu.render.tile_pass`): every step but
+        the pass is the render's own (same projection, sorts and tile lists,
+        so a pass sees each pixel's Gaussians in the order the render blends
+        them).  The pass is submitted; nothing is read back.
+        """
+        with self._frame():
+            cam = self._camera(camera)
+            prep, t0 = self._prepare(cam, whole=True)
+            self._render_rows(prep, cam, (0, len(prep.row_counts)), tile_pass, t0)
+
+    def _raster(self, band: Band) -> RasterPass:
+        return RasterPass(band, self.background, self.options.no_coverage_alpha, self.scratch)
 
     def band_rows(self, camera) -> int:
         """Pixel rows rendered per pass: the whole height when the image fits, else whole tile rows.
@@ -277,12 +298,11 @@ class Renderer:
         t0 = self._mark("sort", t0, proj.row_counts)
         return Prepared(proj, order, row_counts, gx, counted), t0
 
-    def _render_rows(self, prep: Prepared, cam: dict, rows: tuple[int, int], image, stride: int, t0: float) -> None:
-        """Rasterise tile rows [row0, row1) = ``rows`` into ``image`` (planes of ``stride`` floats from
-        pixel row 16 row0).  ``prep.counted`` is used when the plan is that one window."""
+    def _render_rows(self, prep: Prepared, cam: dict, rows: tuple[int, int], tile_pass: TilePass, t0: float) -> None:
+        """Record ``tile_pass`` over tile rows [row0, row1) = ``rows``.  ``prep.counted`` is used when
+        the plan is that one window."""
         row0, row1 = rows
         gx, counted = prep.tiles_x, prep.counted
-        band = Band(image, stride, row0 * TILE)
         pending = [TileWindow(w.begin + row0 * gx, w.end + row0 * gx, w.keys)
                    for w in plan_windows(prep.row_counts[row0:row1], gx, self._key_capacity())]
         pending.reverse()
@@ -292,7 +312,7 @@ class Renderer:
                 continue
             use = counted if counted is not None and (window.begin, window.end) == (
                 counted[0].begin, counted[0].end) else None
-            window = self._render_window(prep, window, cam, band, t0, use)
+            window = self._render_window(prep, window, cam, tile_pass, t0, use)
             if isinstance(window, list):
                 pending.extend(reversed(window))
             t0 = time.perf_counter()
@@ -312,8 +332,9 @@ class Renderer:
         tile) and its ranges (8 bytes per tile) one binding."""
         return num_tiles <= self.ctx.max_workgroups**2 and num_tiles * 8 <= self.ctx.max_binding_bytes
 
-    def _render_window(self, prep: Prepared, window: TileWindow, cam: dict, band: Band, t0: float, counted=None):
-        """Bin, sort and rasterise one key window into ``band``; returns halves if it had to be split.
+    def _render_window(self, prep: Prepared, window: TileWindow, cam: dict, tile_pass: TilePass, t0: float,
+                       counted=None):
+        """Bin and sort one key window and record ``tile_pass`` over it; returns halves if it had to be split.
 
         ``counted``: (this window with its exact key count, its offsets) when already counted."""
         ctx, scratch, n = self.ctx, self.scratch, self.scene.n
@@ -351,24 +372,15 @@ class Renderer:
         ctx.submit(enc)
         t0 = self._mark("sort", t0, ranges.buffer)
         enc = ctx.encoder()
-        work = scratch.window("render.work", num_tiles * 8)
-        self._record_tiles(enc, TileLists(proj, n, ranges, vals, k, gx, window), cam, band, work)
+        tile_pass.record(ctx, enc, TileLists(proj, n, ranges, vals, k, gx, window), cam)
         ctx.submit(enc)
-        self._mark("rasterize", t0, band.image)
-        if self.count_work:
+        self._mark("rasterize", t0, ranges.buffer)
+        if self.count_work and isinstance(tile_pass, RasterPass):
+            work = tile_pass.work
             counts = ctx.read(work.buffer, np.uint32, 2 * num_tiles).reshape(-1, 2).astype(np.int64)
             self.stats.evaluated += int(counts[:, 0].sum())
             self.stats.blended += int(counts[:, 1].sum())
         return window
-
-    def _record_tiles(self, enc, lists: TileLists, cam: dict, band: Band, work) -> None:
-        """Record the per-tile pass over one window's sorted tile lists (here: the rasteriser).
-
-        The one step a pass over the same tile lists replaces (target lifting,
-        :mod:`r360gpu.lift.device`); everything before it is the render's own.
-        """
-        record_rasterize(self.ctx, enc, lists, band, width=cam["width"], height=cam["height"],
-                         background=self.background, min_alpha=self.options.no_coverage_alpha, work=work)
 
     def render(self, camera) -> Render:
         """Render ``camera`` and read the result back as numpy arrays.
@@ -393,7 +405,7 @@ class Renderer:
         prep, t0 = self._prepare(cam, whole=False)
         for y0 in range(0, height, rows):
             h = min(rows, height - y0)
-            self._render_rows(prep, cam, (y0 // TILE, -(-(y0 + h) // TILE)), image, stride, t0)
+            self._render_rows(prep, cam, (y0 // TILE, -(-(y0 + h) // TILE)), self._raster(Band(image, stride, y0)), t0)
             planes = planes_to_numpy(self.ctx, image, width, h, stride)
             for c, name in enumerate("rgb"):
                 out.rgb[y0:y0 + h, :, c] = planes[name]

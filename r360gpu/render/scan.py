@@ -15,6 +15,8 @@ from .scratch import Scratch
 
 #: Elements scanned by one workgroup (WG threads x ITEMS items), as prefix_sum.wgsl states it.
 BLOCK = shader_constant("prefix_sum", "BLOCK")
+#: The WGSL names of prefix_sum.wgsl's bindings (both passes), in binding order.
+SCAN_BINDINGS = ("p", "data", "block_sums")
 
 
 def exclusive_scan(ctx: GpuContext, enc, data, n: int, scratch: Scratch, tag: str = "scan") -> BufferRange:
@@ -40,7 +42,7 @@ def exclusive_scan(ctx: GpuContext, enc, data, n: int, scratch: Scratch, tag: st
         sums = ctx.span(scratch.get(f"{tag}.L{level}", num_blocks * 4), 0, num_blocks * 4)
         params = uniform(ctx, "prefix_sum", n=n, num_blocks=num_blocks)
         if n > 0:
-            ctx.dispatch(enc, pipeline(ctx, "prefix_sum", "scan_blocks"), [params, window, sums], ctx.grid(num_blocks))
+            ctx.dispatch(enc, pipeline(ctx, "prefix_sum", "scan_blocks", SCAN_BINDINGS), [params, window, sums], ctx.grid(num_blocks))
         else:
             enc.clear_buffer(sums.buffer, 0, 4)
         if num_blocks == 1:
@@ -49,5 +51,5 @@ def exclusive_scan(ctx: GpuContext, enc, data, n: int, scratch: Scratch, tag: st
         pending.append((window, sums, params, num_blocks))
         window, n, level = sums, num_blocks, level + 1
     for window, sums, params, num_blocks in reversed(pending):
-        ctx.dispatch(enc, pipeline(ctx, "prefix_sum", "add_block_sums"), [params, window, sums], ctx.grid(num_blocks))
+        ctx.dispatch(enc, pipeline(ctx, "prefix_sum", "add_block_sums", SCAN_BINDINGS), [params, window, sums], ctx.grid(num_blocks))
     return total

@@ -1,9 +1,16 @@
-"""The render kernels' compute pipelines, with the conventions passed as WGSL ``override`` constants.
+"""The render kernels' compute pipelines, with the conventions passed as WGSL ``override`` constants
+and the bindings checked by name.
 
 Every constant of :mod:`r360gpu.render.conventions` that a render shader needs
 is an ``override`` without a default there, set here from
 :data:`~r360gpu.render.conventions.SHADER_CONSTANTS`: a pipeline cannot be
 built without them, so the shaders never hold a second copy.
+
+Every pipeline is made with the WGSL names of the resources its dispatches
+bind, by position (each host module states them beside its dispatches, as
+``*_BINDINGS``); a shader that declares other names there is refused when the
+pipeline is made (:func:`r360gpu.gpu.shaders.check_bindings`), with a message
+naming the shader and the binding, instead of rendering a wrong image.
 """
 from __future__ import annotations
 
@@ -29,6 +36,7 @@ def constants(name: str) -> dict:
     return c
 
 
-def pipeline(ctx: GpuContext, name: str, entry_point: str = "main"):
-    """The compute pipeline of render shader ``name`` with its constants."""
-    return ctx.pipeline(name, entry_point, constants(name) or None)
+def pipeline(ctx: GpuContext, name: str, entry_point: str, bindings: tuple):
+    """The compute pipeline of ``entry_point`` of render shader ``name`` with its constants; ``bindings``
+    the WGSL variable bound at each ``@binding`` position (ValueError when the shader disagrees)."""
+    return ctx.pipeline(name, entry_point, constants(name) or None, bindings=bindings)

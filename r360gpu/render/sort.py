@@ -41,6 +41,8 @@ RADIX = _SIZES["RADIX"]
 VARIANTS = {"serial": "radix_sort", "blocks": "radix_sort_blocks"}
 #: Environment variable that forces a variant (tests run both on lavapipe; benches compare them).
 VARIANT_ENV = "R360GPU_RADIX_VARIANT"
+#: The WGSL names of the bindings of both variants (radix_pass.wgsl, which each includes), in binding order.
+SORT_BINDINGS = ("p", "keys_in", "vals_in", "keys_out", "vals_out", "hist")
 
 
 def sort_variant(ctx: GpuContext) -> str:
@@ -114,8 +116,8 @@ def radix_sort(ctx: GpuContext, enc, keys, vals, n: int, bits: int, scratch: Scr
     span = ctx.span if len(windows) == 1 else BufferRange
     src = (keys, vals)
     dst = (scratch.get(f"{tag}.keys", n * 4), scratch.get(f"{tag}.vals", n * 4))
-    pipe_hist = pipeline(ctx, shader, "histogram")
-    pipe_scatter = pipeline(ctx, shader, "scatter")
+    pipe_hist = pipeline(ctx, shader, "histogram", SORT_BINDINGS)
+    pipe_scatter = pipeline(ctx, shader, "scatter", SORT_BINDINGS)
     for shift in range(0, kept, width):
         # The blocks variant's last digit may be narrower (e.g. 12 bits = 8 + 4).
         digit = {"digit_bits": min(width, kept - shift)}

@@ -6,10 +6,16 @@ representation-agnostic).  Both give a :class:`ViewImages` per view:
 ``rgb`` float32 (H, W, 3) in [0, 1] (clipped), ``depth`` float32 (H, W)
 camera-space z-distance with 0 = no coverage (expected or median depth, as
 the bundle's options say), or ``None`` when a renders folder has no depth.
+
+Every source is a :class:`Source` (a protocol, like the probes' interface):
+:class:`SceneSource`, :class:`RendersSource` and :class:`DeviceViewsSource`
+here, or a caller's own object with the same members, which
+:func:`open_source` takes as it is.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -21,6 +27,35 @@ class ViewImages:
     rgb: np.ndarray
     depth: np.ndarray | None
     alpha: np.ndarray | None = None
+
+
+@runtime_checkable
+class Source(Protocol):
+    """Where one reconstruction's images of each evaluation view come from.
+
+    kind: ``"scene"`` (rendered here; the source then also has ``path``,
+    ``renderer``, ``render_options``, ``background`` and ``frame``, see
+    :class:`SceneSource`), ``"renders"`` (images read from a folder) or
+    ``"device"`` (images on a GPU); what the pipeline decides by (e.g. only
+    scenes have geometry to lift).
+    images(view, camera): the view's :class:`ViewImages` (``camera`` the
+    bundle's, None where the view has none).
+    describe(): what goes into results.json as the source (includes ``kind``).
+    bind(ctx): called once by :func:`open_source` with the run's context (None
+    when the run has none yet): a source on the GPU takes it, or refuses one on
+    another device; others ignore it.
+    release(): free what the source holds (device buffers, open files).
+    """
+
+    kind: ClassVar[str]
+
+    def images(self, view: str, camera) -> ViewImages: ...
+
+    def describe(self) -> dict: ...
+
+    def bind(self, ctx) -> None: ...
+
+    def release(self) -> None: ...
 
 
 class SceneSource:
@@ -68,6 +103,9 @@ class SceneSource:
 
         return in_frame(self.frame, camera)
 
+    def bind(self, ctx) -> None:
+        """Nothing: the scene is rendered on the context it was opened with."""
+
     def images(self, view: str, camera) -> ViewImages:
         from ..io.frames import depth_in_cameras
 
@@ -109,6 +147,9 @@ class RendersSource:
 
     def describe(self) -> dict:
         return {"kind": "renders", "path": str(self.spec.path), "depth_scale": float(self.spec.depth_scale)}
+
+    def bind(self, ctx) -> None:
+        """Nothing: the images are read from files."""
 
     def release(self) -> None:
         pass
@@ -202,18 +243,21 @@ def frame_of(spec):
     return frame if hasattr(frame, "camera") else None
 
 
-def open_source(spec, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "expected"):
+def open_source(spec, *, ctx=None, background=(0.0, 0.0, 0.0), depth: str = "expected") -> Source:
     """A source for a bundle entry: a ``SourceSpec`` (splat file or renders
-    folder), a :class:`~r360gpu.io.Gaussians` in memory, or a ready source
-    object (anything with ``images(view, camera)``, e.g. :class:`DeviceViewsSource`)."""
+    folder), a :class:`~r360gpu.io.Gaussians` in memory, or a ready
+    :class:`Source` (e.g. :class:`DeviceViewsSource`), bound to ``ctx``."""
     from ..io import Gaussians
 
     if isinstance(spec, Gaussians):
         return SceneSource(spec, ctx=ctx, background=background, depth=depth)
-    if hasattr(spec, "images") and hasattr(spec, "describe"):
-        if hasattr(spec, "bind"):
-            spec.bind(ctx)
+    if isinstance(spec, Source):
+        spec.bind(ctx)
         return spec
+    if hasattr(spec, "images"):  # meant as a ready source, but not one
+        missing = [m for m in ("kind", "images", "describe", "bind", "release") if not hasattr(spec, m)]
+        raise InputError(f"{type(spec).__name__} is not a source (r360gpu.render.sources.Source): "
+                         f"it has no {', '.join(missing)}")
     if spec.kind == "scene":
         settings = getattr(spec, "render", None)
         return SceneSource(spec.path, ctx=ctx, background=background, depth=depth,

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -547,24 +548,9 @@ def view_numbers(record: dict | None, xi: float = XI_DEFAULT) -> list[str]:
     return lines
 
 
-def view_panels(
-    *,
-    pre,
-    post,
-    target,
-    ref=None,
-    delta=None,
-    threshold: float | None = None,
-    changed=None,
-    no_depth=None,
-    semantic_post=None,
-    semantic_pre=None,
-    structural: Sequence[tuple[str, object, object]] = (),
-    width: int = PANEL_WIDTH,
-    seed: int = 0,
-    memo: ByIdentity | None = None,
-) -> list[tuple[str, np.ndarray]]:
-    """The standard panels of one view, in the report's order.
+@dataclass
+class SheetView:
+    """What one view's panels are drawn from (:func:`view_panels`).
 
     pre, post, ref: RGB renderings I_pre, I_post, I_ref (ref optional).
     target: (H, W) target mask M (outlined in green on every panel but the heat map).
@@ -580,11 +566,34 @@ def view_panels(
         on I_post / I_pre, drawn in magenta (skipped when None).
     structural: (title, rgb, masks) per structural panel, e.g.
         ("SAM masks on I_post", post, masks_a); masks in random colours.
-    memo: a :class:`~r360gpu.util.memo.ByIdentity` shared by the sheets of one
-        view's methods: a panel made from the same array objects (I_pre, I_ref
-        and the probes' readings on them) is made once and reused, not drawn
-        again for every method.
     """
+
+    pre: object
+    post: object
+    target: object
+    ref: object = None
+    delta: object = None
+    threshold: float | None = None
+    changed: object = None
+    no_depth: object = None
+    semantic_post: object = None
+    semantic_pre: object = None
+    structural: Sequence[tuple[str, object, object]] = ()
+
+
+def view_panels(view: SheetView, *, width: int = PANEL_WIDTH, seed: int = 0,
+                memo: ByIdentity | None = None) -> list[tuple[str, np.ndarray]]:
+    """The standard panels of ``view`` (a :class:`SheetView`), in the report's order.
+
+    memo: a :class:`~r360gpu.util.memo.ByIdentity` shared by the sheets of one
+    view's methods: a panel made from the same array objects (I_pre, I_ref
+    and the probes' readings on them) is made once and reused, not drawn
+    again for every method.
+    """
+    pre, post, target, ref, delta, threshold = view.pre, view.post, view.target, view.ref, view.delta, view.threshold
+    changed, no_depth, semantic_post, semantic_pre, structural = (view.changed, view.no_depth, view.semantic_post,
+                                                                  view.semantic_pre, view.structural)
+
     def once(name, arrays, make):
         return make() if memo is None else memo.get((name, width, seed), arrays, make)
 
@@ -620,11 +629,12 @@ def view_panels(
 
 def view_contact_sheet(path: str | os.PathLike, *, title: str | None = None, columns: int | None = None,
                        width: int = PANEL_WIDTH, record: dict | None = None,
-                       embed_cache: str | os.PathLike | None = None, **panels) -> Path:
-    """Write the contact sheet of one view (panels from :func:`view_panels`, same keyword
-    arguments) with the view's numbers from ``record`` (a view record dict; see
+                       embed_cache: str | os.PathLike | None = None, seed: int = 0, memo: ByIdentity | None = None,
+                       **panels) -> Path:
+    """Write the contact sheet of one view (panels from :func:`view_panels`: ``panels`` are the
+    :class:`SheetView` fields) with the view's numbers from ``record`` (a view record dict; see
     :func:`view_numbers`) under the title and the colour legend at the bottom; returns the path.
     embed_cache: as in :func:`contact_sheet`."""
-    ps = view_panels(width=width, **panels)
+    ps = view_panels(SheetView(**panels), width=width, seed=seed, memo=memo)
     return contact_sheet(path, ps, columns=columns, panel_width=width, title=title, lines=view_numbers(record),
                          legend=legend_items(ps), embed_cache=embed_cache)

@@ -199,8 +199,7 @@ def _rendered(b, spec, ctx) -> dict[str, tuple[bytes, np.ndarray]]:
                 raise RuntimeError("OpenCV could not encode a PNG")
             out[view] = (png.tobytes(), np.asarray(im.depth, np.float32))
     finally:
-        if hasattr(source, "release"):
-            source.release()
+        source.release()
     return out
 
 

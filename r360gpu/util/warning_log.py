@@ -130,6 +130,12 @@ def for_view(scene, view) -> dict:
 _done_outside_runs: set = set()
 
 
+def seen(key) -> bool:
+    """Whether ``key`` was already marked by :func:`once` in the current run (marks nothing)."""
+    log = _log.get()
+    return key in (_done_outside_runs if log is None else log.done)
+
+
 def once(key) -> bool:
     """True the first time ``key`` is seen in the current run (for checks that run once per source)."""
     log = _log.get()
