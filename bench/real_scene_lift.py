@@ -22,7 +22,11 @@ silhouette, including where something in front of it hides it, so the
 occluder is lifted too.  The occluder check that scoring runs
 (:func:`r360gpu.lift.occluders.find_occluders`) is printed for either kind,
 and the figures below are printed again with the Gaussians it flags dropped
-(``after drop``).
+(``after drop``).  So is the check against a reference that scoring runs when
+the scene has one (:func:`r360gpu.lift.occluders.unchanged_masks`, the
+reference being the scene without the ball): each given mask's share of
+pixels the removal left unchanged, and the figures for the given masks
+trimmed to the pixels it changed.
 
 ``--given`` of those masks (views spread around the ring) are lifted onto the
 scene's Gaussians with :func:`r360gpu.lift.lift_target`; the lifted target's
@@ -52,7 +56,7 @@ from real_scene_controls import cut_target, ring  # noqa: E402
 from r360gpu.gpu import get_context  # noqa: E402
 from r360gpu.io import load_gaussians  # noqa: E402
 from r360gpu.lift import lift_target, target_masks  # noqa: E402
-from r360gpu.lift.occluders import drop_occluders, find_occluders  # noqa: E402
+from r360gpu.lift.occluders import drop_occluders, find_occluders, unchanged_masks, unchanged_pixels  # noqa: E402
 from r360gpu.render import Renderer  # noqa: E402
 
 
@@ -63,19 +67,19 @@ def target_ring(means: np.ndarray, target: np.ndarray, n: int, distance: float, 
     return ring(means, centre, radius, n, width, height)
 
 
-def difference_masks(g, target: np.ndarray, cams: dict, delta: float, ctx) -> dict:
-    """{view: (H, W) bool}: where the scene with and without the target renders differently."""
-    full, cut = Renderer(g, ctx=ctx), Renderer(g.subset(~target), ctx=ctx)
+def renders(g, cams: dict, ctx) -> dict:
+    """{view: render} of ``g`` at ``cams``."""
+    r = Renderer(g, ctx=ctx)
     try:
-        out = {}
-        for v, c in cams.items():
-            a, b = full.render(c), cut.render(c)
-            diff = np.abs(a.rgb - b.rgb).max(axis=-1)
-            out[v] = (diff > delta) | (np.abs(a.alpha - b.alpha) > delta)
-        return out
+        return {v: r.render(c) for v, c in cams.items()}
     finally:
-        full.release()
-        cut.release()
+        r.release()
+
+
+def difference_masks(pre: dict, cut: dict, delta: float) -> dict:
+    """{view: (H, W) bool}: where the scene with (``pre``) and without the target (``cut``) renders differently."""
+    return {v: (np.abs(a.rgb - cut[v].rgb).max(axis=-1) > delta) | (np.abs(a.alpha - cut[v].alpha) > delta)
+            for v, a in pre.items()}
 
 
 def alone_masks(g, target: np.ndarray, cams: dict, ctx) -> dict:
@@ -111,7 +115,8 @@ def main(argv=None) -> int:
     truth = cut_target(g.means)
     cams = target_ring(g.means, truth, args.views, args.distance, width, height)
     t0 = time.perf_counter()
-    masks = {v: m for v, m in difference_masks(g, truth, cams, args.delta, ctx).items() if m.any()}
+    pre_r, cut_r = renders(g, cams, ctx), renders(g.subset(~truth), cams, ctx)  # the reference: the ball removed
+    masks = {v: m for v, m in difference_masks(pre_r, cut_r, args.delta).items() if m.any()}
     names = sorted(masks)
     lifted_from = alone_masks(g, truth, cams, ctx) if args.masks == "alone" else masks
     given = [names[round(i * len(names) / args.given)] for i in range(args.given)]
@@ -125,7 +130,13 @@ def main(argv=None) -> int:
     print(f"occluder check: {int(occ.gaussians.sum())} flagged ({int((occ.gaussians & truth).sum())} of them in the "
           f"ball), {100 * occ.share:.1f}% of the lifted weight, by view {occ.by_view}: "
           f"{'WARNS' if occ.doubtful else 'silent'}")
-    for label, lt in (("lifted", lifted), ("after drop", drop_occluders(lifted, occ))):
+    ref = unchanged_masks({v: lifted_from[v] for v in given}, pre_r, cut_r)
+    print("reference check (share of each given mask unchanged by the removal): "
+          + ", ".join(f"{v} {s:.1%}" for v, s in ref.shares.items()) + f": {'WARNS' if ref.doubtful else 'silent'}")
+    trimmed = [lifted_from[v] & ~unchanged_pixels(pre_r[v], cut_r[v]) for v in given]
+    by_ref = lift_target(g, [cams[v] for v in given], trimmed, ctx=ctx)
+    for label, lt in (("lifted", lifted), ("after drop", drop_occluders(lifted, occ)),
+                      ("masks trimmed to the pixels the removal changed", by_ref)):
         report(g, lt, truth, masks, cams, held, label, ctx)
     print(f"{time.perf_counter() - t0:.1f} s ({t_lift:.1f} s to the lifted target)")
     return 0

@@ -102,10 +102,68 @@ def test_the_warning_is_recorded_in_results_json(scene, ctx, tmp_path):
     from r360gpu.pipeline import EvaluateOptions, evaluate
 
     g, truth, cams, masks = scene
-    bundle = r360gpu.scene_from_objects("blob", "blob", {}, g, {"m": g.subset(~truth)},
+    bundle = r360gpu.scene_from_objects("blob", "blob", {}, g, {"m": g.subset(~truth)}, reference=g.subset(~truth),
                                         cameras={c.name: c for c in cams},
                                         target={"masks": {c.name: m for c, m in zip(cams, masks["alone"])}})
     evaluate([bundle], out=tmp_path, ctx=ctx, progress=False, log=lambda *a, **k: None,
              options=EvaluateOptions(controls=False, pictures=False, boundary=False, n_boot=10, n_perm=10))
     warned = json.dumps(json.loads((tmp_path / "results.json").read_text())["warnings"])
     assert "look like an occluder" in warned and "view 'v0'" in warned
+    assert "pre and the reference show the same surface" in warned
+    assert "so something the removal left in place: target mask of view 'v0' (56% of its pixels)" in warned
+
+
+def _images(rgb, depth):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(rgb=np.asarray(rgb, np.float32), depth=np.asarray(depth, np.float32))
+
+
+def test_unchanged_pixels_need_the_same_colour_and_the_same_depth():
+    from r360gpu.lift.occluders import UNCHANGED_DEPTH, UNCHANGED_RGB, unchanged_pixels
+
+    rng = np.random.default_rng(3)
+    rgb = rng.uniform(0, 1, (5, 8, 3))
+    depth = rng.uniform(1, 4, (5, 8))
+    pre = _images(rgb, depth)
+    assert unchanged_pixels(pre, pre).all()
+    near = 0.9 * UNCHANGED_RGB
+    other_rgb, other_depth = np.clip(rgb + near, 0, 1), depth * (1 + 0.9 * UNCHANGED_DEPTH)
+    assert unchanged_pixels(pre, _images(other_rgb, other_depth)).all()  # within both tolerances
+    assert not unchanged_pixels(pre, _images(rgb, depth * 1.5)).any()  # the colour alone: the object looks like what it hid
+    shifted = rgb.copy()
+    shifted[..., 1] = (shifted[..., 1] + 2.5 * UNCHANGED_RGB) % 1.0
+    assert not unchanged_pixels(pre, _images(shifted, depth)).any()  # the depth alone: it lies flat on it
+    empty = np.zeros_like(depth)
+    assert not unchanged_pixels(pre, _images(rgb, empty)).any()  # covered before, nothing after: removed
+    assert unchanged_pixels(_images(rgb, empty), _images(rgb, empty)).all()  # nothing before nor after
+    with pytest.raises(ValueError, match="depth"):
+        unchanged_pixels(pre, type("NoDepth", (), {"rgb": rgb, "depth": None})())
+
+
+@pytest.mark.parametrize("kind", ["clean", "alone"])
+def test_with_a_reference_the_masks_covering_what_the_removal_left_are_named(scene, ctx, kind):
+    """The bar stays after the removal: the alone masks cover it in v0, where pre and the reference agree."""
+    from r360gpu.lift.occluders import MIN_UNCHANGED_SHARE, unchanged_masks
+    from r360gpu.render.sources import SceneSource
+
+    g, truth, cams, masks = scene
+    pre, ref = SceneSource(g, ctx=ctx), SceneSource(g.subset(~truth), ctx=ctx)
+    try:
+        shares = unchanged_masks({c.name: m for c, m in zip(cams, masks[kind])},
+                                 {c.name: pre.images(c.name, c) for c in cams},
+                                 {c.name: ref.images(c.name, c) for c in cams}).shares
+    finally:
+        pre.release()
+        ref.release()
+    bundle = r360gpu.scene_from_objects("blob", "blob", {}, g, {"m": g.subset(~truth)}, reference=g.subset(~truth),
+                                        cameras={c.name: c for c in cams},
+                                        target={"masks": {c.name: m for c, m in zip(cams, masks[kind])}})
+    said = []
+    lifted_target(bundle, g, ctx=ctx, warn=said.append)
+    same = [s for s in said if "same surface" in s]
+    print(kind, {v: round(s, 3) for v, s in shares.items()})
+    if kind == "clean":
+        assert max(shares.values()) < MIN_UNCHANGED_SHARE / 2 and same == []
+    else:
+        assert shares["v0"] >= MIN_UNCHANGED_SHARE and len(same) == 1 and "view 'v0'" in same[0]

@@ -36,7 +36,7 @@ from .model import RESERVED_METHOD_NAMES, Bundle, BundleError, Draft, Problem, S
 from .names import name_problems
 from .remove360_layout import is_remove360_folder, remove360_draft
 from .scene_toml import CONFIG_NAME, draft_from_config
-from .sources import check_renders, check_scene, with_frame
+from .sources import check_orbit_renders, check_renders, check_scene, with_frame
 from .views import cameras_by_view, check_masks, list_masks, narrow_views, select_views
 
 
@@ -177,6 +177,11 @@ def _resolve(draft: Draft, problems: list[Problem], *, deep: bool) -> Bundle | N
         else:
             check_renders(spec, label, views, sizes, depth_required=role != "reference", where=where,
                            problems=problems, deep=deep)
+            if spec.orbit is not None and role in ("pre", "method_pre"):
+                problems.append(Problem(where, f"{label} 'orbit' applies to methods and the reference: the "
+                                               f"orbit is placed around pre's Gaussians, so pre is a splat scene"))
+            elif spec.orbit is not None:
+                check_orbit_renders(spec, label, problems, deep=deep)
             resolved[role, name] = spec
     if problems or draft.prompt is None or draft.pre is None:
         return None

@@ -21,6 +21,9 @@ from ..util.filehash import content_digest
 
 from .names import RESERVED_METHOD_NAMES  # noqa: F401 (re-exported: defined where names are checked)
 SOURCE_KINDS = ("scene", "renders")
+#: The file an orbit renders folder holds the poses of its renderings in (the INRIA cameras.json
+#: ``score --orbit`` writes for the kept poses).
+ORBIT_CAMERAS = "cameras.json"
 DEPTH_MODES = ("expected", "median")
 LAYOUTS = ("scene.toml", "remove360", "group", "objects")
 
@@ -66,6 +69,9 @@ class SourceSpec:
     render: how a scene source is rendered (:class:`RenderSettings`).
     frame: the world frame of a scene's Gaussians (:class:`r360gpu.io.frames.Frame`;
     None: the cameras' frame); while a bundle is drafted, the ``frame`` value of scene.toml.
+    orbit: for a renders method or reference, its renderings at the poses of ``score --orbit``, a
+    renders source of its own whose ``path`` holds :data:`ORBIT_CAMERAS` (the poses they were made
+    at, as r360gpu wrote them; docs/3d-evaluation.md); None: not rendered there.
     """
 
     kind: str
@@ -75,6 +81,7 @@ class SourceSpec:
     depth_dir: Path | None = None
     render: RenderSettings = RenderSettings()
     frame: object = None
+    orbit: "SourceSpec | None" = None
 
     def reader(self) -> RendersReader:
         """A :class:`RendersReader` for a renders source (ValueError for a scene source)."""

@@ -10,6 +10,7 @@ from __future__ import annotations
 import difflib
 import math
 import re
+from dataclasses import replace
 from pathlib import Path
 
 try:
@@ -24,7 +25,7 @@ from .names import bad_name
 CONFIG_NAME = "scene.toml"
 TOP_KEYS = ("name", "prompt", "cameras", "masks", "views", "frame", "pre", "reference", "methods", "options",
             "expected", "target")
-SOURCE_KEYS = ("scene", "renders", "rgb", "depth", "depth_scale", "frame") + RENDER_KEYS
+SOURCE_KEYS = ("scene", "renders", "rgb", "depth", "depth_scale", "frame", "orbit") + RENDER_KEYS
 OPTION_KEYS = ("background", "depth", "reference_free")
 _DUPLICATE_TABLE = re.compile(r"Cannot declare \('methods', '((?:[^'\\]|\\.)*)'\) twice(.*)")
 
@@ -211,6 +212,14 @@ def _parse_source(table, label: str, root: Path, bad, *, depth_required: bool,
         else:
             frame = _frame_value(table["frame"], f"{label} ", bad)
             ok = ok and frame is not None
+    orbit = table.get("orbit")
+    if orbit is not None:
+        if key == "scene":
+            bad(f"{label} 'orbit' applies to renders only (r360gpu renders a splat scene at the orbit itself)")
+            ok = False
+        elif not (isinstance(orbit, str) and orbit.strip()):
+            bad(f"{label} 'orbit' must be a folder path (a non-empty string)")
+            ok = False
     if not ok or render is None:
         return None
     if key == "scene":
@@ -220,13 +229,20 @@ def _parse_source(table, label: str, root: Path, bad, *, depth_required: bool,
         depth = folder / "depth"
         if not depth_required and not depth.exists():
             depth = None
-        return SourceSpec("renders", folder, scale, folder / "rgb", depth)
-    rgb = root / value
-    depth = table.get("depth")
-    if depth is not None and not (isinstance(depth, str) and depth.strip()):
-        bad(f"{label} 'depth' must be a folder path (a non-empty string)")
-        return None
-    return SourceSpec("renders", rgb, scale, rgb, None if depth is None else root / depth)
+        spec = SourceSpec("renders", folder, scale, folder / "rgb", depth)
+    else:
+        rgb = root / value
+        depth = table.get("depth")
+        if depth is not None and not (isinstance(depth, str) and depth.strip()):
+            bad(f"{label} 'depth' must be a folder path (a non-empty string)")
+            return None
+        spec = SourceSpec("renders", rgb, scale, rgb, None if depth is None else root / depth)
+    if orbit is None:
+        return spec
+    # laid out as a renders folder; depth there whenever the source has depth at the capture views
+    folder = root / orbit
+    return replace(spec, orbit=SourceSpec("renders", folder, scale, folder / "rgb",
+                                          None if spec.depth_dir is None else folder / "depth"))
 
 
 def _parse_render_settings(table: dict, label: str, bad, *, scene: bool) -> RenderSettings | None:

@@ -6,14 +6,17 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import InputError
+from ..io.cameras_json import load_cameras_json
 from ..io.compressed_ply import check_compressed_header, is_compressed_ply
 from ..io.inria_ply import check_inria_header, is_inria_ply
 from ..io.load import latest_inria_iteration, load_gaussians
 from ..io.paths import link_problem
 from ..io.ply import read_ply_header
 from ..io.renders import RendersReader, depth_size, image_size, read_depth, read_rgb
-from .model import Draft, Problem, SourceSpec, add_capped, listed_names
+from .model import ORBIT_CAMERAS, Draft, Problem, SourceSpec, add_capped, listed_names
 
 _SPLAT_RECORD_BYTES = 32
 _PLY_MAGIC = (b"ply\n", b"ply\r\n")
@@ -112,9 +115,11 @@ def _check_ply(p: Path) -> None:
 
 
 def check_renders(spec: SourceSpec, label: str, views: list[str], sizes: dict[str, tuple[int, int]], *,
-                   depth_required: bool, where: str, problems: list[Problem], deep: bool = False) -> None:
+                   depth_required: bool, where: str, problems: list[Problem], deep: bool = False,
+                   sized_by: str = "the mask of view") -> None:
     """Append a problem for every evaluation view whose RGB (or, when the source has or needs one,
-    depth) file is missing, unreadable or of another size than the view's mask (``sizes``)."""
+    depth) file is missing, unreadable or of another size than the view's mask (``sizes``; ``sized_by``
+    names what gives the size, in the message)."""
     rgb_ok = spec.rgb_dir is not None and spec.rgb_dir.is_dir()
     if not rgb_ok:
         folder = spec.rgb_dir or spec.path
@@ -162,6 +167,55 @@ def check_renders(spec: SourceSpec, label: str, views: list[str], sizes: dict[st
                 listed.append(Problem(e.path, e.problem))
                 continue
             if v in sizes and tuple(hw) != sizes[v]:
-                listed.append(Problem(str(path), f"{what} is {hw[1]}x{hw[0]}, the mask of view {v!r} is "
+                listed.append(Problem(str(path), f"{what} is {hw[1]}x{hw[0]}, {sized_by} {v!r} is "
                                                  f"{sizes[v][1]}x{sizes[v][0]} ({label})"))
         add_capped(problems, listed, str(folder), f"{what}s")
+
+
+def check_orbit_renders(spec: SourceSpec, label: str, problems: list[Problem], *, deep: bool = False) -> None:
+    """Append a problem for an orbit renders folder (``spec.orbit`` of a renders source) without a
+    readable :data:`~.model.ORBIT_CAMERAS`, or without an RGB (and, when the source has depth, a
+    depth) image of that file's size for every pose it lists.  Whether they are this run's poses is
+    known only once the orbit is placed (`orbit_pose_problems`)."""
+    orbit = spec.orbit
+    try:
+        cams = load_cameras_json(Path(orbit.path) / ORBIT_CAMERAS)
+    except InputError as e:
+        problems.append(Problem(e.path, f"{e.problem} ({label} orbit: the folder holds the {ORBIT_CAMERAS} "
+                                        f"its renderings were made at, as score --orbit wrote it)"))
+        return
+    check_renders(orbit, f"{label} orbit", [c.name for c in cams], {c.name: (c.height, c.width) for c in cams},
+                  depth_required=orbit.depth_dir is not None, where=str(orbit.path), problems=problems,
+                  deep=deep, sized_by="the orbit camera")
+
+
+#: Orbit renderings are this run's poses when every camera value agrees to this (relative to the
+#: pose's distance from the world's origin for the centre); cameras.json holds them to float64.
+ORBIT_POSE_TOLERANCE = 1e-6
+
+
+def orbit_pose_problems(spec: SourceSpec, poses: list) -> list[str]:
+    """What keeps the orbit renderings of ``spec`` (a renders source's `SourceSpec.orbit`) from
+    being scored at ``poses`` (the orbit's kept cameras): poses missing from the folder's
+    cameras.json, or there with another position, rotation, intrinsics or size ([]: none)."""
+    given = {c.name: c for c in load_cameras_json(Path(spec.path) / ORBIT_CAMERAS)}
+    missing, moved = [], []
+    for cam in poses:
+        c = given.get(cam.name)
+        if c is None:
+            missing.append(cam.name)
+            continue
+        tol = ORBIT_POSE_TOLERANCE
+        if (c.width, c.height) != (cam.width, cam.height):
+            moved.append(f"{cam.name} is {c.width}x{c.height} there, {cam.width}x{cam.height} here")
+        elif (np.linalg.norm(c.center - cam.center) > tol * max(1.0, float(np.linalg.norm(cam.center)))
+              or np.abs(c.R - cam.R).max() > tol
+              or not np.allclose((c.fx, c.fy, c.cx, c.cy), (cam.fx, cam.fy, cam.cx, cam.cy), rtol=tol, atol=0)):
+            moved.append(f"{cam.name} is another camera there")
+    out = []
+    if missing:
+        out.append(f"{len(missing)} of this run's {len(poses)} orbit poses have no camera there: "
+                   f"{listed_names(missing)}")
+    if moved:
+        out.append(f"{len(moved)} of them differ: " + ", ".join(moved[:3]) + (" ..." if len(moved) > 3 else ""))
+    return out

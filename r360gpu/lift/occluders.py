@@ -26,7 +26,21 @@ lifted target's ``w_in``; the views whose masks voted them in are named.
 
 Only an occluder out of the object's reach is caught: material hugging the
 object (within a radius of its surface, inside the given views' visual hull)
-is what the masks of an object would also cover, and is not told apart.
+is what the masks of an object would also cover, and is not told apart by the
+masks.
+
+**With a reference** (the scene after the removal) the masks can be checked
+pixel by pixel, whatever the occluder's shape: the target is what the removal
+takes away, so a mask pixel where pre and the reference show the same surface
+(every colour channel within :data:`UNCHANGED_RGB`, depth within
+:data:`UNCHANGED_DEPTH` of pre's) covers something that is still there: an
+occluder in front of the object, or a mask wider than the object
+(:func:`unchanged_pixels`).  A given mask is doubtful when at least
+:data:`MIN_UNCHANGED_SHARE` of its pixels are unchanged.  Both conditions are
+needed: colour alone matches where the object looks like what it hid, depth
+alone where it lies flat on it.  A reference captured and reconstructed
+apart from pre agrees with it less than a removal made in the same scene,
+which makes this check miss occluders, not invent them.
 """
 from __future__ import annotations
 
@@ -46,6 +60,13 @@ FRONT_MARGIN = 1.0
 FAR_FRONT = 1.5
 #: The masks are doubtful when the occluder-like Gaussians hold this share of the lifted w_in.
 MIN_OCCLUDER_SHARE = 0.02
+#: A pixel is unchanged by the removal when pre and the reference differ there by at most this in
+#: every colour channel (8 levels of an 8-bit image) ...
+UNCHANGED_RGB = 8 / 255
+#: ... and their depths (both covered) by at most this share of pre's.
+UNCHANGED_DEPTH = 0.05
+#: A given mask is doubtful when this share of its pixels is unchanged by the removal.
+MIN_UNCHANGED_SHARE = 0.2
 
 
 @dataclass(frozen=True)
@@ -113,3 +134,48 @@ def drop_occluders(lifted: LiftedTarget, occ: Occluders) -> LiftedTarget:
     from dataclasses import replace
 
     return replace(lifted, target=lifted.target & ~occ.gaussians)
+
+
+def unchanged_pixels(pre, reference) -> np.ndarray:
+    """(H, W) bool: where ``pre`` and ``reference`` (images with ``rgb`` (H, W, 3) and ``depth`` (H, W),
+    0 = no coverage, in one unit) show the same surface, or nothing at all in the same colour: the removal
+    did not change it (module docstring)."""
+    if pre.depth is None or reference.depth is None:
+        raise ValueError("unchanged_pixels needs the depth of pre and of the reference")
+    same_rgb = np.abs(np.asarray(pre.rgb, np.float32) - np.asarray(reference.rgb, np.float32)).max(axis=-1) \
+        <= UNCHANGED_RGB
+    d_pre, d_ref = np.asarray(pre.depth, np.float32), np.asarray(reference.depth, np.float32)
+    same_depth = (d_pre > 0) & (d_ref > 0) & (np.abs(d_pre - d_ref) <= UNCHANGED_DEPTH * d_pre)
+    return same_rgb & (same_depth | ((d_pre == 0) & (d_ref == 0)))  # or nothing there, before and after
+
+
+@dataclass(frozen=True)
+class UnchangedMasks:
+    """Given masks against a reference: {view: share of the mask's pixels the removal did not change}."""
+
+    shares: dict
+
+    @property
+    def doubtful(self) -> dict:
+        """{view: share} of the masks with at least :data:`MIN_UNCHANGED_SHARE` unchanged, largest first."""
+        bad = {v: s for v, s in self.shares.items() if s >= MIN_UNCHANGED_SHARE}
+        return dict(sorted(bad.items(), key=lambda kv: -kv[1]))
+
+    def message(self, paths: dict | None = None) -> str:
+        paths = paths or {}
+        named = ", ".join(f"{paths.get(v, f'view {v!r}')} ({100 * s:.0f}% of its pixels)"
+                          for v, s in self.doubtful.items())
+        return (f"given masks cover pixels where pre and the reference show the same surface (colour and depth), "
+                f"so something the removal left in place: {named}. That is an occluder in front of the object "
+                f"(masks made by rendering the object alone cover it) or masks wider than the object. Give masks "
+                f"of the visible object only, or drop those views")
+
+
+def unchanged_masks(masks: dict, pre_images: dict, reference_images: dict) -> UnchangedMasks:
+    """The share of each given mask ({view: (H, W) bool}) unchanged between pre's and the reference's
+    images there ({view: images}, see `unchanged_pixels`); views without a reference image are left out."""
+    shares = {}
+    for v, m in masks.items():
+        if v in reference_images and m.any():
+            shares[v] = float(unchanged_pixels(pre_images[v], reference_images[v])[m].mean())
+    return UnchangedMasks(shares)

@@ -94,7 +94,35 @@ def lifted_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn
         occ = find_occluders(gaussians, cams, lifted, frame=frame)
         if occ.doubtful:
             warn(f"{where}: [target].masks: {occ.message(paths)}")
+        unchanged = _against_reference(bundle, gaussians, {v: given[v] for v in views}, ctx=ctx, options=options,
+                                       frame=frame)
+        if unchanged is not None and unchanged.doubtful:
+            warn(f"{where}: [target].masks: {unchanged.message(paths)}")
     return replace(lifted, w_views=None), given  # (V, 2, N) weights are not kept past the check
+
+
+def _against_reference(bundle, gaussians, masks: dict, *, ctx=None, options=None, frame=None):
+    """The given ``masks`` ({view: (H, W) bool}) against the bundle's reference
+    (`r360gpu.lift.occluders.unchanged_masks`), pre and the reference rendered (or read) at their
+    views; None without a reference with depth."""
+    from dataclasses import asdict
+
+    from ..render.sources import SceneSource, open_source
+    from .occluders import unchanged_masks
+
+    if getattr(bundle, "reference", None) is None:
+        return None
+    look = dict(ctx=ctx, background=bundle.options.background, depth=bundle.options.depth)
+    ref = open_source(bundle.reference, **look)
+    pre = SceneSource(gaussians, **look, render=None if options is None else asdict(options), frame=frame)
+    try:
+        refs = {v: ref.images(v, bundle.cameras[v]) for v in masks}
+        if any(img.depth is None for img in refs.values()):
+            return None
+        return unchanged_masks(masks, {v: pre.images(v, bundle.cameras[v]) for v in masks}, refs)
+    finally:
+        pre.release()
+        ref.release()
 
 
 def check_target(bundle, *, ctx=None, warn=None):

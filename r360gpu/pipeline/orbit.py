@@ -8,8 +8,11 @@ capture, "target occluded"), and pre, the
 reference and every splat method are rendered there and scored with the
 same probes, the masks being the lifted target's.  The result is a scene
 entry of its own (axes, RQS, views) that goes under ``scenes.S.orbit``,
-never into the capture-view axes.  A method given as renderings cannot be
-rendered elsewhere: it is listed under ``no_orbit`` ("renderings only").
+never into the capture-view axes.  A method (or reference) given as renderings
+is scored there from its renderings at the orbit poses when its source names
+them (``orbit = "FOLDER"``: ``rgb/``, ``depth/`` and the ``cameras.json`` they
+were made at, which must hold this run's kept poses); otherwise it is listed
+under ``no_orbit`` ("renderings only").
 """
 from __future__ import annotations
 
@@ -27,6 +30,33 @@ def _is_scene(spec) -> bool:
     from ..io import Gaussians
 
     return isinstance(spec, Gaussians) or getattr(spec, "kind", None) == "scene"
+
+
+def _at_orbit(spec):
+    """The source ``spec`` is scored from at the orbit: itself for a splat scene, its orbit renders
+    (`r360gpu.bundle.SourceSpec.orbit`) for renderings, None when it has none."""
+    return spec if _is_scene(spec) else getattr(spec, "orbit", None)
+
+
+def orbit_renders_problem(orbit) -> str | None:
+    """Why the orbit renderings of ``orbit``'s renders sources cannot be scored at its poses (they
+    were made at other poses, or lack some), in one message naming each folder; None when they can."""
+    from ..bundle.model import ORBIT_CAMERAS
+    from ..bundle.sources import orbit_pose_problems
+
+    poses = [orbit.cameras[v] for v in orbit.views]
+    named = {"the reference": orbit.reference, **{f"method {m!r}": s for m, s in orbit.methods.items()}}
+    lines = []
+    for name, spec in named.items():
+        if spec is not None and not _is_scene(spec):
+            why = orbit_pose_problems(spec, poses)
+            if why:
+                lines.append(f"{name}, {spec.path / ORBIT_CAMERAS}: {'; '.join(why)}")
+    if not lines:
+        return None
+    return ("orbit renderings made at other poses than this run's orbit: " + " | ".join(lines)
+            + ". Render every pose of the cameras.json this run's orbit writes (orbit/SCENE/cameras.json: "
+            "score once without the 'orbit' key, or with the --orbit options the renderings were made for)")
 
 
 def _gaussians(spec):
@@ -73,9 +103,9 @@ def _orbit(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
         info["note"] = "no orbit: pre is renderings only (or has no cameras)"
         return None, info, None
     for m, spec in bundle.methods.items():
-        if not _is_scene(spec):
+        if not _is_scene(spec) and getattr(spec, "orbit", None) is None:
             info["no_orbit"][m] = RENDERINGS_ONLY
-    methods = {m: s for m, s in bundle.methods.items() if m not in info["no_orbit"]}
+    methods = {m: _at_orbit(s) for m, s in bundle.methods.items() if m not in info["no_orbit"]}
     if not methods:
         info["note"] = "no orbit: every method is renderings only"
         return None, info, None
@@ -122,7 +152,7 @@ def _orbit(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
     if not kept:
         info["note"] = "no orbit: every pose was dropped"
         return None, info, (g, lifted)
-    reference = bundle.reference if bundle.reference is not None and _is_scene(bundle.reference) else None
+    reference = None if bundle.reference is None else _at_orbit(bundle.reference)
     if bundle.reference is not None and reference is None:
         info["note"] = "reference is renderings only: the orbit is scored reference-free"
     views = [c.name for c in kept]
@@ -148,6 +178,9 @@ def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None, 
         if warn is not None:
             warn(f"orbit: {e.problem}")
         return OrbitEntry({"requested": int(opts.orbit), "kept": 0, "note": f"no orbit: {e.problem}"})
+    problem = None if orbit is None else orbit_renders_problem(orbit)
+    if problem is not None:  # an error, not a warning: the user's renderings would be scored at other poses
+        raise InputError(problem)
     if out is not None and lifted is not None:
         files = info["files"] = {}
         if getattr(bundle, "target", None) is None:  # a [target]'s lift is written with the scene's

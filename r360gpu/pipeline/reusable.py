@@ -55,8 +55,9 @@ def write_target(out, scene: str, gaussians, target: np.ndarray, masks: dict, *,
 def write_orbit(out, scene: str, cameras: list, masks: dict) -> dict:
     """{"cameras", "masks": {view: path}}: the orbit's kept ``cameras`` as ``out/orbit/SCENE/cameras.json``
     and their target ``masks`` {view: (H, W) bool} as PNGs."""
+    from ..bundle.model import ORBIT_CAMERAS
     from ..io.cameras_json import save_cameras_json
 
     out, folder = Path(out), Path(ORBIT_DIR) / scene
-    save_cameras_json(out / folder / "cameras.json", cameras)
-    return {"cameras": str(folder / "cameras.json"), "masks": _masks(out, folder, masks)}
+    save_cameras_json(out / folder / ORBIT_CAMERAS, cameras)
+    return {"cameras": str(folder / ORBIT_CAMERAS), "masks": _masks(out, folder, masks)}
