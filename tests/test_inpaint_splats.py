@@ -1,0 +1,175 @@
+"""``inpaint`` with methods given as splat scenes, rendered at the benchmark's test cameras: on a generated
+360-USID-shaped scene (photographs = the clean reference rendered at the test cameras of a COLMAP model),
+every value equals rendering with r360gpu and scoring the renders (as a folder in compat mode, in memory
+in default mode) to 1e-6; a scene in another world frame scores through its frame; cameras that cannot
+be matched to the photographs exit 2 naming the file."""
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from r360gpu.cli import main
+from r360gpu.io import load_gaussians
+from r360gpu.io.inpaint_folders import natsorted_glob, read_image, read_mask_binary
+from r360gpu.io.photo_cameras import photo_cameras
+from r360gpu.metrics.inpainting import METRICS, score_views
+from r360gpu.metrics.json_values import dec_tree
+from r360gpu.pipeline.inpaint import quantised
+from r360gpu.render.sources import SceneSource
+from r360gpu.synthetic.frames import moved_gaussians, random_similarity
+from r360gpu.synthetic.inpaint_splats import write_usid_splat_example
+
+TOL = 1e-6
+
+
+@pytest.fixture(scope="module")
+def example(tmp_path_factory):
+    return write_usid_splat_example(tmp_path_factory.mktemp("splats") / "ex", n_test=3, n_train=2)
+
+
+@pytest.fixture
+def folder(example, tmp_path):
+    dst = tmp_path / "ex"
+    shutil.copytree(example, dst)
+    return dst
+
+
+def _args(root, out, *extra, methods=("hole", "reference")):
+    return ["inpaint", "360usid", str(root / "data"), *(f"{m}={root}/output/{{scene}}/{m}.ply" for m in methods),
+            "--masks", f"{root}/output/{{scene}}/object_mask", "--out", str(out), "--quiet", *extra]
+
+
+def _doc(out):
+    return dec_tree(json.loads((out / "results.json").read_text()))
+
+
+def _renders(root, method):
+    """The method rendered by r360gpu at the test cameras of the scene's COLMAP model."""
+    scene = root / "data" / "room"
+    photos = natsorted_glob(scene / "test_images", "jpg")
+    src = SceneSource(str(root / "output" / "room" / f"{method}.ply"))
+    try:
+        return photos, [src.images(p.name, c).rgb for p, c in zip(photos, photo_cameras(photos, scene))]
+    finally:
+        src.release()
+
+
+def test_default_mode_equals_rendering_then_scoring(example, tmp_path):
+    out = tmp_path / "out"
+    assert main(_args(example, out)) == 0
+    doc = _doc(out)
+    src = doc["sources"]["room"]["hole"]
+    assert src["kind"] == "scene" and src["path"].endswith("hole.ply") and src["cameras"].endswith("room")
+    for method in ("hole", "reference"):
+        photos, renders = _renders(example, method)
+        masks = natsorted_glob(example / "output" / "room" / "object_mask", ".png")
+        views = doc["scenes"]["room"][method]["views"]
+        for p, r, m, v in zip(photos, renders, masks, views):
+            photo = read_image(p)
+            want = score_views(p.name, photo, [r], [read_mask_binary(m, photo.shape[:2])])[0]
+            assert v["view"] == p.name
+            for name, _ in METRICS:
+                got, ref = v[name], getattr(want, name)
+                assert (got is None and ref is None) or abs(got - ref) <= TOL, (method, p.name, name)
+    means = {m: doc["scenes"]["room"][m]["means"]["masked_psnr"]["mean"] for m in ("hole", "reference")}
+    assert means["reference"] > means["hole"] + 10  # the clean reference is the photographs up to JPEG
+
+
+def test_compat_equals_the_renders_saved_as_a_folder(example, tmp_path):
+    """compat: the splat's renders are 8-bit as the benchmark's saved renders; scoring them as a folder agrees."""
+    folder = tmp_path / "hole_renders"
+    _, renders = _renders(example, "hole")
+    (folder / "room" / "renders").mkdir(parents=True)
+    for k, r in enumerate(renders):
+        q = np.round(quantised(r) * 255).astype(np.uint8)
+        Image.fromarray(q).save(folder / "room" / "renders" / f"{k:05d}.png")
+    assert main(_args(example, tmp_path / "a", "--compat", methods=("hole",))) == 0
+    args = ["inpaint", "360usid", str(example / "data"), f"hole={folder}", "--masks",
+            f"{example}/output/{{scene}}/object_mask", "--out", str(tmp_path / "b"), "--quiet", "--compat"]
+    assert main(args) == 0
+    a, b = _doc(tmp_path / "a")["scenes"]["room"]["hole"], _doc(tmp_path / "b")["scenes"]["room"]["hole"]
+    for va, vb in zip(a["views"], b["views"]):
+        for name, _ in METRICS:
+            assert va[name] == pytest.approx(vb[name], abs=TOL, nan_ok=True), name
+
+
+def test_a_scene_in_its_own_world_frame(example, tmp_path):
+    """A splat exported in a nerfstudio frame (dataparser_transforms.json beside it) renders at the same views."""
+    frame = random_similarity(np.random.default_rng(3), scale=(0.5, 2.0), shift=1.0)
+    moved = tmp_path / "moved"
+    moved.mkdir()
+    from r360gpu.io import save_ply
+
+    g = load_gaussians(example / "output" / "room" / "hole.ply")
+    assert g.sh_degree == 0
+    save_ply(moved / "hole.ply", moved_gaussians(g, frame))
+    (moved / "dataparser_transforms.json").write_text(json.dumps(
+        {"transform": (frame.m[:3] / frame.scale).tolist(), "scale": frame.scale}))
+    assert main(_args(example, tmp_path / "a", methods=("hole",))) == 0
+    args = ["inpaint", "360usid", str(example / "data"), f"hole={moved}/hole.ply", "--masks",
+            f"{example}/output/{{scene}}/object_mask", "--out", str(tmp_path / "b"), "--quiet"]
+    assert main(args) == 0
+    b = _doc(tmp_path / "b")
+    assert "nerfstudio" in b["sources"]["room"]["hole"]["frame"]["origin"]
+    a = _doc(tmp_path / "a")["scenes"]["room"]["hole"]["means"]
+    assert abs(a["psnr"]["mean"] - b["scenes"]["room"]["hole"]["means"]["psnr"]["mean"]) < 0.05
+    assert main([*args[:-1], "--frame", "cameras", "--quiet"]) == 0  # ignoring the frame renders elsewhere
+    c = _doc(tmp_path / "b")["scenes"]["room"]["hole"]["means"]
+    assert c["psnr"]["mean"] < a["psnr"]["mean"] - 1
+
+
+def _fails(capsys, args, *needles):
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    for n in needles:
+        assert str(n) in err, err
+
+
+def test_photograph_without_a_camera(folder, tmp_path, capsys):
+    photo = folder / "data" / "room" / "test_images" / "IMG_2.jpg"
+    photo.rename(photo.with_name("IMG_99.jpg"))
+    out = tmp_path / "out"
+    _fails(capsys, _args(folder, out), "IMG_99.jpg", "no camera")
+    assert not out.exists()
+
+
+def test_no_colmap_model_and_wrong_aspect(folder, tmp_path, capsys):
+    out = tmp_path / "out"
+    photo = folder / "data" / "room" / "test_images" / "IMG_0.jpg"
+    Image.open(photo).crop((0, 0, 40, 40)).save(photo)
+    _fails(capsys, _args(folder, out), photo, "aspect ratio")
+    shutil.rmtree(folder / "data" / "room" / "sparse")
+    _fails(capsys, _args(folder, out), folder / "data" / "room", "--cameras")
+    _fails(capsys, _args(folder, out, "--cameras", str(tmp_path / "nope")), tmp_path / "nope")
+    assert not out.exists()
+
+
+def test_unreadable_splat_file(folder, tmp_path, capsys):
+    bad = folder / "output" / "room" / "hole.ply"
+    bad.write_bytes(b"ply\nformat nonsense\n")
+    _fails(capsys, _args(folder, tmp_path / "out"), bad)
+    assert not (tmp_path / "out").exists()
+
+
+def test_spinnerf_scene_renders_at_its_colmap_cameras(example, tmp_path):
+    """SPIn-NeRF: the first --n-test photographs of images/ matched to the scene's sparse/0 by name."""
+    scene = tmp_path / "spin" / "room"
+    shutil.copytree(example / "data" / "room" / "test_images", scene / "images")
+    shutil.copytree(example / "data" / "room" / "sparse", scene / "sparse")
+    (scene / "images" / "label").mkdir()
+    for k, p in enumerate(natsorted_glob(scene / "images", "jpg")):
+        shutil.copy(example / "output" / "room" / "object_mask" / f"{k:05d}.png",
+                    scene / "images" / "label" / f"{p.stem}.png")
+    assert main(["inpaint", "spinnerf", str(scene), f"hole={example}/output/room/hole.ply", "--n-test", "3",
+                 "--out", str(tmp_path / "s"), "--quiet"]) == 0
+    assert main(_args(example, tmp_path / "u", methods=("hole",))) == 0
+    s, u = _doc(tmp_path / "s")["scenes"]["room"]["hole"], _doc(tmp_path / "u")["scenes"]["room"]["hole"]
+    assert [v["view"] for v in s["views"]] == [v["view"] for v in u["views"]]
+    for a, b in zip(s["views"], u["views"]):
+        for name, _ in METRICS:
+            assert a[name] == pytest.approx(b[name], abs=TOL, nan_ok=True), name
