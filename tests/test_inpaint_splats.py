@@ -173,3 +173,75 @@ def test_spinnerf_scene_renders_at_its_colmap_cameras(example, tmp_path):
     for a, b in zip(s["views"], u["views"]):
         for name, _ in METRICS:
             assert a[name] == pytest.approx(b[name], abs=TOL, nan_ok=True), name
+
+
+def test_lifted_target_masks_when_the_method_has_none(example, tmp_path):
+    """--pre/--target: the target's masks rendered at the test cameras score as those masks given as a folder."""
+    from r360gpu.io.inpaint_folders import usid_scenes
+    from r360gpu.lift.masks import TargetMaskRenderer
+    from r360gpu.pipeline.inpaint_target import LIFTED_NOTE
+
+    out = tmp_path / "lifted"
+    target = f"{example}/output/{{scene}}/target.npy"
+    args = ["inpaint", "360usid", str(example / "data"), f"hole={example}/output/{{scene}}/hole.ply",
+            "--pre", f"{example}/output/{{scene}}/pre.ply", "--target", target, "--quiet"]
+    assert main([*args, "--out", str(out)]) == 0
+    doc = _doc(out)
+    rec = doc["lifted_targets"]["room"]
+    pre = load_gaussians(example / "output" / "room" / "pre.ply")
+    idx = np.load(example / "output" / "room" / "target.npy")
+    assert rec["source"] == "indices" and rec["gaussians"] == idx.size and rec["of"] == pre.n
+    assert doc["scenes"]["room"]["hole"]["masks"].startswith("lifted target")
+    assert "lifted target" in (out / "report.html").read_text()
+    # the same masks rendered here, written as a folder and given with --masks
+    cams = usid_scenes(example / "data", ["x=" + str(example / "output" / "room" / "hole.ply")])[0].cameras
+    sel = np.zeros(pre.n, bool)
+    sel[idx] = True
+    r = TargetMaskRenderer(pre, sel)
+    folder = tmp_path / "masks" / "room"
+    folder.mkdir(parents=True)
+    try:
+        for k, c in enumerate(cams):
+            m = r.mask(c)
+            Image.fromarray(np.where(m, 255, 0).astype(np.uint8)).save(folder / f"{k:05d}.png")
+            given = read_mask_binary(example / "output" / "room" / "object_mask" / f"{k:05d}.png", m.shape)
+            if given.any():
+                assert (m & (given > 0)).sum() / (m | (given > 0)).sum() > 0.7  # the object, as the scene's own masks
+    finally:
+        r.release()
+    assert main([*args[:4], "--masks", str(folder.parent), "--quiet", "--out", str(tmp_path / "given")]) == 0
+    a, b = doc["scenes"]["room"]["hole"], _doc(tmp_path / "given")["scenes"]["room"]["hole"]
+    for va, vb in zip(a["views"], b["views"]):
+        for name, _ in METRICS:
+            assert va[name] == pytest.approx(vb[name], abs=TOL, nan_ok=True), name
+    assert LIFTED_NOTE in a["masks"]
+
+
+def test_lifted_target_hostile(folder, tmp_path, capsys):
+    base = ["inpaint", "360usid", str(folder / "data"), f"hole={folder}/output/{{scene}}/hole.ply", "--quiet",
+            "--out", str(tmp_path / "out")]
+    pre = f"{folder}/output/{{scene}}/pre.ply"
+    _fails(capsys, [*base, "--pre", pre], "--pre and --target")
+    _fails(capsys, [*base, "--pre", pre, "--target", str(tmp_path / "none.npy")], tmp_path / "none.npy")
+    _fails(capsys, [*base, "--pre", pre, "--target", "box:1,2,3"], "6 numbers")
+    bad = folder / "output" / "room" / "target.npy"
+    np.save(bad, np.array([10 ** 9]))
+    _fails(capsys, [*base, "--pre", pre, "--target", str(bad)], bad)
+    assert not (tmp_path / "out").exists()
+
+
+def test_lifted_target_from_masks_of_some_cameras(example, tmp_path):
+    """--target masks:FOLDER lifts <image stem>.png masks (here the test views', renamed) onto pre's Gaussians."""
+    folder = tmp_path / "object_masks"
+    folder.mkdir()
+    for k, p in enumerate(natsorted_glob(example / "data" / "room" / "test_images", "jpg")):
+        shutil.copy(example / "output" / "room" / "object_mask" / f"{k:05d}.png", folder / f"{p.stem}.png")
+    out = tmp_path / "out"
+    assert main(["inpaint", "360usid", str(example / "data" / "room"), f"hole={example}/output/room/hole.ply",
+                 "--pre", f"{example}/output/room/pre.ply", "--target", f"masks:{folder}", "--quiet",
+                 "--out", str(out)]) == 0
+    doc = _doc(out)
+    rec = doc["lifted_targets"]["room"]
+    idx = set(np.load(example / "output" / "room" / "target.npy").tolist())
+    assert rec["source"] == "masks" and rec["lifted_from"] and 0.5 * len(idx) < rec["gaussians"] < 2 * len(idx)
+    assert doc["scenes"]["room"]["hole"]["means"]["masked_psnr"]["n"] >= 1

@@ -31,6 +31,12 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="the test cameras of splat methods: a COLMAP model, cameras.json or transforms.json "
                         "naming the photographs ({scene} allowed; default: the scene's sparse/0)")
     add_frame_option(p)
+    p.add_argument("--pre", metavar="SPLAT",
+                   help="the reconstruction with the object ({scene} allowed): with --target, methods without "
+                        "masks are scored on the target's masks rendered from it at the test cameras")
+    p.add_argument("--target", metavar="TARGET",
+                   help="the object on pre's Gaussians, as scene.toml's [target]: FILE.npy / FILE.ply (indices), "
+                        "box:X0,Y0,Z0,X1,Y1,Z1, or masks:FOLDER (<image stem>.png masks of some cameras, lifted)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -94,16 +100,17 @@ def run(args) -> int:
     out = check_output_folder(args.out)
     mode = "compat" if args.compat else "default"
     inputs = {"data": args.data, "methods": dict(m.partition("=")[::2] for m in args.methods), "masks": args.masks,
-              "cameras": args.cameras, "frame": args.frame}
+              "cameras": args.cameras, "frame": args.frame, "pre": args.pre, "target": args.target}
     with collecting() as log:
         if args.protocol == "360usid":
-            scenes = usid_scenes(args.data, args.methods, masks=args.masks, cameras=args.cameras)
+            scenes = usid_scenes(args.data, args.methods, masks=args.masks, cameras=args.cameras,
+                                 need_cameras=args.pre is not None)
         else:
             scenes = spinnerf_scenes(args.data, args.methods, masks=args.masks, factor=args.factor,
-                                     n_test=args.n_test, cameras=args.cameras)
+                                     n_test=args.n_test, cameras=args.cameras, need_cameras=args.pre is not None)
             inputs.update(factor=args.factor, n_test=args.n_test)
         run_ = score_scenes(scenes, protocol=args.protocol, mode=mode, show_progress=not args.quiet,
-                            frame=args.frame)
+                            frame=args.frame, pre=args.pre, target=args.target)
         records = log.records()
     name = PROTOCOLS[args.protocol]
     for scene in scenes:
@@ -114,7 +121,9 @@ def run(args) -> int:
         print("====================================")
     doc = results_document(run_, inputs, records)
     tabs = tables.tables(run_.results, run_.methods, name, mode)
-    notes = doc["differs_from_script"] or [doc["mode_note"]]
+    notes = (doc["differs_from_script"] or [doc["mode_note"]]) + [
+        f"{s}: masked metrics of the methods without masks use the {r['note']} ({r['source']}: {r['gaussians']} of "
+        f"{r['of']} Gaussians of {r['pre']})" for s, r in doc["lifted_targets"].items()]
     files = {n: out / n for n in ("results.json", "results.csv", "tables.md", "tables.tex", "report.html")}
     with open_output_folder(out), all_or_nothing(files.values()):
         write_json(files["results.json"], doc, indent=1, allow_nan=False)

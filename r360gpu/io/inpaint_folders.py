@@ -204,18 +204,19 @@ def _splat_method(name: str, path: Path, masks: list[Path] | None, mask_dir: Pat
     return MethodFiles(name, path, [], masks, mask_dir, scene=scene)
 
 
-def _with_cameras(scene: SceneFiles, cameras: str | None, several: bool) -> SceneFiles:
-    """The scene with its test cameras when a method is a splat scene: from ``cameras`` ({scene} allowed)
-    or the scene folder's own COLMAP model (``sparse/0``)."""
-    if not any(m.scene is not None for m in scene.methods):
+def _with_cameras(scene: SceneFiles, cameras: str | None, several: bool, need: bool = False) -> SceneFiles:
+    """The scene with its test cameras when a method is a splat scene (or ``need``): from ``cameras``
+    ({scene} allowed) or the scene folder's own COLMAP model (``sparse/0``)."""
+    if not need and not any(m.scene is not None for m in scene.methods):
         return scene
     from .photo_cameras import photo_cameras
 
     where = _scene_folder(cameras, scene.name, several) if cameras is not None else scene.folder
     if cameras is None and not any((scene.folder / d).is_dir() for d in ("sparse/0", "sparse")):
         splats = ", ".join(m.name for m in scene.methods if m.scene is not None)
-        raise InputError(f"method(s) {splats} are splat scenes, rendered at the test cameras, but the scene has "
-                         f"no COLMAP model (sparse/0); give its cameras with --cameras", scene.folder)
+        why = f"method(s) {splats} are splat scenes, rendered" if splats else "the lifted target is rendered"
+        raise InputError(f"{why} at the test cameras, but the scene has no COLMAP model (sparse/0); give its "
+                         f"cameras with --cameras", scene.folder)
     scene.cameras = photo_cameras(scene.photos, where)
     scene.camera_set = where
     return scene
@@ -244,7 +245,7 @@ def _count_check(scene: str, photos: list[Path], photo_dir: Path, files: list[Pa
 
 
 def usid_scenes(data: str | os.PathLike, methods: list[str], *, masks: str | None = None,
-                cameras: str | None = None) -> list[SceneFiles]:
+                cameras: str | None = None, need_cameras: bool = False) -> list[SceneFiles]:
     """The 360-USID scenes under ``data`` (a scene folder, or a folder of them) with each method's files.
 
     methods: ``NAME=FOLDER`` each, FOLDER holding ``renders/`` (and possibly ``object_mask/``), with
@@ -252,7 +253,8 @@ def usid_scenes(data: str | os.PathLike, methods: list[str], *, masks: str | Non
     folder per scene.  masks: a folder of ``*.png`` masks (``{scene}`` allowed) used for every method;
     without it a method's own ``object_mask/`` is used when it has one.  A FOLDER that is a splat scene
     (`is_splat_method`) is rendered at the test cameras: those of ``cameras`` ({scene} allowed), by
-    default the scene's ``sparse/0``, matched to the photographs by name.
+    default the scene's ``sparse/0``, matched to the photographs by name (also without a splat method
+    when ``need_cameras``).
     """
     dirs = _scene_dirs(Path(data), "test_images", "360-USID")
     several = len(dirs) > 1 or not (Path(data) / "test_images").is_dir()
@@ -282,13 +284,13 @@ def usid_scenes(data: str | os.PathLike, methods: list[str], *, masks: str | Non
             renders = natsorted_glob(render_dir, "png")
             _count_check(d.name, photos, photo_dir, renders, render_dir, "renders (*png)")
             scene.methods.append(MethodFiles(name, folder, renders, mask_files, mask_dir))
-        out.append(_with_cameras(scene, cameras, several))
+        out.append(_with_cameras(scene, cameras, several, need_cameras))
     return out
 
 
 def spinnerf_scenes(data: str | os.PathLike, methods: list[str], *, masks: str | None = None,
-                    factor: int | None = None, n_test: int = SPINNERF_N_TEST, cameras: str | None = None
-                    ) -> list[SceneFiles]:
+                    factor: int | None = None, n_test: int = SPINNERF_N_TEST, cameras: str | None = None,
+                    need_cameras: bool = False) -> list[SceneFiles]:
     """The SPIn-NeRF scenes under ``data`` (a scene folder with ``images/``, or a folder of them).
 
     The test views are the first ``n_test`` photographs of ``images/`` (``images_<factor>/``) in
@@ -335,7 +337,7 @@ def spinnerf_scenes(data: str | os.PathLike, methods: list[str], *, masks: str |
                               and not p.name.startswith(".")), key=lambda p: natural_key(p.name))
             _count_check(d.name, photos, photo_dir, renders, render_dir, "renders (*.png, *.jpg)")
             scene.methods.append(MethodFiles(name, folder, renders, mask_files, mask_dir))
-        out.append(_with_cameras(scene, cameras, several))
+        out.append(_with_cameras(scene, cameras, several, need_cameras))
     return out
 
 

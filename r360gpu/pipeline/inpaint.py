@@ -8,6 +8,8 @@ and summarises each (scene, method).  `results_document` is the ``results.json``
     schema, r360gpu_version, created, protocol, mode, differs_from_script, inputs, methods,
     sources  {SCENE: {METHOD: {kind: "renders", path} or a rendered scene's description (kind "scene",
              path, frame, ...) with the test cameras' file}},
+    lifted_targets {SCENE: {source, target, pre, gaussians, of, lifted_from, note}}: where masks were
+             lifted (`r360gpu.pipeline.inpaint_target`); such a method's ``masks`` starts "lifted target",
     scenes   {SCENE: {METHOD: {scene, method, n_views, masks, means {METRIC: {mean, n, n_infinite,
              n_missing, reason}}, views [{view, psnr, ssim, masked_psnr, masked_ssim, mask_pixels,
              reasons}]}}},
@@ -32,6 +34,7 @@ from ..metrics.inpainting import (METRICS, MODES, InpaintScene, overall_means, s
                                   summarise)
 from ..protocol import INPAINT_SCHEMA
 from ..render.sources import SceneSource
+from .inpaint_target import LIFTED_NOTE, LiftedMasks, lifted_masks
 from ..util.progress import progress
 from ..util.warning_log import warn, where
 
@@ -61,6 +64,7 @@ class InpaintRun:
     results: list[InpaintScene]
     seconds: float
     sources: dict[str, dict[str, dict]] = field(default_factory=dict)
+    targets: dict[str, dict] = field(default_factory=dict)
 
     @property
     def methods(self) -> list[str]:
@@ -115,29 +119,40 @@ def open_scenes(scene: SceneFiles, frame: str | None) -> dict[str, SceneSource]:
 
 
 def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "default", show_progress: bool = True,
-                 frame: str | None = None) -> InpaintRun:
+                 frame: str | None = None, pre: str | None = None, target: str | None = None) -> InpaintRun:
     """Score every view of every scene and method; an unreadable or mismatched file is an InputError
     naming it, raised before anything is written.  A method given as a splat scene is rendered at the
     scene's test cameras (in compat mode saved to 8 bits first, as the benchmark's renders are);
-    ``frame``: the world frame of those scenes (``score``'s ``--frame``)."""
+    ``frame``: the world frame of those scenes (``score``'s ``--frame``).  ``pre`` and ``target``
+    (``--pre``, ``--target``): the object's masks for the methods without any, lifted onto pre's
+    Gaussians and rendered at the test cameras (`r360gpu.pipeline.inpaint_target`)."""
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if (pre is None) != (target is None):
+        raise InputError("--pre and --target go together: the target is lifted onto pre's Gaussians")
     t0 = time.perf_counter()
     results: list[InpaintScene] = []
     sources: dict[str, dict[str, dict]] = {}
+    targets: dict[str, dict] = {}
     for scene in scenes:
+        lifted = None
+        if pre is not None and any(m.masks is None for m in scene.methods):
+            with where(scene=scene.name):
+                lifted = lifted_masks(scene, pre, target, frame)
+            targets[scene.name] = lifted.record
         splats = open_scenes(scene, frame)
         try:
-            per_method = _score_scene(scene, splats, mode, show_progress)
+            per_method = _score_scene(scene, splats, mode, show_progress, lifted)
         finally:
             for s in splats.values():
                 s.release()
         sources[scene.name] = {m.name: _describe(m, splats.get(m.name), scene) for m in scene.methods}
         for m in scene.methods:
-            results.append(summarise(scene.name, m.name, per_method[m.name], mode=mode,
-                                     masks=None if m.mask_folder is None else str(m.mask_folder)))
+            masks = (str(m.mask_folder) if m.mask_folder is not None else
+                     f"{LIFTED_NOTE} ({lifted.record['source']})" if lifted is not None else None)
+            results.append(summarise(scene.name, m.name, per_method[m.name], mode=mode, masks=masks))
     _warn_mixed_masks(scenes)
-    return InpaintRun(protocol, mode, scenes, results, time.perf_counter() - t0, sources)
+    return InpaintRun(protocol, mode, scenes, results, time.perf_counter() - t0, sources, targets)
 
 
 def _describe(m: MethodFiles, source: SceneSource | None, scene: SceneFiles) -> dict:
@@ -146,8 +161,8 @@ def _describe(m: MethodFiles, source: SceneSource | None, scene: SceneFiles) -> 
     return {**source.describe(), "cameras": str(scene.camera_set)}
 
 
-def _score_scene(scene: SceneFiles, splats: dict[str, SceneSource], mode: str, show_progress: bool
-                 ) -> dict[str, list]:
+def _score_scene(scene: SceneFiles, splats: dict[str, SceneSource], mode: str, show_progress: bool,
+                 lifted: LiftedMasks | None) -> dict[str, list]:
     per_method: dict[str, list] = {m.name: [] for m in scene.methods}
     items = progress(list(enumerate(scene.photos)), desc=f"{scene.name}", enabled=show_progress)
     for i, photo_path in items:
@@ -166,7 +181,8 @@ def _score_scene(scene: SceneFiles, splats: dict[str, SceneSource], mode: str, s
                         _size_check(renders[-1], shape, m.renders[i], photo_path)
                     if m.masks is not None and m.masks[i] not in masks_read:
                         masks_read[m.masks[i]] = _weights(m.masks[i], shape, mode)
-                    weights.append(None if m.masks is None else masks_read[m.masks[i]])
+                    weights.append(masks_read[m.masks[i]] if m.masks is not None else
+                               lifted.masks[i] if lifted is not None else None)
             recs = score_views(photo_path.name, photo, renders, weights, mode=mode)
             for m, rec in zip(scene.methods, recs):
                 with where(method=m.name):
@@ -211,6 +227,7 @@ def results_document(run: InpaintRun, inputs: dict, warnings: list[dict]) -> dic
         "inputs": inputs,
         "methods": run.methods,
         "sources": run.sources,
+        "lifted_targets": run.targets,
         "scenes": scenes,
         "overall": {m: json_values.enc_tree(overall_means(run.results, m)) for m in run.methods},
         "warnings": warnings,

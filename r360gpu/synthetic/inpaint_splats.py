@@ -10,6 +10,7 @@ writes it as 360-USID ships a scene, with the methods as the splat files a train
     OUT/output/SCENE/reference.ply             the reconstruction without it (scores as the photographs)
     OUT/output/SCENE/<method>.ply              simulated removals (`r360gpu.synthetic.methods`)
     OUT/output/SCENE/object_mask/<i>.png       the target's masks at the test views (0 / 255)
+    OUT/output/SCENE/target.npy                the target's Gaussians in pre.ply (indices, int64)
 
 Training and test cameras alternate around the scene, so the test views are not the training
 ones, as in 360-USID.  The photographs are JPEGs (the script globs ``test_images/*jpg``).
@@ -67,6 +68,7 @@ def write_usid_splat_example(out: str | os.PathLike, *, scene: str = "room", n_t
         output.mkdir(parents=True)
         save_ply(output / "pre.ply", s.pre)
         save_ply(output / "reference.ply", s.background)
+        np.save(output / "target.npy", np.arange(s.background.n, s.pre.n, dtype=np.int64))
         for m in SPLAT_METHODS:
             save_ply(output / f"{m}.ply", make_method(s, m, seed=seed))
         masks = target_masks(s, ctx=ctx, cameras=test)
