@@ -245,3 +245,64 @@ def test_lifted_target_from_masks_of_some_cameras(example, tmp_path):
     idx = set(np.load(example / "output" / "room" / "target.npy").tolist())
     assert rec["source"] == "masks" and rec["lifted_from"] and 0.5 * len(idx) < rec["gaussians"] < 2 * len(idx)
     assert doc["scenes"]["room"]["hole"]["means"]["masked_psnr"]["n"] >= 1
+
+
+def _orbit_args(root, out, *extra):
+    o = f"{root}/output/{{scene}}"
+    return ["inpaint", "360usid", str(root / "data"), f"hole={o}/hole.ply", "--pre", f"{o}/pre.ply",
+            "--target", f"{o}/target.npy", "--reference", f"{o}/reference.ply", "--quiet", "--out", str(out), *extra]
+
+
+def test_orbit_against_the_reference_reconstruction(example, tmp_path):
+    """--orbit: at the orbit poses of score --orbit, the method's render scored against the reference's
+    render equals rendering both with r360gpu and scoring them (1e-6); its own table, marked."""
+    from r360gpu.io.inpaint_folders import usid_scenes
+    from r360gpu.pipeline.inpaint_target import scene_bundle
+    from r360gpu.pipeline.orbit import orbit_bundle
+
+    out = tmp_path / "out"
+    assert main(_orbit_args(example, out, "--orbit", "6")) == 0
+    doc = _doc(out)
+    o = doc["orbit"]["room"]
+    assert o["against"] == "against the reference reconstruction, not photographs" and o["requested"] == 6
+    assert o["kept"] >= 2 and o["kept"] + sum(o["dropped"].values()) == 6
+    assert "against the reference reconstruction, not photographs" in (out / "tables.md").read_text()
+    assert "inpaint_orbit" in (out / "tables.tex").read_text()
+    scene = usid_scenes(example / "data", [f"hole={example}/output/{{scene}}/hole.ply"])[0]
+    o_ = f"{example}/output/{{scene}}"
+    bundle = scene_bundle(scene, f"{o_}/pre.ply", f"{o_}/target.npy", None, reference=f"{o_}/reference.ply",
+                          methods={"hole": f"{o_}/hole.ply"})
+    orbit, _ = orbit_bundle(bundle, 6)
+    cams = [orbit.cameras[v] for v in orbit.views]
+    views = o["methods"]["hole"]["views"]
+    assert [v["view"] for v in views] == [c.name for c in cams]
+    ref, hole = (SceneSource(str(example / "output" / "room" / f"{n}.ply")) for n in ("reference", "hole"))
+    try:
+        for c, v in zip(cams, views):
+            want = score_views(c.name, ref.images(c.name, c).rgb, [hole.images(c.name, c).rgb],
+                               [orbit.masks[c.name].astype(np.float64)])[0]
+            for name, _ in METRICS:
+                got, exp = v[name], getattr(want, name)
+                assert (got is None and exp is None) or abs(got - exp) <= TOL, (c.name, name)
+    finally:
+        ref.release()
+        hole.release()
+    assert doc["scenes"]["room"]["hole"]["means"]["psnr"]["n"] == 3  # the photographs' table is unchanged
+
+
+def test_orbit_hostile_and_renders_only(example, tmp_path, capsys):
+    no_ref = _orbit_args(example, tmp_path / "a", "--orbit", "4")
+    i = no_ref.index("--reference")
+    _fails(capsys, no_ref[:i] + no_ref[i + 2:], "--orbit needs --reference")
+    bad = _orbit_args(example, tmp_path / "a", "--orbit", "4")
+    bad[bad.index("--reference") + 1] = str(tmp_path / "none.ply")
+    _fails(capsys, bad, tmp_path / "none.ply")
+    assert not (tmp_path / "a").exists()
+    renders = tmp_path / "r" / "room" / "renders"
+    renders.mkdir(parents=True)
+    for p in natsorted_glob(example / "data" / "room" / "test_images", "jpg"):
+        shutil.copy(p, renders / (p.stem + ".png"))
+    args = _orbit_args(example, tmp_path / "b", "--orbit", "4")
+    args.insert(4, f"photos={tmp_path / 'r'}")
+    assert main(args) == 0
+    assert _doc(tmp_path / "b")["orbit"]["room"]["no_orbit"] == {"photos": "no orbit (renderings only)"}

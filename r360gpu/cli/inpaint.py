@@ -37,6 +37,11 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--target", metavar="TARGET",
                    help="the object on pre's Gaussians, as scene.toml's [target]: FILE.npy / FILE.ply (indices), "
                         "box:X0,Y0,Z0,X1,Y1,Z1, or masks:FOLDER (<image stem>.png masks of some cameras, lifted)")
+    p.add_argument("--orbit", type=_positive_int, default=0, metavar="N",
+                   help="also score the splat methods at N orbit poses around the target (as score --orbit) "
+                        "against the renders of --reference, in a table of their own (needs --pre and --target)")
+    p.add_argument("--reference", metavar="SPLAT",
+                   help="the reconstruction of the scene without the object ({scene} allowed), for --orbit")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -100,7 +105,8 @@ def run(args) -> int:
     out = check_output_folder(args.out)
     mode = "compat" if args.compat else "default"
     inputs = {"data": args.data, "methods": dict(m.partition("=")[::2] for m in args.methods), "masks": args.masks,
-              "cameras": args.cameras, "frame": args.frame, "pre": args.pre, "target": args.target}
+              "cameras": args.cameras, "frame": args.frame, "pre": args.pre, "target": args.target,
+              "orbit": args.orbit, "reference": args.reference}
     with collecting() as log:
         if args.protocol == "360usid":
             scenes = usid_scenes(args.data, args.methods, masks=args.masks, cameras=args.cameras,
@@ -110,7 +116,8 @@ def run(args) -> int:
                                      n_test=args.n_test, cameras=args.cameras, need_cameras=args.pre is not None)
             inputs.update(factor=args.factor, n_test=args.n_test)
         run_ = score_scenes(scenes, protocol=args.protocol, mode=mode, show_progress=not args.quiet,
-                            frame=args.frame, pre=args.pre, target=args.target)
+                            frame=args.frame, pre=args.pre, target=args.target, orbit=args.orbit,
+                            reference=args.reference)
         records = log.records()
     name = PROTOCOLS[args.protocol]
     for scene in scenes:
@@ -120,7 +127,13 @@ def run(args) -> int:
                 print("\n".join(tables.script_lines(r)))
         print("====================================")
     doc = results_document(run_, inputs, records)
-    tabs = tables.tables(run_.results, run_.methods, name, mode)
+    orbit = None
+    if run_.orbits:
+        from ..pipeline.inpaint_orbit import AGAINST_REFERENCE
+
+        orbit = tables.orbit_table([r for o in run_.orbits.values() for r in o.results],
+                                   {s: o.info.get("kept", 0) for s, o in run_.orbits.items()}, AGAINST_REFERENCE)
+    tabs = tables.tables(run_.results, run_.methods, name, mode, orbit)
     notes = (doc["differs_from_script"] or [doc["mode_note"]]) + [
         f"{s}: masked metrics of the methods without masks use the {r['note']} ({r['source']}: {r['gaussians']} of "
         f"{r['of']} Gaussians of {r['pre']})" for s, r in doc["lifted_targets"].items()]
@@ -132,7 +145,7 @@ def run(args) -> int:
         write_text(files["tables.tex"], tables.latex(tabs))
         write_text(files["report.html"], tables.html_page(tabs, f"{name}: inpainting quality", notes,
                                                           [format_record(r) for r in records]))
-    sys.stdout.write(tables.markdown(tabs[:1]))
+    sys.stdout.write(tables.markdown(tabs[:1] + ([orbit] if orbit is not None else [])))
     print(f"{sum(len(s.photos) for s in scenes)} views x {len(run_.methods)} method(s) in {run_.seconds:.1f} s; "
           f"wrote {out / 'report.html'}, results.json, results.csv, tables.md, tables.tex")
     return 0

@@ -10,6 +10,8 @@ and summarises each (scene, method).  `results_document` is the ``results.json``
              path, frame, ...) with the test cameras' file}},
     lifted_targets {SCENE: {source, target, pre, gaussians, of, lifted_from, note}}: where masks were
              lifted (`r360gpu.pipeline.inpaint_target`); such a method's ``masks`` starts "lifted target",
+    orbit    {SCENE: {against, requested, kept, dropped, no_orbit, methods {METHOD: as in scenes}}}: the
+             metrics at orbit poses against the reference reconstruction (`r360gpu.pipeline.inpaint_orbit`),
     scenes   {SCENE: {METHOD: {scene, method, n_views, masks, means {METRIC: {mean, n, n_infinite,
              n_missing, reason}}, views [{view, psnr, ssim, masked_psnr, masked_ssim, mask_pixels,
              reasons}]}}},
@@ -34,6 +36,7 @@ from ..metrics.inpainting import (METRICS, MODES, InpaintScene, overall_means, s
                                   summarise)
 from ..protocol import INPAINT_SCHEMA
 from ..render.sources import SceneSource
+from .inpaint_orbit import OrbitScene, score_orbit
 from .inpaint_target import LIFTED_NOTE, LiftedMasks, lifted_masks
 from ..util.progress import progress
 from ..util.warning_log import warn, where
@@ -65,6 +68,7 @@ class InpaintRun:
     seconds: float
     sources: dict[str, dict[str, dict]] = field(default_factory=dict)
     targets: dict[str, dict] = field(default_factory=dict)
+    orbits: dict[str, OrbitScene] = field(default_factory=dict)
 
     @property
     def methods(self) -> list[str]:
@@ -119,21 +123,28 @@ def open_scenes(scene: SceneFiles, frame: str | None) -> dict[str, SceneSource]:
 
 
 def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "default", show_progress: bool = True,
-                 frame: str | None = None, pre: str | None = None, target: str | None = None) -> InpaintRun:
+                 frame: str | None = None, pre: str | None = None, target: str | None = None, orbit: int = 0,
+                 reference: str | None = None) -> InpaintRun:
     """Score every view of every scene and method; an unreadable or mismatched file is an InputError
     naming it, raised before anything is written.  A method given as a splat scene is rendered at the
     scene's test cameras (in compat mode saved to 8 bits first, as the benchmark's renders are);
     ``frame``: the world frame of those scenes (``score``'s ``--frame``).  ``pre`` and ``target``
     (``--pre``, ``--target``): the object's masks for the methods without any, lifted onto pre's
-    Gaussians and rendered at the test cameras (`r360gpu.pipeline.inpaint_target`)."""
+    Gaussians and rendered at the test cameras (`r360gpu.pipeline.inpaint_target`).  ``orbit`` > 0 with
+    ``reference``: the splat methods also scored at that many orbit poses against the reference
+    reconstruction's renders (`r360gpu.pipeline.inpaint_orbit`)."""
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if (pre is None) != (target is None):
         raise InputError("--pre and --target go together: the target is lifted onto pre's Gaussians")
+    if orbit and (reference is None or pre is None):
+        raise InputError("--orbit needs --reference (the scene without the object, as splats) and --pre with "
+                         "--target (the orbit circles the target)")
     t0 = time.perf_counter()
     results: list[InpaintScene] = []
     sources: dict[str, dict[str, dict]] = {}
     targets: dict[str, dict] = {}
+    orbits: dict[str, OrbitScene] = {}
     for scene in scenes:
         lifted = None
         if pre is not None and any(m.masks is None for m in scene.methods):
@@ -151,8 +162,11 @@ def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "defaul
             masks = (str(m.mask_folder) if m.mask_folder is not None else
                      f"{LIFTED_NOTE} ({lifted.record['source']})" if lifted is not None else None)
             results.append(summarise(scene.name, m.name, per_method[m.name], mode=mode, masks=masks))
+        if orbit:
+            orbits[scene.name] = score_orbit(scene, orbit, pre=pre, target=target, reference=reference, frame=frame,
+                                             mode=mode, quantise=quantised)
     _warn_mixed_masks(scenes)
-    return InpaintRun(protocol, mode, scenes, results, time.perf_counter() - t0, sources, targets)
+    return InpaintRun(protocol, mode, scenes, results, time.perf_counter() - t0, sources, targets, orbits)
 
 
 def _describe(m: MethodFiles, source: SceneSource | None, scene: SceneFiles) -> dict:
@@ -228,6 +242,7 @@ def results_document(run: InpaintRun, inputs: dict, warnings: list[dict]) -> dic
         "methods": run.methods,
         "sources": run.sources,
         "lifted_targets": run.targets,
+        "orbit": {name: json_values.enc_tree(o.to_dict()) for name, o in run.orbits.items()},
         "scenes": scenes,
         "overall": {m: json_values.enc_tree(overall_means(run.results, m)) for m in run.methods},
         "warnings": warnings,

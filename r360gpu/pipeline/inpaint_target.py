@@ -18,15 +18,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 
+from ..bundle.model import Bundle, SourceSpec
 from ..bundle.target import TargetSpec
 from ..errors import InputError
 from ..io.box import Box
 from ..io.inpaint_folders import SceneFiles
-from ..io.load import load_cameras
+from ..io.load import latest_inria_iteration, load_cameras
 from ..io.masks import mask_size
 from ..io.photo_cameras import ASPECT_TOLERANCE
 from ..lift.masks import TargetMaskRenderer
@@ -91,22 +91,40 @@ def _mask_views(folder: Path, camera_set: Path) -> tuple[dict, dict]:
     return out_c, out_m
 
 
-def lifted_masks(scene: SceneFiles, pre: str, target: str, frame: str | None) -> LiftedMasks:
-    """The lifted target's masks at ``scene``'s test cameras; ``pre`` the splat template ({scene} allowed),
-    ``target`` the ``--target`` value, ``frame`` pre's world frame as ``--frame`` names it."""
+def scene_bundle(scene: SceneFiles, pre: str, target: str, frame: str | None, *, reference: str | None = None,
+                 methods: dict[str, Path] | None = None) -> Bundle:
+    """A `Bundle` of ``scene``'s test views (the cameras of its photographs) with pre, the target as
+    ``--target`` gives it, and the reference and methods' splat files (paths with {scene} filled), each
+    in the world frame ``frame`` names: what lifting and the orbit read."""
     from ..io.frames import resolve_frame
 
     if scene.cameras is None:
-        raise InputError(f"scene {scene.name}: lifted target masks need the test cameras (sparse/0 or --cameras)",
+        raise InputError(f"scene {scene.name}: the lifted target needs the test cameras (sparse/0 or --cameras)",
                          scene.folder)
     kind, value = parse_target(target)
     spec = _spec(kind, value, scene.name)
-    pre_path = Path(pre.replace("{scene}", scene.name))
     cams, masks = _mask_views(spec.masks, scene.camera_set) if kind == "masks" else ({}, {})
-    src = SceneSource(str(pre_path), frame=resolve_frame(frame, scene=pre_path, cameras=scene.camera_set))
+
+    def source(path) -> SourceSpec:
+        path = Path(str(path).replace("{scene}", scene.name))
+        if path.is_dir():
+            path = latest_inria_iteration(path)
+        if not path.is_file():
+            raise InputError("no splat scene here", path)
+        return SourceSpec("scene", path, frame=resolve_frame(frame, scene=path, cameras=scene.camera_set))
+
+    test = {c.name: c for c in scene.cameras}
+    return Bundle(root=scene.folder, name=scene.name, prompt="", views=list(test), cameras={**cams, **test},
+                  masks=masks, pre=source(pre), reference=None if reference is None else source(reference),
+                  methods={m: source(p) for m, p in (methods or {}).items()}, layout="objects", target=spec)
+
+
+def lifted_masks(scene: SceneFiles, pre: str, target: str, frame: str | None) -> LiftedMasks:
+    """The lifted target's masks at ``scene``'s test cameras; ``pre`` the splat template ({scene} allowed),
+    ``target`` the ``--target`` value, ``frame`` pre's world frame as ``--frame`` names it."""
+    bundle = scene_bundle(scene, pre, target, frame)
+    src = SceneSource(str(bundle.pre.path), frame=bundle.pre.frame)
     try:
-        bundle = SimpleNamespace(target=spec, cameras=cams, masks=masks, name=scene.name, config=None,
-                                 root=scene.folder)
         lifted, _ = lifted_target(bundle, src.gaussians, ctx=src.renderer.ctx, options=src.render_options,
                                   frame=src.frame, warn=warn)
         r = TargetMaskRenderer(src.gaussians, lifted.target, ctx=src.renderer.ctx, options=src.render_options,
@@ -117,6 +135,7 @@ def lifted_masks(scene: SceneFiles, pre: str, target: str, frame: str | None) ->
             r.release()
     finally:
         src.release()
-    record = {"source": lifted.source, "target": target, "pre": str(pre_path), "gaussians": int(lifted.target.sum()),
-              "of": int(src.gaussians.n), "lifted_from": list(lifted.views), "note": LIFTED_NOTE}
+    record = {"source": lifted.source, "target": target, "pre": str(bundle.pre.path),
+              "gaussians": int(lifted.target.sum()), "of": int(src.gaussians.n), "lifted_from": list(lifted.views),
+              "note": LIFTED_NOTE}
     return LiftedMasks(out, record)
