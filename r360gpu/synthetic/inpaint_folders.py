@@ -133,18 +133,28 @@ def write_inpaint_example(out: str | os.PathLike, *, n_scenes: int = 2, n_views:
     if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not (out / MARKER).is_file())):
         raise InputError("exists and is not an example folder written by r360gpu (no "
                          f"{MARKER}); give a new folder", out)
-    tmp = out.with_name(out.name + ".r360-tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    try:
+
+    def write(tmp: Path) -> None:
         scenes = list(SCENES[:n_scenes])
         _usid(tmp / "360usid", scenes, n_views, height, width, seed)
         _spinnerf(tmp / "spinnerf", scenes, n_views, n_train, height, width, seed)
         (tmp / MARKER).write_text(json.dumps({"n_scenes": n_scenes, "n_views": n_views, "width": width,
                                               "height": height, "seed": seed, "n_train": n_train}) + "\n")
+
+    written_in_place(out, write)
+    return {"360usid": out / "360usid", "spinnerf": out / "spinnerf"}
+
+
+def written_in_place(out: Path, write) -> None:
+    """``write(folder)`` into a folder beside ``out``, then renamed into it (replacing an earlier ``out``), so
+    that ``out`` is never half-written; the folder is removed when ``write`` fails."""
+    tmp = out.with_name(out.name + ".r360-tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        write(tmp)
         if out.exists():
             shutil.rmtree(out)
         tmp.rename(out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return {"360usid": out / "360usid", "spinnerf": out / "spinnerf"}

@@ -17,8 +17,8 @@ ones, as in 360-USID.  The photographs are JPEGs (the script globs ``test_images
 """
 from __future__ import annotations
 
+import json
 import os
-import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -28,8 +28,7 @@ from ..errors import InputError
 from ..io import save_colmap, save_ply
 from ..render.sources import SceneSource
 from .bundle import encode_mask, make_method, make_scene
-from .inpaint_folders import MARKER as FOLDERS_MARKER
-from .inpaint_folders import save_image
+from .inpaint_folders import save_image, written_in_place
 from .masks import target_masks
 
 #: Marker of a folder written here (a folder holding it may be replaced).
@@ -44,18 +43,16 @@ def write_usid_splat_example(out: str | os.PathLike, *, scene: str = "room", n_t
     """Write the layout of the module docstring under ``out`` (replacing an earlier one); returns ``out``."""
     out = Path(out)
     if n_test < 1 or n_train < 0:
-        raise InputError(f"the example needs at least one test view, got n_test={n_test}")
-    if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not (out / MARKER).is_file()
-                                             and not (out / FOLDERS_MARKER).is_file())):
+        raise InputError(f"the example needs n_test >= 1 and n_train >= 0, got {n_test} and {n_train}")
+    if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not (out / MARKER).is_file())):
         raise InputError(f"exists and is not an example folder written by r360gpu (no {MARKER}); give a new folder",
                          out)
     s = make_scene(scene, seed=seed, n_views=n_test + n_train, width=width, height=height, detail=detail)
     cams = [replace(c, name=f"IMG_{i}.jpg") for i, c in enumerate(s.cameras)]
     test = cams[::2][:n_test]
     train = [c for c in cams if c not in test]
-    tmp = out.with_name(out.name + ".r360-tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    try:
+
+    def write(tmp: Path) -> None:
         data, output = tmp / "data" / s.name, tmp / "output" / s.name
         save_colmap(data / "sparse" / "0", cams)
         for folder, g, views in (("test_images", s.background, test), ("images", s.pre, train)):
@@ -75,12 +72,8 @@ def write_usid_splat_example(out: str | os.PathLike, *, scene: str = "room", n_t
         (output / "object_mask").mkdir()
         for k, c in enumerate(test):
             (output / "object_mask" / f"{k:05d}.png").write_bytes(encode_mask(np.asarray(masks[c.name])))
-        (tmp / MARKER).write_text(f'{{"scene": "{s.name}", "n_test": {n_test}, "n_train": {n_train}, '
-                                  f'"width": {width}, "height": {height}, "seed": {seed}}}\n')
-        if out.exists():
-            shutil.rmtree(out)
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+        (tmp / MARKER).write_text(json.dumps({"scene": s.name, "n_test": n_test, "n_train": n_train,
+                                              "width": width, "height": height, "seed": seed}) + "\n")
+
+    written_in_place(out, write)
     return out
