@@ -306,3 +306,44 @@ def test_orbit_hostile_and_renders_only(example, tmp_path, capsys):
     args.insert(4, f"photos={tmp_path / 'r'}")
     assert main(args) == 0
     assert _doc(tmp_path / "b")["orbit"]["room"]["no_orbit"] == {"photos": "no orbit (renderings only)"}
+
+
+def _llff_scene(example, root):
+    """A SPIn-NeRF scene with LLFF's poses_bounds.npy (rows: the images in sorted order) and no COLMAP model."""
+    from r360gpu.io import load_cameras
+
+    scene = root / "room"
+    shutil.copytree(example / "data" / "room" / "test_images", scene / "images")
+    cams = {c.name: c for c in load_cameras(example / "data" / "room")}
+    rows = []
+    for p in sorted((scene / "images").iterdir()):
+        c = cams[p.name]
+        m = c.camera_to_world
+        cols = [m[:3, 1], m[:3, 0], -m[:3, 2], m[:3, 3], [c.height, c.width, c.fx]]  # down, right, back, centre, hwf
+        rows.append(np.concatenate([np.stack(cols, 1).reshape(-1), [0.1, 10.0]]))
+    np.save(scene / "poses_bounds.npy", np.array(rows))
+    return scene
+
+
+def test_spinnerf_llff_poses_bounds(example, tmp_path, capsys):
+    """Without sparse/0, LLFF's poses_bounds.npy places the test cameras: the same values as the COLMAP model."""
+    scene = _llff_scene(example, tmp_path / "spin")
+    masks = tmp_path / "m"
+    masks.mkdir()
+    for k, p in enumerate(natsorted_glob(scene / "images", "jpg")):
+        shutil.copy(example / "output" / "room" / "object_mask" / f"{k:05d}.png", masks / f"{p.stem}.png")
+    args = ["inpaint", "spinnerf", str(scene), f"hole={example}/output/room/hole.ply", "--n-test", "3", "--masks",
+            str(masks), "--quiet"]
+    assert main([*args, "--out", str(tmp_path / "s")]) == 0
+    assert main(_args(example, tmp_path / "u", methods=("hole",))) == 0
+    s, u = _doc(tmp_path / "s")["scenes"]["room"]["hole"], _doc(tmp_path / "u")["scenes"]["room"]["hole"]
+    assert _doc(tmp_path / "s")["sources"]["room"]["hole"]["cameras"] == str(scene)
+    for a, b in zip(s["views"], u["views"]):
+        for name, _ in METRICS:
+            assert a[name] == pytest.approx(b[name], abs=TOL, nan_ok=True), name
+    pb = scene / "poses_bounds.npy"
+    np.save(pb, np.load(pb)[:2])
+    _fails(capsys, [*args, "--out", str(tmp_path / "x")], pb, "2 poses but 3 images")
+    np.save(pb, np.zeros((3, 15)))
+    _fails(capsys, [*args, "--out", str(tmp_path / "x")], pb, "(N, 17)")
+    assert not (tmp_path / "x").exists()

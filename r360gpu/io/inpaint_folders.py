@@ -206,17 +206,19 @@ def _splat_method(name: str, path: Path, masks: list[Path] | None, mask_dir: Pat
 
 def _with_cameras(scene: SceneFiles, cameras: str | None, several: bool, need: bool = False) -> SceneFiles:
     """The scene with its test cameras when a method is a splat scene (or ``need``): from ``cameras``
-    ({scene} allowed) or the scene folder's own COLMAP model (``sparse/0``)."""
+    ({scene} allowed) or the scene folder's own COLMAP model (``sparse/0``), else its LLFF
+    ``poses_bounds.npy``."""
     if not need and not any(m.scene is not None for m in scene.methods):
         return scene
-    from .photo_cameras import photo_cameras
+    from .photo_cameras import POSES_BOUNDS, photo_cameras
 
     where = _scene_folder(cameras, scene.name, several) if cameras is not None else scene.folder
-    if cameras is None and not any((scene.folder / d).is_dir() for d in ("sparse/0", "sparse")):
+    if cameras is None and not any((scene.folder / d).is_dir() for d in ("sparse/0", "sparse")) \
+            and not (scene.folder / POSES_BOUNDS).is_file():
         splats = ", ".join(m.name for m in scene.methods if m.scene is not None)
         why = f"method(s) {splats} are splat scenes, rendered" if splats else "the lifted target is rendered"
-        raise InputError(f"{why} at the test cameras, but the scene has no COLMAP model (sparse/0); give its "
-                         f"cameras with --cameras", scene.folder)
+        raise InputError(f"{why} at the test cameras, but the scene has no COLMAP model (sparse/0) or "
+                         f"{POSES_BOUNDS}; give its cameras with --cameras", scene.folder)
     scene.cameras = photo_cameras(scene.photos, where)
     scene.camera_set = where
     return scene
