@@ -1,11 +1,14 @@
 """``r360gpu inpaint``: the inpainting-quality benchmarks (360-USID / AuraFusion360, SPIn-NeRF) on their folders.
 
 ``inpaint 360usid DATA METHOD=FOLDER ... --out DIR`` and ``inpaint spinnerf ...`` score renders
-made elsewhere (or splat scenes, rendered here at the test cameras) against the benchmark's photographs (PSNR, SSIM, masked PSNR, masked SSIM as the
-benchmark defines them, `r360gpu.metrics.inpainting`); ``--compat`` gives the script's own
-numbers.  ``inpaint example DIR`` writes a small folder in each layout to try it on.  Outputs:
-``results.json`` (`r360gpu.pipeline.inpaint`), ``results.csv`` (one row per view),
-``tables.md``, ``tables.tex`` and ``report.html``, written together once every view is scored.
+made elsewhere (or splat scenes, rendered here at the test cameras) against the benchmark's
+photographs (PSNR, SSIM, masked PSNR, masked SSIM as the benchmark defines them,
+`r360gpu.metrics.inpainting`); ``--compat`` gives the script's own numbers.  ``--pre`` with
+``--target`` gives masks (the lifted target's) to methods without any; ``--orbit N`` with
+``--reference`` also scores the splat methods at orbit poses against the reference reconstruction
+(`r360gpu.pipeline.inpaint_orbit`).  ``inpaint example DIR`` writes a small folder in each layout to
+try it on.  Outputs: ``results.json`` (`r360gpu.pipeline.inpaint`), ``results.csv`` (one row per
+view), ``tables.md``, ``tables.tex`` and ``report.html``, written together once every view is scored.
 """
 from __future__ import annotations
 

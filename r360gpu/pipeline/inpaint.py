@@ -36,7 +36,7 @@ from ..metrics.inpainting import (METRICS, MODES, InpaintScene, overall_means, s
                                   summarise)
 from ..protocol import INPAINT_SCHEMA
 from ..render.sources import SceneSource
-from .inpaint_orbit import OrbitScene, score_orbit
+from .inpaint_orbit import OrbitScene, orbit_scores
 from .inpaint_target import LIFTED_NOTE, LiftedMasks, lifted_masks
 from ..util.progress import progress
 from ..util.warning_log import warn, where
@@ -163,8 +163,8 @@ def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "defaul
                      f"{LIFTED_NOTE} ({lifted.record['source']})" if lifted is not None else None)
             results.append(summarise(scene.name, m.name, per_method[m.name], mode=mode, masks=masks))
         if orbit:
-            orbits[scene.name] = score_orbit(scene, orbit, pre=pre, target=target, reference=reference, frame=frame,
-                                             mode=mode, quantise=quantised)
+            orbits[scene.name] = orbit_scores(scene, orbit, pre=pre, target=target, reference=reference, frame=frame,
+                                              mode=mode, quantise=quantised)
     _warn_mixed_masks(scenes)
     return InpaintRun(protocol, mode, scenes, results, time.perf_counter() - t0, sources, targets, orbits)
 

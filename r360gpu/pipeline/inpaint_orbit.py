@@ -3,8 +3,8 @@
 No photograph exists away from the captured test views, so there the stand-in for the scene
 without the object is the reference reconstruction (``--reference``, a splat scene of the scene
 without it).  The poses are those of ``score --orbit`` (`r360gpu.pipeline.orbit.orbit_bundle`:
-N cameras around the target lifted onto pre, dropping poses inside geometry or where the target is
-unseen), the masks the target's at each pose.  Every method given as a splat scene is rendered
+N cameras around the target lifted onto pre, placed and checked against the scene's test cameras,
+dropping poses inside geometry or where the target is unseen), the masks the target's at each pose.  Every method given as a splat scene is rendered
 there and scored with the benchmark's PSNR / SSIM / masked PSNR / masked SSIM against the
 reference's render; a method given as renders cannot be rendered there and is listed under
 ``no_orbit``.  The values go in a table of their own, marked "against the reference
@@ -48,7 +48,7 @@ def _render(spec, cams, ctx=None) -> list[np.ndarray]:
         src.release()
 
 
-def score_orbit(scene: SceneFiles, n: int, *, pre: str, target: str, reference: str, frame: str | None,
+def orbit_scores(scene: SceneFiles, n: int, *, pre: str, target: str, reference: str, frame: str | None,
                 mode: str, quantise=None) -> OrbitScene:
     """The orbit of ``scene`` at ``n`` requested poses (see the module docstring).  quantise: applied to
     every render in compat mode (the 8 bits the benchmark's renders are saved with)."""
