@@ -347,3 +347,19 @@ def test_spinnerf_llff_poses_bounds(example, tmp_path, capsys):
     np.save(pb, np.zeros((3, 15)))
     _fails(capsys, [*args, "--out", str(tmp_path / "x")], pb, "(N, 17)")
     assert not (tmp_path / "x").exists()
+
+
+def test_inria_output_folder_as_a_method(example, tmp_path):
+    """METHOD=an INRIA output folder: its highest point_cloud/iteration_* is rendered, as score opens it."""
+    run = tmp_path / "inria" / "room"
+    for it, src in ((7000, "pre"), (30000, "hole")):
+        (run / "point_cloud" / f"iteration_{it}").mkdir(parents=True)
+        shutil.copy(example / "output" / "room" / f"{src}.ply",
+                    run / "point_cloud" / f"iteration_{it}" / "point_cloud.ply")
+    args = ["inpaint", "360usid", str(example / "data"), f"hole={tmp_path}/inria/{{scene}}", "--masks",
+            f"{example}/output/{{scene}}/object_mask", "--quiet", "--out", str(tmp_path / "a")]
+    assert main(args) == 0
+    assert main(_args(example, tmp_path / "b", methods=("hole",))) == 0
+    a, b = _doc(tmp_path / "a"), _doc(tmp_path / "b")
+    assert a["sources"]["room"]["hole"]["path"].endswith("iteration_30000/point_cloud.ply")
+    assert a["scenes"]["room"]["hole"]["views"] == b["scenes"]["room"]["hole"]["views"]
