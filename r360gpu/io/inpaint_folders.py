@@ -16,6 +16,9 @@ evaluation script (SamsungLabs/SPIn-NeRF holds training code only), so the test 
 follows the data release and the later papers that score on it; ``--n-test`` changes it.  Masks
 are taken from ``test_label/`` when the folder has one, else ``label/``, by the photograph's stem.
 
+A method may be a splat scene instead of a folder of renders (`is_splat_method`): it is then
+rendered at the test cameras, matched to the photographs by `r360gpu.io.photo_cameras`.
+
 Images are read as the script reads them: PIL, ``.convert("RGB")``, divided by 255 (float32).
 Mask files are read two ways: `read_mask_script` as PIL and torchvision's ``to_tensor``
 make them (the script's values, compat mode), `read_mask_binary` by the project's rule
@@ -131,23 +134,32 @@ def read_mask_binary(path: str | os.PathLike, shape: tuple[int, int]) -> np.ndar
 
 @dataclass
 class MethodFiles:
-    """One method's renders of a scene's test views, in view order, and the masks it is scored with."""
+    """One method's renders of a scene's test views, in view order, and the masks it is scored with.
+
+    scene: the method's splat scene when it is given as one (``renders`` is then empty: the scene is
+    rendered at the test cameras, `SceneFiles.cameras`)."""
 
     name: str
     folder: Path
     renders: list[Path]
     masks: list[Path] | None = None
     mask_folder: Path | None = None
+    scene: Path | None = None
 
 
 @dataclass
 class SceneFiles:
-    """A scene's test views (photograph names and files) and each method's files."""
+    """A scene's test views (photograph names and files) and each method's files.
+
+    cameras: one camera per photograph (`r360gpu.io.photo_cameras`) when a method is a splat
+    scene, read from ``camera_set``; None otherwise."""
 
     name: str
     folder: Path
     photos: list[Path]
     methods: list[MethodFiles] = field(default_factory=list)
+    cameras: list | None = None
+    camera_set: Path | None = None
 
     @property
     def views(self) -> list[str]:
@@ -167,6 +179,49 @@ def _scene_folder(template: str, scene: str, several: bool) -> Path:
     if "{scene}" in template:
         return Path(template.replace("{scene}", scene))
     return Path(template) / scene if several else Path(template)
+
+
+def is_splat_method(path: Path) -> bool:
+    """Whether a method's path is a splat scene (a file, or an INRIA output folder without ``renders/``)
+    rather than a folder of renders."""
+    return path.is_file() or (path.is_dir() and (path / "point_cloud").is_dir() and not (path / "renders").is_dir())
+
+
+def _method_path(template: str, name: str, scene: str, several: bool, n_scenes: int) -> Path:
+    """A method's path in a scene; a splat file named without ``{scene}`` serves a lone scene as it is."""
+    if "{scene}" not in template and is_splat_method(Path(template)):
+        if n_scenes > 1:
+            raise InputError(f"method {name!r} is one splat scene for {n_scenes} scenes; name one per scene "
+                             f"with {{scene}} in its path", template)
+        return Path(template)
+    return _scene_folder(template, scene, several)
+
+
+def _splat_method(name: str, path: Path, masks: list[Path] | None, mask_dir: Path | None) -> MethodFiles:
+    from .load import latest_inria_iteration
+
+    scene = latest_inria_iteration(path) if path.is_dir() else path
+    return MethodFiles(name, path, [], masks, mask_dir, scene=scene)
+
+
+def _with_cameras(scene: SceneFiles, cameras: str | None, several: bool, need: bool = False) -> SceneFiles:
+    """The scene with its test cameras when a method is a splat scene (or ``need``): from ``cameras``
+    ({scene} allowed) or the scene folder's own COLMAP model (``sparse/0``), else its LLFF
+    ``poses_bounds.npy``."""
+    if not need and not any(m.scene is not None for m in scene.methods):
+        return scene
+    from .photo_cameras import POSES_BOUNDS, photo_cameras
+
+    where = _scene_folder(cameras, scene.name, several) if cameras is not None else scene.folder
+    if cameras is None and not any((scene.folder / d).is_dir() for d in ("sparse/0", "sparse")) \
+            and not (scene.folder / POSES_BOUNDS).is_file():
+        splats = ", ".join(m.name for m in scene.methods if m.scene is not None)
+        why = f"method(s) {splats} are splat scenes, rendered" if splats else "the lifted target is rendered"
+        raise InputError(f"{why} at the test cameras, but the scene has no COLMAP model (sparse/0) or "
+                         f"{POSES_BOUNDS}; give its cameras with --cameras", scene.folder)
+    scene.cameras = photo_cameras(scene.photos, where)
+    scene.camera_set = where
+    return scene
 
 
 def _need_dir(path: Path, what: str) -> Path:
@@ -191,13 +246,17 @@ def _count_check(scene: str, photos: list[Path], photo_dir: Path, files: list[Pa
                          f"(files are paired by sorted position, so the counts must agree)", folder)
 
 
-def usid_scenes(data: str | os.PathLike, methods: list[str], *, masks: str | None = None) -> list[SceneFiles]:
+def usid_scenes(data: str | os.PathLike, methods: list[str], *, masks: str | None = None,
+                cameras: str | None = None, need_cameras: bool = False) -> list[SceneFiles]:
     """The 360-USID scenes under ``data`` (a scene folder, or a folder of them) with each method's files.
 
     methods: ``NAME=FOLDER`` each, FOLDER holding ``renders/`` (and possibly ``object_mask/``), with
     ``{scene}`` standing for the scene's name, or, when several scenes are scored, holding one such
     folder per scene.  masks: a folder of ``*.png`` masks (``{scene}`` allowed) used for every method;
-    without it a method's own ``object_mask/`` is used when it has one.
+    without it a method's own ``object_mask/`` is used when it has one.  A FOLDER that is a splat scene
+    (`is_splat_method`) is rendered at the test cameras: those of ``cameras`` ({scene} allowed), by
+    default the scene's ``sparse/0``, matched to the photographs by name (also without a splat method
+    when ``need_cameras``).
     """
     dirs = _scene_dirs(Path(data), "test_images", "360-USID")
     several = len(dirs) > 1 or not (Path(data) / "test_images").is_dir()
@@ -211,29 +270,37 @@ def usid_scenes(data: str | os.PathLike, methods: list[str], *, masks: str | Non
             raise InputError("no *jpg photographs (the script globs test_images/*jpg)", photo_dir)
         scene = SceneFiles(d.name, d, photos)
         for name, template in parsed:
-            folder = _need_dir(_scene_folder(template, d.name, several), f"method {name!r} output")
-            render_dir = _need_dir(folder / "renders", f"method {name!r} renders/")
-            renders = natsorted_glob(render_dir, "png")
-            _count_check(d.name, photos, photo_dir, renders, render_dir, "renders (*png)")
+            path = _method_path(template, name, d.name, several, len(dirs))
+            splat = is_splat_method(path)
+            folder = path if splat else _need_dir(path, f"method {name!r} output")
             mask_dir = (_need_dir(_scene_folder(masks, d.name, several), "--masks") if masks is not None
                         else (folder / "object_mask" if (folder / "object_mask").is_dir() else None))
             mask_files = None
             if mask_dir is not None:
                 mask_files = natsorted_glob(mask_dir, ".png")
                 _count_check(d.name, photos, photo_dir, mask_files, mask_dir, "object masks (*.png)")
+            if splat:
+                scene.methods.append(_splat_method(name, path, mask_files, mask_dir))
+                continue
+            render_dir = _need_dir(folder / "renders", f"method {name!r} renders/")
+            renders = natsorted_glob(render_dir, "png")
+            _count_check(d.name, photos, photo_dir, renders, render_dir, "renders (*png)")
             scene.methods.append(MethodFiles(name, folder, renders, mask_files, mask_dir))
-        out.append(scene)
+        out.append(_with_cameras(scene, cameras, several, need_cameras))
     return out
 
 
 def spinnerf_scenes(data: str | os.PathLike, methods: list[str], *, masks: str | None = None,
-                    factor: int | None = None, n_test: int = SPINNERF_N_TEST) -> list[SceneFiles]:
+                    factor: int | None = None, n_test: int = SPINNERF_N_TEST, cameras: str | None = None,
+                    need_cameras: bool = False) -> list[SceneFiles]:
     """The SPIn-NeRF scenes under ``data`` (a scene folder with ``images/``, or a folder of them).
 
     The test views are the first ``n_test`` photographs of ``images/`` (``images_<factor>/``) in
     natural order.  methods: ``NAME=FOLDER`` as for `usid_scenes`, FOLDER holding the renders
     of the test views in ``renders/`` (or directly), ``*.png`` / ``*.jpg``.  masks: a folder of
     ``<photo stem>.png`` masks; without it ``test_label/`` or ``label/`` beside the photographs.
+    A method given as a splat scene is rendered at the test cameras as in `usid_scenes` (the
+    scene's COLMAP model ``sparse/0`` by default).
     """
     if n_test < 1:
         raise InputError(f"--n-test must be at least 1, got {n_test}")
@@ -262,13 +329,17 @@ def spinnerf_scenes(data: str | os.PathLike, methods: list[str], *, masks: str |
                 if not f.is_file():
                     raise InputError(f"no mask for test view {f.stem} (masks are <photo stem>.png)", f)
         for name, template in parsed:
-            folder = _need_dir(_scene_folder(template, d.name, several), f"method {name!r} output")
+            path = _method_path(template, name, d.name, several, len(dirs))
+            if is_splat_method(path):
+                scene.methods.append(_splat_method(name, path, mask_files, mask_dir))
+                continue
+            folder = _need_dir(path, f"method {name!r} output")
             render_dir = folder / "renders" if (folder / "renders").is_dir() else folder
             renders = sorted((p for p in render_dir.iterdir() if p.is_file() and p.suffix.lower() in (".png", ".jpg")
                               and not p.name.startswith(".")), key=lambda p: natural_key(p.name))
             _count_check(d.name, photos, photo_dir, renders, render_dir, "renders (*.png, *.jpg)")
             scene.methods.append(MethodFiles(name, folder, renders, mask_files, mask_dir))
-        out.append(scene)
+        out.append(_with_cameras(scene, cameras, several, need_cameras))
     return out
 
 

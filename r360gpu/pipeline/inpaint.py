@@ -6,6 +6,12 @@ and summarises each (scene, method).  `results_document` is the ``results.json``
 ``inpaint`` command (schema `r360gpu.protocol.INPAINT_SCHEMA`); its top-level keys::
 
     schema, r360gpu_version, created, protocol, mode, differs_from_script, inputs, methods,
+    sources  {SCENE: {METHOD: {kind: "renders", path} or a rendered scene's description (kind "scene",
+             path, frame, ...) with the test cameras' file}},
+    lifted_targets {SCENE: {source, target, pre, gaussians, of, lifted_from, note}}: where masks were
+             lifted (`r360gpu.pipeline.inpaint_target`); such a method's ``masks`` starts "lifted target",
+    orbit    {SCENE: {against, requested, kept, dropped, no_orbit, methods {METHOD: as in scenes}}}: the
+             metrics at orbit poses against the reference reconstruction (`r360gpu.pipeline.inpaint_orbit`),
     scenes   {SCENE: {METHOD: {scene, method, n_views, masks, means {METRIC: {mean, n, n_infinite,
              n_missing, reason}}, views [{view, psnr, ssim, masked_psnr, masked_ssim, mask_pixels,
              reasons}]}}},
@@ -17,18 +23,21 @@ Non-finite values are written as ``{"__float__": "inf"}`` (`r360gpu.metrics.json
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .. import __version__
 from ..errors import InputError
-from ..io.inpaint_folders import SceneFiles, read_image, read_mask_binary, read_mask_script
+from ..io.inpaint_folders import MethodFiles, SceneFiles, read_image, read_mask_binary, read_mask_script
 from ..metrics import json_values
 from ..metrics.inpainting import (METRICS, MODES, InpaintScene, overall_means, score_views, script_weights,
                                   summarise)
 from ..protocol import INPAINT_SCHEMA
+from ..render.sources import SceneSource
+from .inpaint_orbit import OrbitScene, orbit_scores
+from .inpaint_target import LIFTED_NOTE, LiftedMasks, lifted_masks
 from ..util.progress import progress
 from ..util.warning_log import warn, where
 
@@ -57,6 +66,9 @@ class InpaintRun:
     scenes: list[SceneFiles]
     results: list[InpaintScene]
     seconds: float
+    sources: dict[str, dict[str, dict]] = field(default_factory=dict)
+    targets: dict[str, dict] = field(default_factory=dict)
+    orbits: dict[str, OrbitScene] = field(default_factory=dict)
 
     @property
     def methods(self) -> list[str]:
@@ -84,40 +96,113 @@ def _weights(path: Path, shape: tuple[int, int], mode: str) -> np.ndarray:
     return script_weights(values)
 
 
-def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "default", show_progress: bool = True
-                 ) -> InpaintRun:
+def quantised(rgb: np.ndarray) -> np.ndarray:
+    """A render as the benchmark's pipeline saves it before its script reads it back: torchvision's
+    ``save_image`` (``x * 255 + 0.5`` clamped, truncated to uint8), then / 255 as `read_image` reads it."""
+    q = np.clip(np.asarray(rgb, np.float32) * np.float32(255.0) + np.float32(0.5), 0, 255).astype(np.uint8)
+    return q.astype(np.float32) / np.float32(255.0)
+
+
+def open_scenes(scene: SceneFiles, frame: str | None) -> dict[str, SceneSource]:
+    """A `SceneSource` for each method of ``scene`` given as a splat scene, in the world frame ``frame``
+    names (`r360gpu.io.frames.resolve_frame`, with the scene's test cameras)."""
+    from ..io.frames import resolve_frame
+
+    out = {}
+    try:
+        for m in scene.methods:
+            if m.scene is not None:
+                with where(method=m.name):
+                    out[m.name] = SceneSource(m.scene, frame=resolve_frame(frame, scene=m.scene,
+                                                                           cameras=scene.camera_set))
+    except BaseException:
+        for s in out.values():
+            s.release()
+        raise
+    return out
+
+
+def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "default", show_progress: bool = True,
+                 frame: str | None = None, pre: str | None = None, target: str | None = None, orbit: int = 0,
+                 reference: str | None = None) -> InpaintRun:
     """Score every view of every scene and method; an unreadable or mismatched file is an InputError
-    naming it, raised before anything is written."""
+    naming it, raised before anything is written.  A method given as a splat scene is rendered at the
+    scene's test cameras (in compat mode saved to 8 bits first, as the benchmark's renders are);
+    ``frame``: the world frame of those scenes (``score``'s ``--frame``).  ``pre`` and ``target``
+    (``--pre``, ``--target``): the object's masks for the methods without any, lifted onto pre's
+    Gaussians and rendered at the test cameras (`r360gpu.pipeline.inpaint_target`).  ``orbit`` > 0 with
+    ``reference``: the splat methods also scored at that many orbit poses against the reference
+    reconstruction's renders (`r360gpu.pipeline.inpaint_orbit`)."""
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if (pre is None) != (target is None):
+        raise InputError("--pre and --target go together: the target is lifted onto pre's Gaussians")
+    if orbit and (reference is None or pre is None):
+        raise InputError("--orbit needs --reference (the scene without the object, as splats) and --pre with "
+                         "--target (the orbit circles the target)")
     t0 = time.perf_counter()
     results: list[InpaintScene] = []
+    sources: dict[str, dict[str, dict]] = {}
+    targets: dict[str, dict] = {}
+    orbits: dict[str, OrbitScene] = {}
     for scene in scenes:
-        per_method: dict[str, list] = {m.name: [] for m in scene.methods}
-        items = progress(list(enumerate(scene.photos)), desc=f"{scene.name}", enabled=show_progress)
-        for i, photo_path in items:
-            with where(scene=scene.name, view=photo_path.name):
-                photo = read_image(photo_path, compat=mode == "compat")
-                shape = photo.shape[:2]
-                masks_read: dict[Path, np.ndarray] = {}
-                renders, weights = [], []
-                for m in scene.methods:
-                    with where(method=m.name):
+        lifted = None
+        if pre is not None and any(m.masks is None for m in scene.methods):
+            with where(scene=scene.name):
+                lifted = lifted_masks(scene, pre, target, frame)
+            targets[scene.name] = lifted.record
+        splats = open_scenes(scene, frame)
+        try:
+            per_method = _score_scene(scene, splats, mode, show_progress, lifted)
+        finally:
+            for s in splats.values():
+                s.release()
+        sources[scene.name] = {m.name: _describe(m, splats.get(m.name), scene) for m in scene.methods}
+        for m in scene.methods:
+            masks = (str(m.mask_folder) if m.mask_folder is not None else
+                     f"{LIFTED_NOTE} ({lifted.record['source']})" if lifted is not None else None)
+            results.append(summarise(scene.name, m.name, per_method[m.name], mode=mode, masks=masks))
+        if orbit:
+            orbits[scene.name] = orbit_scores(scene, orbit, pre=pre, target=target, reference=reference, frame=frame,
+                                              mode=mode, quantise=quantised)
+    _warn_mixed_masks(scenes)
+    return InpaintRun(protocol, mode, scenes, results, time.perf_counter() - t0, sources, targets, orbits)
+
+
+def _describe(m: MethodFiles, source: SceneSource | None, scene: SceneFiles) -> dict:
+    if source is None:
+        return {"kind": "renders", "path": str(m.folder)}
+    return {**source.describe(), "cameras": str(scene.camera_set)}
+
+
+def _score_scene(scene: SceneFiles, splats: dict[str, SceneSource], mode: str, show_progress: bool,
+                 lifted: LiftedMasks | None) -> dict[str, list]:
+    per_method: dict[str, list] = {m.name: [] for m in scene.methods}
+    items = progress(list(enumerate(scene.photos)), desc=f"{scene.name}", enabled=show_progress)
+    for i, photo_path in items:
+        with where(scene=scene.name, view=photo_path.name):
+            photo = read_image(photo_path, compat=mode == "compat")
+            shape = photo.shape[:2]
+            masks_read: dict[Path, np.ndarray] = {}
+            renders, weights = [], []
+            for m in scene.methods:
+                with where(method=m.name):
+                    if m.name in splats:
+                        rgb = splats[m.name].images(photo_path.name, scene.cameras[i]).rgb
+                        renders.append(quantised(rgb) if mode == "compat" else rgb)
+                    else:
                         renders.append(read_image(m.renders[i], compat=mode == "compat"))
                         _size_check(renders[-1], shape, m.renders[i], photo_path)
-                        if m.masks is not None and m.masks[i] not in masks_read:
-                            masks_read[m.masks[i]] = _weights(m.masks[i], shape, mode)
-                        weights.append(None if m.masks is None else masks_read[m.masks[i]])
-                recs = score_views(photo_path.name, photo, renders, weights, mode=mode)
-                for m, rec in zip(scene.methods, recs):
-                    with where(method=m.name):
-                        _warn_view(rec, mode, m.masks[i] if m.masks is not None else None)
-                    per_method[m.name].append(rec)
-        for m in scene.methods:
-            results.append(summarise(scene.name, m.name, per_method[m.name], mode=mode,
-                                     masks=None if m.mask_folder is None else str(m.mask_folder)))
-    _warn_mixed_masks(scenes)
-    return InpaintRun(protocol, mode, scenes, results, time.perf_counter() - t0)
+                    if m.masks is not None and m.masks[i] not in masks_read:
+                        masks_read[m.masks[i]] = _weights(m.masks[i], shape, mode)
+                    weights.append(masks_read[m.masks[i]] if m.masks is not None else
+                               lifted.masks[i] if lifted is not None else None)
+            recs = score_views(photo_path.name, photo, renders, weights, mode=mode)
+            for m, rec in zip(scene.methods, recs):
+                with where(method=m.name):
+                    _warn_view(rec, mode, m.masks[i] if m.masks is not None else None)
+                per_method[m.name].append(rec)
+    return per_method
 
 
 def _warn_view(rec, mode: str, mask: Path | None) -> None:
@@ -155,6 +240,9 @@ def results_document(run: InpaintRun, inputs: dict, warnings: list[dict]) -> dic
         "metrics": [name for name, _ in METRICS],
         "inputs": inputs,
         "methods": run.methods,
+        "sources": run.sources,
+        "lifted_targets": run.targets,
+        "orbit": {name: json_values.enc_tree(o.to_dict()) for name, o in run.orbits.items()},
         "scenes": scenes,
         "overall": {m: json_values.enc_tree(overall_means(run.results, m)) for m in run.methods},
         "warnings": warnings,

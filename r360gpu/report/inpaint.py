@@ -54,12 +54,23 @@ def overall_table(results: Sequence[InpaintScene], methods: Sequence[str], proto
                         "the object mask. Higher is better.",))
 
 
-def scene_table(results: Sequence[InpaintScene], protocol_name: str) -> Table:
+def scene_table(results: Sequence[InpaintScene], protocol_name: str, *, key: str = "inpaint_scenes",
+                title: str | None = None, notes: tuple = ()) -> Table:
     rows = [[Cell(r.scene), Cell(r.method)] + [Cell("")] * len(METRICS) for r in results]
     _fill(rows, {name: [r.means[name].mean for r in results] for name, _ in METRICS}, 2, emphasise=False)
     rule = frozenset(i for i in range(1, len(results)) if results[i].scene != results[i - 1].scene)
-    return Table("inpaint_scenes", f"{protocol_name}: per-scene means over the test views",
-                 _header(["scene", "method"]), rows, rule_before=rule, label_columns=2)
+    return Table(key, title or f"{protocol_name}: per-scene means over the test views",
+                 _header(["scene", "method"]), rows, rule_before=rule, label_columns=2, notes=notes)
+
+
+def orbit_table(results: Sequence[InpaintScene], kept: dict[str, int], against: str) -> Table:
+    """The metrics at the orbit poses (``kept[scene]`` poses per scene), marked ``against``."""
+    return scene_table(results, "", key="inpaint_orbit",
+                       title=f"The same metrics at orbit poses, {against}",
+                       notes=("Per scene and method, the mean over the orbit poses kept ("
+                              + ", ".join(f"{s}: {k}" for s, k in kept.items())
+                              + "); the reference reconstruction's render stands for the photograph; masked = "
+                                "inside the lifted target's mask.",))
 
 
 def view_table(result: InpaintScene) -> Table:
@@ -69,9 +80,11 @@ def view_table(result: InpaintScene) -> Table:
     return Table(key, f"{result.scene}, {result.method}: every test view", _header(["view"]), rows)
 
 
-def tables(results: Sequence[InpaintScene], methods: Sequence[str], protocol_name: str, mode: str) -> list[Table]:
+def tables(results: Sequence[InpaintScene], methods: Sequence[str], protocol_name: str, mode: str,
+           orbit: Table | None = None) -> list[Table]:
+    """The overall and per-scene tables (then ``orbit``, when given), then one per-view table each."""
     return [overall_table(results, methods, protocol_name, mode), scene_table(results, protocol_name),
-            *(view_table(r) for r in results)]
+            *([orbit] if orbit is not None else []), *(view_table(r) for r in results)]
 
 
 def markdown(tables_: Sequence[Table]) -> str:
@@ -88,8 +101,9 @@ def html_page(tables_: Sequence[Table], title: str, notes: Sequence[str], warnin
              f"<style>{CSS}</style></head><body><h1>{esc(title)}</h1>"]
     if notes:
         parts.append("<ul>" + "".join(f"<li>{esc(n)}</li>" for n in notes) + "</ul>")
-    parts += [table_html(t) for t in tables_[:2]]
-    for t in tables_[2:]:
+    shown = 3 if len(tables_) > 2 and tables_[2].key == "inpaint_orbit" else 2
+    parts += [table_html(t) for t in tables_[:shown]]
+    for t in tables_[shown:]:
         parts.append(f"<details><summary>{esc(t.title)}</summary>{table_html(t, caption=False)}</details>")
     if warnings:
         parts.append("<h2>Warnings</h2><ul>" + "".join(f"<li>{esc(w)}</li>" for w in warnings) + "</ul>")

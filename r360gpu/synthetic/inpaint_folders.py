@@ -75,7 +75,7 @@ def _render(method: str, photo: np.ndarray, mask: np.ndarray, rng: np.random.Gen
     return np.clip(out, 0.0, 1.0)
 
 
-def _save(path: Path, rgb: np.ndarray) -> None:
+def save_image(path: Path, rgb: np.ndarray) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     bgr = cv2.cvtColor(np.round(rgb * 255.0).astype(np.uint8), cv2.COLOR_RGB2BGR)
     params = [cv2.IMWRITE_JPEG_QUALITY, 95] if path.suffix == ".jpg" else []
@@ -94,10 +94,10 @@ def _usid(root: Path, scenes: list[str], n_views: int, h: int, w: int, seed: int
         rng = np.random.default_rng([seed, 360, k])
         test = root / "output" / scene / "test"
         for i, (photo, mask, _) in enumerate(_views(rng, n_views, h, w)):
-            _save(root / "data" / scene / "test_images" / f"IMG_{i}.jpg", photo)
+            save_image(root / "data" / scene / "test_images" / f"IMG_{i}.jpg", photo)
             _save_mask(test / "ours_30000" / "object_mask" / f"{i:05d}.png", mask)
             for method in METHODS:
-                _save(test / method / "renders" / f"{i:05d}.png", _render(method, photo, mask, rng))
+                save_image(test / method / "renders" / f"{i:05d}.png", _render(method, photo, mask, rng))
                 _save_mask(test / method / "object_mask" / f"{i:05d}.png", mask)
 
 
@@ -107,13 +107,13 @@ def _spinnerf(root: Path, scenes: list[str], n_test: int, n_train: int, h: int, 
         images = root / "data" / scene / "images"
         for i, (photo, mask, colour) in enumerate(_views(rng, n_test + n_train, h, w)):
             if i < n_test:  # a test view: the scene without the object, and the methods' renders of it
-                _save(images / f"IMG_{i}.jpg", photo)
+                save_image(images / f"IMG_{i}.jpg", photo)
                 for method in METHODS:
-                    _save(root / "output" / scene / method / "renders" / f"{i:05d}.png",
+                    save_image(root / "output" / scene / method / "renders" / f"{i:05d}.png",
                           _render(method, photo, mask, rng))
             else:  # a training view: the object is there
                 inside = (mask.astype(np.float32) / 255.0)[:, :, None]
-                _save(images / f"IMG_{i}.jpg", photo * (1 - inside) + colour * inside)
+                save_image(images / f"IMG_{i}.jpg", photo * (1 - inside) + colour * inside)
             _save_mask(images / "label" / f"IMG_{i}.png", (mask > 127).astype(np.uint8))  # 1 = object, as released
 
 
@@ -133,18 +133,28 @@ def write_inpaint_example(out: str | os.PathLike, *, n_scenes: int = 2, n_views:
     if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not (out / MARKER).is_file())):
         raise InputError("exists and is not an example folder written by r360gpu (no "
                          f"{MARKER}); give a new folder", out)
-    tmp = out.with_name(out.name + ".r360-tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    try:
+
+    def write(tmp: Path) -> None:
         scenes = list(SCENES[:n_scenes])
         _usid(tmp / "360usid", scenes, n_views, height, width, seed)
         _spinnerf(tmp / "spinnerf", scenes, n_views, n_train, height, width, seed)
         (tmp / MARKER).write_text(json.dumps({"n_scenes": n_scenes, "n_views": n_views, "width": width,
                                               "height": height, "seed": seed, "n_train": n_train}) + "\n")
+
+    written_in_place(out, write)
+    return {"360usid": out / "360usid", "spinnerf": out / "spinnerf"}
+
+
+def written_in_place(out: Path, write) -> None:
+    """``write(folder)`` into a folder beside ``out``, then renamed into it (replacing an earlier ``out``), so
+    that ``out`` is never half-written; the folder is removed when ``write`` fails."""
+    tmp = out.with_name(out.name + ".r360-tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        write(tmp)
         if out.exists():
             shutil.rmtree(out)
         tmp.rename(out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return {"360usid": out / "360usid", "spinnerf": out / "spinnerf"}
