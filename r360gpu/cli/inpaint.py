@@ -25,6 +25,15 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--masks", metavar="FOLDER", help="object masks used for every method ({scene} allowed)")
     p.add_argument("--compat", action="store_true",
                    help="the benchmark script's numbers exactly (its mask weights, NaN / inf kept in the means)")
+    g = p.add_argument_group("model metrics (ONNX exports, docs/models.md; without one its metrics are not computed)")
+    g.add_argument("--lpips-model", metavar="ONNX", help="plain VGG LPIPS export (lpips.LPIPS(net='vgg')): LPIPS")
+    g.add_argument("--lpips-spatial-model", metavar="ONNX",
+                   help="spatial VGG LPIPS export (lpips.LPIPS(net='vgg', spatial=True)): masked LPIPS")
+    g.add_argument("--inception-model", metavar="ONNX",
+                   help="pytorch-fid Inception export: FID and KID per scene between photographs and renders")
+    g.add_argument("--probe-device", default="auto", metavar="DEVICE", type=str.lower,
+                   help="onnxruntime execution provider of those models: auto (default: a GPU provider the "
+                        "installed onnxruntime has, else cpu), cpu, cuda, tensorrt, webgpu, directml, coreml")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -70,6 +79,39 @@ def run_example(args) -> int:
     return 0
 
 
+def _models(args, photo) -> dict:
+    """The model exports given, opened and checked on images of the size of ``photo`` (a photograph's
+    path): an unloadable file or the wrong kind of export is an InputError naming it, before any view
+    is scored."""
+    given = {k: getattr(args, k) for k in ("lpips_model", "lpips_spatial_model", "inception_model")}
+    if not any(given.values()):
+        return {}
+    from ..io.inpaint_folders import read_image
+    from ..metrics.fidelity import LpipsModel
+    from ..probes.inception import InceptionModel
+    from ..probes.providers import choose
+
+    device = choose(args.probe_device)
+    opened = {}
+    if given["lpips_model"]:
+        opened["lpips"] = LpipsModel(given["lpips_model"], device)
+    if given["lpips_spatial_model"]:
+        opened["lpips_spatial"] = LpipsModel(given["lpips_spatial_model"], device)
+    if given["inception_model"]:
+        opened["inception"] = InceptionModel(given["inception_model"], device)
+    size = read_image(photo).shape[:2] if {"lpips", "lpips_spatial"} & opened.keys() else None
+    for key, spatial in (("lpips", False), ("lpips_spatial", True)):
+        if key in opened:
+            opened[key].require(spatial, size)
+    return opened
+
+
+def _describe(models: dict) -> dict:
+    """results.json ``inputs.models``: each model's file, sha256 and the provider that ran it."""
+    names = {"lpips": "lpips_model", "lpips_spatial": "lpips_spatial_model", "inception": "inception_model"}
+    return {names[k]: m.describe() for k, m in models.items()}
+
+
 def run(args) -> int:
     from ..io.inpaint_folders import spinnerf_scenes, usid_scenes
     from ..pipeline.inpaint import PROTOCOLS, results_document, score_scenes
@@ -88,7 +130,9 @@ def run(args) -> int:
             scenes = spinnerf_scenes(args.data, args.methods, masks=args.masks, factor=args.factor,
                                      n_test=args.n_test)
             inputs.update(factor=args.factor, n_test=args.n_test)
-        run_ = score_scenes(scenes, protocol=args.protocol, mode=mode, show_progress=not args.quiet)
+        models = _models(args, scenes[0].photos[0])
+        inputs["models"] = _describe(models)
+        run_ = score_scenes(scenes, protocol=args.protocol, mode=mode, show_progress=not args.quiet, **models)
         records = log.records()
     name = PROTOCOLS[args.protocol]
     for scene in scenes:
