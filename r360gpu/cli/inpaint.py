@@ -2,8 +2,9 @@
 
 ``inpaint 360usid DATA METHOD=FOLDER ... --out DIR`` and ``inpaint spinnerf ...`` score renders
 made elsewhere against the benchmark's photographs (PSNR, SSIM, masked PSNR, masked SSIM as the
-benchmark defines them, `r360gpu.metrics.inpainting`); ``--compat`` gives the script's own
-numbers.  ``inpaint example DIR`` writes a small folder in each layout to try it on.  Outputs:
+benchmark defines them, `r360gpu.metrics.inpainting`; LPIPS, masked LPIPS, FID and KID with
+``--lpips-model``, ``--lpips-spatial-model`` and ``--inception-model`` ONNX exports); ``--compat``
+gives the script's own numbers.  ``inpaint example DIR`` writes a small folder in each layout to try it on.  Outputs:
 ``results.json`` (`r360gpu.pipeline.inpaint`), ``results.csv`` (one row per view),
 ``tables.md``, ``tables.tex`` and ``report.html``, written together once every view is scored.
 """
@@ -41,7 +42,8 @@ def _common(p: argparse.ArgumentParser) -> None:
 def register(sub) -> None:
     p = sub.add_parser("inpaint", help="score inpainting quality as 360-USID (AuraFusion360) or SPIn-NeRF do",
                        description="Score a method's renders at the benchmark's test views against its photographs "
-                                   "of the scene without the object: PSNR, SSIM, and both inside the object mask, "
+                                   "of the scene without the object: PSNR, SSIM and LPIPS over the whole image and "
+                                   "inside the object mask, and FID/KID, "
                                    "as the benchmark's evaluation defines them (docs/your-scene.md).")
     kinds = p.add_subparsers(dest="protocol", metavar="BENCHMARK", required=True)
     usid = kinds.add_parser("360usid", help="360-USID folders (AuraFusion360's scripts/aura_eval.py)",

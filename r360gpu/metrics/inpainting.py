@@ -19,6 +19,12 @@ evaluation script ``aura_eval.py`` (in its ``scripts`` folder) with the 3DGS hel
 * **masked SSIM** the SSIM above of both images multiplied by the mask weights.  Outside the
   mask both products are 0, where SSIM is 1, so the value grows with the unmasked area; that is
   the benchmark's definition, kept as it is.
+* **LPIPS** the plain VGG export's distance of the render and the photograph, and **masked LPIPS**
+  the spatial VGG export's map weighted by the mask weights, ``sum(map * w) / sum(w)``
+  (`r360gpu.metrics.fidelity.masked_lpips`; NaN for an empty mask, the script's 0 / 0).  The
+  script calls ``lpips`` without ``normalize``, so the [0, 1] images go in as if in [-1, 1].
+* **FID** and **KID** (`SET_METRICS`) belong to a scene's image sets, not to a view: they are
+  fields of `InpaintScene`, computed by `r360gpu.pipeline.inpaint`.
 
 Mask weights are the values the script multiplies by: the mask file as PIL and torchvision's
 ``to_tensor`` read it, then every value above 0.5 set to 1 (`script_weights`); a value in
@@ -33,6 +39,7 @@ values here equal a float32 model of its steps to 1e-4 (tests/test_inpainting_me
 * the mask is binary, any non-zero pixel inside (the project's mask rule, `r360gpu.io.masks`),
   so an anti-aliased or JPEG-noisy edge does not weigh masked SSIM with fractional values;
 * an empty mask gives no masked value (``None`` with the reason), not NaN and not a perfect SSIM of 1;
+* LPIPS gets the images mapped to [-1, 1], as LPIPS is defined (``normalize=True``);
 * a mean over views leaves out infinite PSNRs (identical images) and counts them beside it, as
   `r360gpu.metrics.fidelity.fidelity_summary` does; it is ``inf`` only when every view is.
 """
