@@ -3,12 +3,14 @@
 ``inpaint 360usid DATA METHOD=FOLDER ... --out DIR`` and ``inpaint spinnerf ...`` score renders
 made elsewhere (or splat scenes, rendered here at the test cameras) against the benchmark's
 photographs (PSNR, SSIM, masked PSNR, masked SSIM as the benchmark defines them,
-`r360gpu.metrics.inpainting`); ``--compat`` gives the script's own numbers.  ``--pre`` with
-``--target`` gives masks (the lifted target's) to methods without any; ``--orbit N`` with
-``--reference`` also scores the splat methods at orbit poses against the reference reconstruction
-(`r360gpu.pipeline.inpaint_orbit`).  ``inpaint example DIR`` writes a small folder in each layout to
-try it on.  Outputs: ``results.json`` (`r360gpu.pipeline.inpaint`), ``results.csv`` (one row per
-view), ``tables.md``, ``tables.tex`` and ``report.html``, written together once every view is scored.
+`r360gpu.metrics.inpainting`; LPIPS, masked LPIPS, FID and KID with ``--lpips-model``,
+``--lpips-spatial-model`` and ``--inception-model`` ONNX exports); ``--compat`` gives the script's
+own numbers.  ``--pre`` with ``--target`` gives masks (the lifted target's) to methods without any;
+``--orbit N`` with ``--reference`` also scores the splat methods at orbit poses against the
+reference reconstruction (`r360gpu.pipeline.inpaint_orbit`).  ``inpaint example DIR`` writes a
+small folder in each layout to try it on.  Outputs: ``results.json`` (`r360gpu.pipeline.inpaint`),
+``results.csv`` (one row per view), ``tables.md``, ``tables.tex`` and ``report.html``, written
+together once every view is scored.
 """
 from __future__ import annotations
 
@@ -45,6 +47,15 @@ def _common(p: argparse.ArgumentParser) -> None:
                         "against the renders of --reference, in a table of their own (needs --pre and --target)")
     p.add_argument("--reference", metavar="SPLAT",
                    help="the reconstruction of the scene without the object ({scene} allowed), for --orbit")
+    g = p.add_argument_group("model metrics (ONNX exports, docs/models.md; without one its metrics are not computed)")
+    g.add_argument("--lpips-model", metavar="ONNX", help="plain VGG LPIPS export (lpips.LPIPS(net='vgg')): LPIPS")
+    g.add_argument("--lpips-spatial-model", metavar="ONNX",
+                   help="spatial VGG LPIPS export (lpips.LPIPS(net='vgg', spatial=True)): masked LPIPS")
+    g.add_argument("--inception-model", metavar="ONNX",
+                   help="pytorch-fid Inception export: FID and KID per scene between photographs and renders")
+    g.add_argument("--probe-device", default="auto", metavar="DEVICE", type=str.lower,
+                   help="onnxruntime execution provider of those models: auto (default: a GPU provider the "
+                        "installed onnxruntime has, else cpu), cpu, cuda, tensorrt, webgpu, directml, coreml")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -52,7 +63,8 @@ def _common(p: argparse.ArgumentParser) -> None:
 def register(sub) -> None:
     p = sub.add_parser("inpaint", help="score inpainting quality as 360-USID (AuraFusion360) or SPIn-NeRF do",
                        description="Score a method's renders at the benchmark's test views against its photographs "
-                                   "of the scene without the object: PSNR, SSIM, and both inside the object mask, "
+                                   "of the scene without the object: PSNR, SSIM and LPIPS over the whole image and "
+                                   "inside the object mask, and FID/KID, "
                                    "as the benchmark's evaluation defines them (docs/your-scene.md).")
     kinds = p.add_subparsers(dest="protocol", metavar="BENCHMARK", required=True)
     usid = kinds.add_parser("360usid", help="360-USID folders (AuraFusion360's scripts/aura_eval.py)",
@@ -97,6 +109,39 @@ def run_example(args) -> int:
     return 0
 
 
+def _models(args, photo) -> dict:
+    """The model exports given, opened and checked on images of the size of ``photo`` (a photograph's
+    path): an unloadable file or the wrong kind of export is an InputError naming it, before any view
+    is scored."""
+    given = {k: getattr(args, k) for k in ("lpips_model", "lpips_spatial_model", "inception_model")}
+    if not any(given.values()):
+        return {}
+    from ..io.inpaint_folders import read_image
+    from ..metrics.fidelity import LpipsModel
+    from ..probes.inception import InceptionModel
+    from ..probes.providers import choose
+
+    device = choose(args.probe_device)
+    opened = {}
+    if given["lpips_model"]:
+        opened["lpips"] = LpipsModel(given["lpips_model"], device)
+    if given["lpips_spatial_model"]:
+        opened["lpips_spatial"] = LpipsModel(given["lpips_spatial_model"], device)
+    if given["inception_model"]:
+        opened["inception"] = InceptionModel(given["inception_model"], device)
+    size = read_image(photo).shape[:2] if {"lpips", "lpips_spatial"} & opened.keys() else None
+    for key, spatial in (("lpips", False), ("lpips_spatial", True)):
+        if key in opened:
+            opened[key].require(spatial, size)
+    return opened
+
+
+def _describe(models: dict) -> dict:
+    """results.json ``inputs.models``: each model's file, sha256 and the provider that ran it."""
+    names = {"lpips": "lpips_model", "lpips_spatial": "lpips_spatial_model", "inception": "inception_model"}
+    return {names[k]: m.describe() for k, m in models.items()}
+
+
 def run(args) -> int:
     from ..io.inpaint_folders import spinnerf_scenes, usid_scenes
     from ..pipeline.inpaint import PROTOCOLS, results_document, score_scenes
@@ -118,9 +163,11 @@ def run(args) -> int:
             scenes = spinnerf_scenes(args.data, args.methods, masks=args.masks, factor=args.factor,
                                      n_test=args.n_test, cameras=args.cameras, need_cameras=args.pre is not None)
             inputs.update(factor=args.factor, n_test=args.n_test)
+        models = _models(args, scenes[0].photos[0])
+        inputs["models"] = _describe(models)
         run_ = score_scenes(scenes, protocol=args.protocol, mode=mode, show_progress=not args.quiet,
                             frame=args.frame, pre=args.pre, target=args.target, orbit=args.orbit,
-                            reference=args.reference)
+                            reference=args.reference, models=models)
         records = log.records()
     name = PROTOCOLS[args.protocol]
     for scene in scenes:

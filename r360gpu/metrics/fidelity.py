@@ -261,6 +261,16 @@ class LpipsModel:
             raise InputError("LPIPS map has non-finite values", self.path)
         return lmap
 
+    def require(self, spatial: bool, size: tuple[int, int]) -> None:
+        """InputError naming the file unless this is the kind of export asked for (spatial: a distance
+        map; else one distance), checked before any work: from the declared output shape, or when that
+        leaves it open by one run on a black pair of ``size`` (H, W), the images it will be given."""
+        if self.spatial is None:
+            blank = np.zeros((*size, 3))
+            self._is_map(self._forward(blank, blank, True)[0], *size)
+        if self.spatial != spatial:
+            self._wrong_kind(bool(self.spatial))
+
     def _wrong_kind(self, spatial: bool):
         if spatial:
             raise InputError(

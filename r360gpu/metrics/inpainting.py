@@ -19,6 +19,12 @@ evaluation script ``aura_eval.py`` (in its ``scripts`` folder) with the 3DGS hel
 * **masked SSIM** the SSIM above of both images multiplied by the mask weights.  Outside the
   mask both products are 0, where SSIM is 1, so the value grows with the unmasked area; that is
   the benchmark's definition, kept as it is.
+* **LPIPS** the plain VGG export's distance of the render and the photograph, and **masked LPIPS**
+  the spatial VGG export's map weighted by the mask weights, ``sum(map * w) / sum(w)``
+  (`r360gpu.metrics.fidelity.masked_lpips`; NaN for an empty mask, the script's 0 / 0).  The
+  script calls ``lpips`` without ``normalize``, so the [0, 1] images go in as if in [-1, 1].
+* **FID** and **KID** (`SET_METRICS`) belong to a scene's image sets, not to a view: they are
+  fields of `InpaintScene`, computed by `r360gpu.pipeline.inpaint`.
 
 Mask weights are the values the script multiplies by: the mask file as PIL and torchvision's
 ``to_tensor`` read it, then every value above 0.5 set to 1 (`script_weights`); a value in
@@ -33,6 +39,7 @@ values here equal a float32 model of its steps to 1e-4 (tests/test_inpainting_me
 * the mask is binary, any non-zero pixel inside (the project's mask rule, `r360gpu.io.masks`),
   so an anti-aliased or JPEG-noisy edge does not weigh masked SSIM with fractional values;
 * an empty mask gives no masked value (``None`` with the reason), not NaN and not a perfect SSIM of 1;
+* LPIPS gets the images mapped to [-1, 1], as LPIPS is defined (``normalize=True``);
 * a mean over views leaves out infinite PSNRs (identical images) and counts them beside it, as
   `r360gpu.metrics.fidelity.fidelity_summary` does; it is ``inf`` only when every view is.
 """
@@ -47,17 +54,20 @@ import numpy as np
 
 from ..errors import InputError
 from . import json_values
-from .fidelity import SSIM_K1, SSIM_K2, SSIM_SIGMA, SSIM_WIN, gaussian_window, psnr_from_mse
+from .fidelity import SSIM_K1, SSIM_K2, SSIM_SIGMA, SSIM_WIN, gaussian_window, masked_lpips, psnr_from_mse
 
 MODES = ("default", "compat")
 
 #: The per-view metrics of this module, in table order, with whether higher is better.
 METRICS: tuple[tuple[str, bool], ...] = (
-    ("psnr", True), ("ssim", True), ("masked_psnr", True), ("masked_ssim", True))
+    ("psnr", True), ("ssim", True), ("masked_psnr", True), ("masked_ssim", True), ("lpips", False),
+    ("masked_lpips", False))
 
 #: Reasons recorded for a value not computed.
 EMPTY_MASK = "the object mask is empty at this view"
 NO_MASKS = "no object masks for this method (give --masks)"
+NO_LPIPS = "no LPIPS model given (--lpips-model, the plain VGG export)"
+NO_LPIPS_SPATIAL = "no spatial LPIPS model given (--lpips-spatial-model, the spatial VGG export)"
 
 
 def _check_mode(mode: str) -> None:
@@ -162,7 +172,7 @@ class InpaintView:
     """One method's render at one test view against the photograph.
 
     A metric is ``None`` when not computed; ``reasons[metric]`` then says why.  New metrics
-    (LPIPS, masked LPIPS) are new fields here, listed in `METRICS`.
+    are new fields here, listed in `METRICS`.
     """
 
     view: str
@@ -170,6 +180,8 @@ class InpaintView:
     ssim: float | None = None
     masked_psnr: float | None = None
     masked_ssim: float | None = None
+    lpips: float | None = None
+    masked_lpips: float | None = None
     mask_pixels: int | None = None
     reasons: dict[str, str] = field(default_factory=dict)
 
@@ -189,10 +201,18 @@ def score_view(view: str, photo: np.ndarray, render: np.ndarray, weights: np.nda
 
 
 def score_views(view: str, photo: np.ndarray, renders: Sequence[np.ndarray], weights: Sequence[np.ndarray | None], *,
-                mode: str = "default", no_mask_reason: str = NO_MASKS) -> list[InpaintView]:
+                mode: str = "default", no_mask_reason: str = NO_MASKS, lpips=None, lpips_spatial=None
+                ) -> list[InpaintView]:
     """`score_view` of several renders (methods) against one photograph, each with its mask weights;
-    the photograph's share of SSIM is computed once."""
+    the photograph's share of SSIM is computed once.
+
+    lpips: a plain `r360gpu.metrics.fidelity.LpipsModel` export (whole-image LPIPS), lpips_spatial: a
+    spatial one (masked LPIPS, `r360gpu.metrics.fidelity.masked_lpips` of its map); None leaves the
+    metric not computed with the reason.  compat feeds the [0, 1] images to LPIPS unscaled, as the
+    script does (it calls lpips without ``normalize``); default maps them to the network's [-1, 1].
+    """
     _check_mode(mode)
+    normalize = mode == "default"
     x = np.asarray(photo, dtype=np.float64)
     photo_moments = _moments(x)
     out = []
@@ -200,15 +220,25 @@ def score_views(view: str, photo: np.ndarray, renders: Sequence[np.ndarray], wei
         y, _ = _pair(render, x)
         rec = InpaintView(view, psnr=psnr_3dgs(y, x), ssim=float(np.mean(_ssim_map(y, x, photo_moments))))
         out.append(rec)
+        if lpips is None:
+            rec.reasons["lpips"] = NO_LPIPS
+        else:
+            rec.lpips = lpips.distance(y, x, normalize=normalize)
         if w is None:
-            rec.reasons.update(masked_psnr=no_mask_reason, masked_ssim=no_mask_reason)
+            rec.reasons.update(masked_psnr=no_mask_reason, masked_ssim=no_mask_reason, masked_lpips=no_mask_reason)
             continue
         rec.mask_pixels = int(np.count_nonzero(w))
         if rec.mask_pixels == 0 and mode == "default":
-            rec.reasons.update(masked_psnr=EMPTY_MASK, masked_ssim=EMPTY_MASK)
+            rec.reasons.update(masked_psnr=EMPTY_MASK, masked_ssim=EMPTY_MASK, masked_lpips=EMPTY_MASK)
             continue
         rec.masked_psnr = masked_psnr(y, x, w)
         rec.masked_ssim = masked_ssim(y, x, w)
+        if lpips_spatial is None:
+            rec.reasons["masked_lpips"] = NO_LPIPS_SPATIAL
+        else:
+            # The weights are already the mode's (script or binary), which masked_lpips' own threshold keeps.
+            value = masked_lpips(lpips_spatial.distance_map(y, x, normalize=normalize), w)
+            rec.masked_lpips = math.nan if value is None else value  # compat: the script's 0 / 0
     return out
 
 
@@ -248,19 +278,35 @@ def metric_mean(values: Sequence[float | None], reasons: Sequence[str | None], *
     return MetricMean(float(np.mean(got)), 0, n_inf, missing, reason)
 
 
+#: The metrics of a whole scene's image sets (not of a view), in table order, with whether higher is better.
+SET_METRICS: tuple[tuple[str, bool], ...] = (("fid", False), ("kid_mean", False))
+NO_INCEPTION = "no Inception model given (--inception-model)"
+
+
 @dataclass
 class InpaintScene:
-    """One method in one scene: the per-view records and each metric's mean (``means[metric]``)."""
+    """One method in one scene: the per-view records and each metric's mean (``means[metric]``), and
+    the set metrics FID and KID (``None`` when not computed, ``set_reason`` then says why) between
+    the scene's photographs and the method's renders (``n_ref``, ``n_out`` images)."""
 
     scene: str
     method: str
     views: list[InpaintView]
     means: dict[str, MetricMean]
     masks: str | None = None
+    fid: float | None = None
+    kid_mean: float | None = None
+    kid_std: float | None = None
+    set_reason: str | None = NO_INCEPTION
+    n_ref: int | None = None
+    n_out: int | None = None
 
     def to_dict(self) -> dict:
         return {"scene": self.scene, "method": self.method, "n_views": len(self.views), "masks": self.masks,
                 "means": {k: m.to_dict() for k, m in self.means.items()},
+                "fid": json_values.enc_float(self.fid), "kid_mean": json_values.enc_float(self.kid_mean),
+                "kid_std": json_values.enc_float(self.kid_std), "set_reason": self.set_reason,
+                "n_ref": self.n_ref, "n_out": self.n_out,
                 "views": [v.to_dict() for v in self.views]}
 
 
@@ -273,10 +319,11 @@ def summarise(scene: str, method: str, views: list[InpaintView], *, mode: str = 
 
 
 def overall_means(scenes: Sequence[InpaintScene], method: str) -> dict[str, float | None]:
-    """Per metric, the mean over scenes of the method's scene means (scene-macro; a scene without a
-    value is left out); ``None`` when no scene has one."""
+    """Per metric (`METRICS`, then `SET_METRICS`), the mean over scenes of the method's scene values
+    (scene-macro; a scene without a value is left out); ``None`` when no scene has one."""
     out: dict[str, float | None] = {}
-    for name, _ in METRICS:
-        vals = [s.means[name].mean for s in scenes if s.method == method and s.means[name].mean is not None]
+    for name, _ in METRICS + SET_METRICS:
+        vals = [v for s in scenes if s.method == method
+                and (v := (s.means[name].mean if name in s.means else getattr(s, name))) is not None]
         out[name] = float(np.mean(vals)) if vals else None
     return out

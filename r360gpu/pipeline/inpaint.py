@@ -13,7 +13,8 @@ and summarises each (scene, method).  `results_document` is the ``results.json``
     orbit    {SCENE: {against, requested, kept, dropped, no_orbit, methods {METHOD: as in scenes}}}: the
              metrics at orbit poses against the reference reconstruction (`r360gpu.pipeline.inpaint_orbit`),
     scenes   {SCENE: {METHOD: {scene, method, n_views, masks, means {METRIC: {mean, n, n_infinite,
-             n_missing, reason}}, views [{view, psnr, ssim, masked_psnr, masked_ssim, mask_pixels,
+             n_missing, reason}}, fid, kid_mean, kid_std, set_reason, n_ref, n_out,
+             views [{view, psnr, ssim, masked_psnr, masked_ssim, lpips, masked_lpips, mask_pixels,
              reasons}]}}},
     overall  {METHOD: {METRIC: mean over scenes}},
     warnings
@@ -32,8 +33,9 @@ from .. import __version__
 from ..errors import InputError
 from ..io.inpaint_folders import MethodFiles, SceneFiles, read_image, read_mask_binary, read_mask_script
 from ..metrics import json_values
-from ..metrics.inpainting import (METRICS, MODES, InpaintScene, overall_means, score_views, script_weights,
-                                  summarise)
+from ..metrics.fid import fid_from_features, fid_image_files, kid_from_features
+from ..metrics.inpainting import (METRICS, MODES, SET_METRICS, InpaintScene, overall_means, score_views,
+                                  script_weights, summarise)
 from ..protocol import INPAINT_SCHEMA
 from ..render.sources import SceneSource
 from .inpaint_orbit import OrbitScene, orbit_scores
@@ -49,11 +51,13 @@ DEFAULT_DIFFERENCES = (
     "object masks are binary, any non-zero pixel inside (the script keeps mask values in (0, 0.5] as "
     "fractional weights of masked SSIM, so an anti-aliased edge weighs less); 3-channel masks are read "
     "(the script fails on them)",
-    "a view with an empty object mask has no masked PSNR or masked SSIM (the script gives NaN and a "
-    "perfect 1); its scene mean is over the other views",
+    "a view with an empty object mask has no masked PSNR, masked SSIM or masked LPIPS (the script gives NaN, "
+    "a perfect 1 and NaN); its scene mean is over the other views",
     "scene means leave out infinite PSNRs (images identical over the measured pixels) and count them "
     "in n_infinite (the script's mean becomes inf, and its masked PSNR fails with an AttributeError)",
     "images with more than 8 bits per sample are read at full depth (the script clips them to 8 bits)",
+    "LPIPS and masked LPIPS feed the networks the images mapped to [-1, 1], as LPIPS is defined "
+    "(lpips(..., normalize=True)); the script passes the [0, 1] images unscaled, so its LPIPS values differ",
 )
 COMPAT_NOTE = ("compat mode: the script's definitions and mask weights; values equal its float32 numbers "
                "to 1e-4 (computed here in float64)")
@@ -124,7 +128,7 @@ def open_scenes(scene: SceneFiles, frame: str | None) -> dict[str, SceneSource]:
 
 def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "default", show_progress: bool = True,
                  frame: str | None = None, pre: str | None = None, target: str | None = None, orbit: int = 0,
-                 reference: str | None = None) -> InpaintRun:
+                 reference: str | None = None, models: dict | None = None) -> InpaintRun:
     """Score every view of every scene and method; an unreadable or mismatched file is an InputError
     naming it, raised before anything is written.  A method given as a splat scene is rendered at the
     scene's test cameras (in compat mode saved to 8 bits first, as the benchmark's renders are);
@@ -132,7 +136,14 @@ def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "defaul
     (``--pre``, ``--target``): the object's masks for the methods without any, lifted onto pre's
     Gaussians and rendered at the test cameras (`r360gpu.pipeline.inpaint_target`).  ``orbit`` > 0 with
     ``reference``: the splat methods also scored at that many orbit poses against the reference
-    reconstruction's renders (`r360gpu.pipeline.inpaint_orbit`)."""
+    reconstruction's renders (`r360gpu.pipeline.inpaint_orbit`).
+
+    models: ``lpips`` and ``lpips_spatial``, `r360gpu.metrics.fidelity.LpipsModel` plain and spatial
+    exports (LPIPS, masked LPIPS; `r360gpu.metrics.inpainting.score_views`), and ``inception``, an
+    `r360gpu.probes.inception.InceptionModel` (per-scene FID and KID, `fid_image_sets`).  A model not
+    given leaves its metrics not computed, with the reason."""
+    models = dict(models or {})
+    inception = models.pop("inception", None)
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if (pre is None) != (target is None):
@@ -153,7 +164,8 @@ def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "defaul
             targets[scene.name] = lifted.record
         splats = open_scenes(scene, frame)
         try:
-            per_method = _score_scene(scene, splats, mode, show_progress, lifted)
+            per_method, rendered = _score_scene(scene, splats, mode, show_progress, lifted, models,
+                                                keep=inception is not None)
         finally:
             for s in splats.values():
                 s.release()
@@ -162,9 +174,18 @@ def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "defaul
             masks = (str(m.mask_folder) if m.mask_folder is not None else
                      f"{LIFTED_NOTE} ({lifted.record['source']})" if lifted is not None else None)
             results.append(summarise(scene.name, m.name, per_method[m.name], mode=mode, masks=masks))
+        if inception is not None:
+            ref_features = None
+            for rec, m in zip(results[-len(scene.methods):], scene.methods):
+                with where(scene=scene.name, method=m.name):
+                    ref_files, out_files = fid_image_sets(protocol, scene, m)
+                    if ref_features is None:
+                        ref_features = _features(inception, ref_files, mode)
+                    out = _features(inception, rendered.get(m.name, out_files), mode)
+                    _set_metrics(rec, ref_features, out)
         if orbit:
             orbits[scene.name] = orbit_scores(scene, orbit, pre=pre, target=target, reference=reference, frame=frame,
-                                              mode=mode, quantise=quantised)
+                                              mode=mode, quantise=quantised, models=models)
     _warn_mixed_masks(scenes)
     return InpaintRun(protocol, mode, scenes, results, time.perf_counter() - t0, sources, targets, orbits)
 
@@ -176,8 +197,11 @@ def _describe(m: MethodFiles, source: SceneSource | None, scene: SceneFiles) -> 
 
 
 def _score_scene(scene: SceneFiles, splats: dict[str, SceneSource], mode: str, show_progress: bool,
-                 lifted: LiftedMasks | None) -> dict[str, list]:
+                 lifted: LiftedMasks | None, models: dict, keep: bool) -> tuple[dict[str, list], dict[str, list]]:
+    """The per-view records of each method; and, with ``keep``, the splat methods' renders as scored
+    (FID and KID compare them with the photographs: no folder of theirs exists)."""
     per_method: dict[str, list] = {m.name: [] for m in scene.methods}
+    rendered: dict[str, list] = {name: [] for name in splats} if keep else {}
     items = progress(list(enumerate(scene.photos)), desc=f"{scene.name}", enabled=show_progress)
     for i, photo_path in items:
         with where(scene=scene.name, view=photo_path.name):
@@ -197,12 +221,46 @@ def _score_scene(scene: SceneFiles, splats: dict[str, SceneSource], mode: str, s
                         masks_read[m.masks[i]] = _weights(m.masks[i], shape, mode)
                     weights.append(masks_read[m.masks[i]] if m.masks is not None else
                                lifted.masks[i] if lifted is not None else None)
-            recs = score_views(photo_path.name, photo, renders, weights, mode=mode)
+            recs = score_views(photo_path.name, photo, renders, weights, mode=mode, **models)
             for m, rec in zip(scene.methods, recs):
                 with where(method=m.name):
                     _warn_view(rec, mode, m.masks[i] if m.masks is not None else None)
                 per_method[m.name].append(rec)
-    return per_method
+            for m, img in zip(scene.methods, renders):
+                if m.name in rendered:
+                    rendered[m.name].append(img)
+    return per_method, rendered
+
+
+def fid_image_sets(protocol: str, scene: SceneFiles, method: MethodFiles) -> tuple[list[Path], list[Path]]:
+    """The two image sets FID and KID compare for a scene and method: for 360-USID every image
+    pytorch-fid reads in the photographs' folder and in the renders' folder, as the script's
+    ``calculate_fid_given_paths`` on the two folders (all of their files, not only the matched views);
+    for SPIn-NeRF, whose ``images/`` also holds the training photographs with the object, the
+    scored test photographs and the method's renders of them.  A method given as a splat scene has no
+    folder: its side is empty here, and its renders at the test views stand for it."""
+    renders = method.renders or []
+    if protocol == "360usid":
+        return fid_image_files(scene.photos[0].parent), fid_image_files(renders[0].parent) if renders else []
+    return list(scene.photos), list(renders)
+
+
+def _features(inception, images: list, mode: str) -> np.ndarray | None:
+    """Inception features of image files (read as the script reads them) or of images in memory."""
+    if len(images) < 2:
+        return None
+    return inception.features(read_image(p, compat=mode == "compat") if isinstance(p, Path) else p for p in images)
+
+
+def _set_metrics(rec: InpaintScene, ref: np.ndarray | None, out: np.ndarray | None) -> None:
+    if ref is None or out is None:
+        rec.set_reason = "FID and KID need at least 2 images in each set"
+        return
+    fid = fid_from_features(ref, out, what=f"scene {rec.scene}, method {rec.method}")
+    kid = kid_from_features(ref, out)
+    rec.fid, rec.kid_mean, rec.kid_std = fid.value, kid.mean, kid.std
+    rec.set_reason = fid.reason
+    rec.n_ref, rec.n_out = len(ref), len(out)
 
 
 def _warn_view(rec, mode: str, mask: Path | None) -> None:
@@ -238,6 +296,7 @@ def results_document(run: InpaintRun, inputs: dict, warnings: list[dict]) -> dic
         "differs_from_script": list(DEFAULT_DIFFERENCES) if run.mode == "default" else [],
         "mode_note": COMPAT_NOTE if run.mode == "compat" else "default mode (see differs_from_script)",
         "metrics": [name for name, _ in METRICS],
+        "set_metrics": [name for name, _ in SET_METRICS] + ["kid_std"],
         "inputs": inputs,
         "methods": run.methods,
         "sources": run.sources,

@@ -49,9 +49,10 @@ def _render(spec, cams, ctx=None) -> list[np.ndarray]:
 
 
 def orbit_scores(scene: SceneFiles, n: int, *, pre: str, target: str, reference: str, frame: str | None,
-                mode: str, quantise=None) -> OrbitScene:
+                mode: str, quantise=None, models: dict | None = None) -> OrbitScene:
     """The orbit of ``scene`` at ``n`` requested poses (see the module docstring).  quantise: applied to
-    every render in compat mode (the 8 bits the benchmark's renders are saved with)."""
+    every render in compat mode (the 8 bits the benchmark's renders are saved with).  models: the
+    LPIPS exports (``lpips``, ``lpips_spatial``) as `r360gpu.metrics.inpainting.score_views` takes them."""
     splats = {m.name: m.scene for m in scene.methods if m.scene is not None}
     with where(scene=scene.name):
         bundle = scene_bundle(scene, pre, target, frame, reference=reference, methods=splats)
@@ -67,7 +68,8 @@ def orbit_scores(scene: SceneFiles, n: int, *, pre: str, target: str, reference:
     views: dict[str, list] = {m: [] for m in rendered}
     for k, c in enumerate(cams):
         weights = orbit.masks[c.name].astype(np.float64)
-        recs = score_views(c.name, ref[k], [rendered[m][k] for m in rendered], [weights] * len(rendered), mode=mode)
+        recs = score_views(c.name, ref[k], [rendered[m][k] for m in rendered], [weights] * len(rendered), mode=mode,
+                           **(models or {}))
         for m, rec in zip(rendered, recs):
             views[m].append(rec)
     out.results = [summarise(scene.name, m, views[m], mode=mode, masks="lifted target at the orbit poses")
