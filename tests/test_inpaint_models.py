@@ -227,3 +227,27 @@ def test_empty_mask_masked_lpips_nan_in_compat_none_in_default(models):
     got = score_views("v", photo, [render], [w], mode="compat", lpips_spatial=spatial)[0].masked_lpips
     lmap = _stand_in_map(render.transpose(2, 0, 1), photo.transpose(2, 0, 1), normalize=False)
     assert abs(got - np.sum(lmap * w) / np.sum(w)) <= TOL
+
+
+def test_a_splat_method_is_compared_for_fid_by_its_renders_at_the_test_views(models, fid_calls, tmp_path):
+    """A method given as a splat scene has no folder of renders: FID and KID compare the photographs'
+    folder with its renders at the test views, as rendered and scored (LPIPS is computed on them too)."""
+    from tests.test_inpaint_splats import _renders
+    from r360gpu.synthetic.inpaint_splats import write_usid_splat_example
+
+    root = write_usid_splat_example(tmp_path / "ex", n_test=3, n_train=2)
+    out = tmp_path / "out"
+    args = ["inpaint", "360usid", str(root / "data"), f"hole={root}/output/{{scene}}/hole.ply", "--masks",
+            f"{root}/output/{{scene}}/object_mask", "--out", str(out), "--quiet",
+            *_with_models(models, "plain", "inception")]
+    assert main(args) == 0
+    (ref, got, what), = fid_calls
+    inception = InceptionModel(models["inception"])
+    photos, renders = _renders(root, "hole")
+    from r360gpu.io.inpaint_folders import read_image
+    np.testing.assert_array_equal(ref, inception.features([read_image(p) for p in fid_image_files(photos[0].parent)]))
+    np.testing.assert_allclose(got, inception.features(renders), atol=1e-6)
+    doc = dec_tree(json.loads((out / "results.json").read_text()))
+    entry = doc["scenes"]["room"]["hole"]
+    assert entry["fid"] == 101.0 and entry["n_out"] == len(renders)
+    assert all(v["lpips"] is not None for v in entry["views"])
