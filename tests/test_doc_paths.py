@@ -31,6 +31,8 @@ ELSEWHERE = {
     "remove360/utils/io.py",
     # segment-anything
     "scripts/amg.py", "utils/amg.py",
+    # AuraFusion360's evaluation (github.com/superlearnerG/my-AuraFusion360)
+    "scripts/aura_eval.py", "utils/image_utils.py", "utils/loss_utils.py",
     # gsplat
     "examples/datasets/normalize.py", "examples/datasets/colmap.py",
     # what bench/public_peer/torch_standin.py lays out in a scratch folder at run time
