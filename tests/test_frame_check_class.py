@@ -125,7 +125,7 @@ def test_a_flat_outline_is_a_quiet_note_in_results_json(tmp_path, ctx):
         m = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
         cv2.imwrite(str(png), cv2.dilate(m, np.ones((7, 7), np.uint8)))
     res = evaluate(folder, options=EvaluateOptions(n_boot=50, n_perm=20, boundary=False, pictures=False,
-                                                   controls=False), ctx=ctx, progress=False)
+                                                   controls=False), device=ctx, progress=False)
     check = res["scenes"]["room"]["frame_check"]["pre"]
     assert check["level"] == "note" and check["step"] < frame_check.STEP_NOTE
     assert check["cones"] >= frame_check.CONES_MIN and "little depth step" in check["note"]

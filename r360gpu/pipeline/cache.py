@@ -37,6 +37,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
+from ..render.sources import RendersSource, SceneSource
 from ..schema import ScoredView, ViewCell
 from ..util import code_id
 
@@ -230,14 +231,14 @@ def fingerprint(bundle, sources, digests: dict | None = None) -> str | None:
         return bundle.fingerprint() if digests is None else bundle.fingerprint_of(digests)
     h = hashlib.sha256()
     for s in sources:
-        if s is not None and getattr(s, "kind", None) == "device":
+        if s is not None and s.kind == "device":
             return None
         h.update(json.dumps(None if s is None else s.describe(), sort_keys=True, default=str).encode())
         # the description holds the path and count, not the values: two edits of the same size must not
         # share results, whether the Gaussians are in memory or a file edited in place
         for part in _content(s, bundle.views):
             h.update(part.encode())
-        h.update(repr(getattr(s, "background", None)).encode())
+        h.update(repr(s.background if isinstance(s, SceneSource) else None).encode())
     for v in bundle.views:
         cam = (bundle.cameras or {}).get(v)
         if cam is not None:  # every value exactly (repr(float) round-trips)
@@ -245,7 +246,7 @@ def fingerprint(bundle, sources, digests: dict | None = None) -> str | None:
             h.update(repr((cam.fx, cam.fy, cam.cx, cam.cy, cam.width, cam.height)).encode())
         m = bundle.masks.get(v)
         h.update(np.ascontiguousarray(m).tobytes() if isinstance(m, np.ndarray) else str(m).encode())
-    _update_target(h, getattr(bundle, "target", None))
+    _update_target(h, bundle.target)
     return h.hexdigest()
 
 
@@ -262,13 +263,11 @@ def _content(source, views) -> list[str]:
 
     if source is None:
         return []
-    if getattr(source, "in_memory", False):
-        return [source.gaussians.content_digest()]
-    if getattr(source, "kind", None) == "scene":
-        return [of(source.path)]
-    reader = getattr(source, "reader", None)
-    if reader is None:
+    if isinstance(source, SceneSource):
+        return [source.gaussians.content_digest() if source.in_memory else of(source.path)]
+    if not isinstance(source, RendersSource):
         return []
+    reader = source.reader
     out = []
     for v in views:
         for lookup in (reader.rgb_path, reader.depth_path) if reader.has_depth else (reader.rgb_path,):
@@ -286,7 +285,7 @@ def _update_target(h, spec) -> None:
         return
     for name in ("indices", "prop", "box", "masks"):
         h.update(name.encode())
-        _update_value(h, getattr(spec, name, None))
+        _update_value(h, getattr(spec, name))  # a TargetSpec's fields
 
 
 def _update_value(h, value) -> None:

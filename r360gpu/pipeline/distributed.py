@@ -135,20 +135,26 @@ class RayOptions:
             raise InputError(f"--ray-chunk must be at least 1, got {self.chunk}")
 
 
-def open_executor(executor, *, ray_address=None, adapter=None, device=None, log=print):
-    """The executor ``evaluate(executor=...)`` names: None/"serial" (none), "ray", or an executor
-    object (a :class:`RayExecutor`, a :class:`~.processes.ProcessExecutor`)."""
+def open_executor(executor, *, device=None, log=print):
+    """The executor ``evaluate(executor=...)`` names: None/"serial" (none), "ray" (a local Ray), or an
+    executor object (a :class:`RayExecutor`, a :class:`~.processes.ProcessExecutor`).  device:
+    evaluate()'s; with "ray" an adapter choice is passed to the workers, a caller's device cannot be."""
     if executor is None or executor == "serial":
-        if ray_address is not None:
-            raise InputError("ray_address is given but executor is not 'ray'")
         return None
     if isinstance(executor, ChunkExecutor):
         return executor
     if executor != "ray":
-        raise InputError(f"unknown executor {executor!r} (use 'serial' or 'ray')")
-    if device is not None:
+        raise InputError(f"unknown executor {executor!r} (use 'serial', 'ray' or an executor object)")
+    if device is not None and not isinstance(device, str) and not _is_context(device):
         raise InputError("executor='ray' opens a GPU device in each worker; a caller's device cannot be sent")
-    return RayExecutor(RayOptions(address=ray_address or "local"), adapter=adapter, log=log)
+    return RayExecutor(RayOptions(), adapter=device if isinstance(device, str) else None, log=log)
+
+
+def _is_context(device) -> bool:
+    """An opened r360gpu context (its workers open their own on the default adapter, as before)."""
+    from ..gpu import GpuContext
+
+    return isinstance(device, GpuContext)
 
 
 def chunk_views(views: list, size: int) -> list[list]:

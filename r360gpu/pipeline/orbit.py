@@ -26,7 +26,7 @@ RENDERINGS_ONLY = "no orbit (renderings only)"
 def _is_scene(spec) -> bool:
     from ..io import Gaussians
 
-    return isinstance(spec, Gaussians) or getattr(spec, "kind", None) == "scene"
+    return isinstance(spec, Gaussians) or spec.kind == "scene"
 
 
 def _gaussians(spec):
@@ -150,7 +150,7 @@ def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None, 
         return OrbitEntry({"requested": int(opts.orbit), "kept": 0, "note": f"no orbit: {e.problem}"})
     if out is not None and lifted is not None:
         files = info["files"] = {}
-        if getattr(bundle, "target", None) is None:  # a [target]'s lift is written with the scene's
+        if bundle.target is None:  # a [target]'s lift is written with the scene's
             files["target"] = write_target(out, bundle.name, lifted[0], lifted[1].target, {}, source=getattr(bundle.pre, "path", None))
         if orbit is not None:
             files.update(write_orbit(out, bundle.name, [orbit.cameras[v] for v in orbit.views], orbit.masks))

@@ -73,7 +73,7 @@ def open_pres(bundle, src) -> tuple[dict, dict]:
     names = {key(bundle.pre): "pre"}
     pre_of = {}
     for m in bundle.methods:
-        spec = (getattr(bundle, "method_pres", None) or {}).get(m)
+        spec = bundle.method_pres.get(m)
         if spec is None:
             pre_of[m] = "pre"
             continue
@@ -105,7 +105,7 @@ class SceneRun:
         self._open_sources()
         self.target_record = self.target_lifted = None
         loaded = bundle  # the key is made of what was loaded: the target's masks are rendered from it
-        if getattr(bundle, "target", None) is not None:  # [target]: a mask for every view (r360gpu.lift)
+        if bundle.target is not None:  # [target]: a mask for every view (r360gpu.lift)
             from ..lift.resolve import resolve_lifted
 
             t0 = time.perf_counter()
@@ -306,7 +306,7 @@ class SceneRun:
             return {}
         out = {}
         for name, src in self.pres.items():
-            if getattr(src, "kind", None) != "scene" or self.camera(pick[0]) is None:
+            if src.kind != "scene" or self.camera(pick[0]) is None:
                 continue  # renders made elsewhere are images already: no frame to get wrong
             key = digest({"frame_check": self.fingerprint, "views": pick, "source": src.describe(),
                           "check": frame_check.CHECK_VERSION})
@@ -328,7 +328,7 @@ class SceneRun:
             if verdict.level == "note":
                 out[name]["note"] = frame_check.note_message(verdict)
             elif verdict.missed:
-                frame = getattr(src, "frame", None)
+                frame = src.frame  # a scene source's (render.sources.SceneSource)
                 raise InputError(f"scene {self.bundle.name}: " + frame_check.mismatch_message(
                     verdict, source=str(src.path), frame=None if frame is None else frame.origin,
                     cameras=None if self.bundle.cameras_path is None else str(self.bundle.cameras_path)))

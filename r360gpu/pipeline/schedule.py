@@ -138,7 +138,7 @@ def _scene_header(run: SceneRun) -> dict:
         "frame_check": run.frame_check or None,  # do pre's cameras see its splats (r360gpu.metrics.frame_check)
         "target": run.target_record,  # [target]: which views' masks were given, which rendered
         # scene.toml [expected.METHOD]: known failures, checked by the report
-        "expected": getattr(bundle, "expected", None) or None,
+        "expected": bundle.expected or None,
     }
 
 

@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from ..render.sources import Source
 from ..schema import ScoredView, ViewCell
 from ..util import warning_log
 
@@ -48,9 +49,9 @@ class ViewData:
     inputs: dict = field(default_factory=dict)  # {path: stamp} of the probes' per-view files, before reading
 
 
-def on_host(source) -> bool:
+def on_host(source: Source) -> bool:
     """True for sources that only read files (safe to run off the GPU thread)."""
-    return getattr(source, "kind", None) == "renders"
+    return source.kind == "renders"
 
 
 def view_sources(run):
@@ -198,7 +199,7 @@ def _check_depth(run, data: ViewData, method: str, record, pre, post) -> None:
     from ..render.sources import host_depth
 
     is_method = method in run.bundle.methods  # else a control: the "pre" or "reference" source
-    source = run.bundle.methods[method] if is_method else getattr(run.bundle, method, None)
+    source = run.bundle.sources().get(method)  # a method, or the control's "pre" / "reference"
     d_pre, d_post = host_depth(pre.depth, run.ctx), host_depth(post.depth, run.ctx)  # the run's own device
     depth_checks.annotate(record, depth_checks.check_view(
         run.bundle.name, method, data.view, d_pre, d_post, data.mask, source=getattr(source, "path", None),
