@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 import os
+import platform
 import socket
 import sys
 import time
@@ -44,7 +45,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError, R360Error
+from ..gpu import get_context, GpuContext
 from ..util import warning_log
+from ..util.code_id import version_id
+from ..util.filehash import decoded_digests
+from ..util.progress import duration
+from .cache import RunCache
+from .picture_sink import PictureSink
+from .run import SceneRun, Timer
+from .stages import score_view
 
 INSTALL_HINT = "scoring on Ray needs the ray package: pip install 'r360gpu[ray]'"
 FAIL_ONCE_ENV = "R360GPU_RAY_FAIL_ONCE"
@@ -152,8 +161,6 @@ def open_executor(executor, *, device=None, log=print):
 
 def _is_context(device) -> bool:
     """An opened r360gpu context (its workers open their own on the default adapter, as before)."""
-    from ..gpu import GpuContext
-
     return isinstance(device, GpuContext)
 
 
@@ -214,8 +221,6 @@ class ChunkExecutor:
 
     def common(self, run, sink) -> dict:
         """What every task of ``run``'s scene needs besides its views."""
-        from ..util.code_id import version_id
-
         _check_sendable(run.bundle)
         return {"version": version_id(), "bundle": run.bundle, "opts": run.opts, "adapter": self.adapter,
                 "sem": _fitted_probes(run.sem), "stru": _fitted_probes(run.stru), "pictures": sink.enabled,
@@ -385,8 +390,6 @@ class TaskProgress:
         if self.bar is not None:
             self.bar.update(1)
         elif self.enabled:
-            from ..util.progress import duration
-
             spent = time.perf_counter() - self.t0
             left = f", about {duration(spent * (self.n - self.i) / self.i)} left" if self.i < self.n else ""
             self.log(f"{self.scene} {self.where}: task {self.i}/{self.n} done ({n_views} views){left}")
@@ -399,12 +402,7 @@ class TaskProgress:
 def score_task(common: dict, views: list) -> dict:
     """One task (Ray's, or a worker process's): score ``views`` of one scene on this node
     (module docstring); common: :meth:`ChunkExecutor.common`."""
-    import platform
-
-    from ..gpu import get_context
     from ..gpu.assign import worker_adapter
-    from ..util.code_id import version_id
-    from .run import Timer
 
     _fail_once_hook()
     node = platform.node()
@@ -432,12 +430,6 @@ def _ray_gpu_ids() -> list:
 
 def _score_task(common, views, ctx, timer, node) -> dict:
     import tempfile
-
-    from .cache import RunCache
-    from .picture_sink import PictureSink
-    from .run import SceneRun
-    from ..util.filehash import decoded_digests
-    from .stages import score_view
 
     run = SceneRun(common["bundle"], common["opts"], ctx, common["sem"], common["stru"], cache=RunCache(None),
                    timer=timer, fit=False)

@@ -2,15 +2,18 @@
 from __future__ import annotations
 
 import time
-from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..gpu import get_context
+from ..probes.registry import scene_probes
 from ..schema import SceneEntry
 from ..util import warning_log
+from ..util.imports import ImportAhead
 from .cache import RunCache
 from .distributed import open_executor
 from .options import EvaluateOptions, default_probes
@@ -109,15 +112,11 @@ class Plan:
 
     def scene_probes(self, bundle, compat) -> tuple:
         """(semantic, structural, selection) of ``bundle`` (:func:`r360gpu.probes.registry.scene_probes`)."""
-        from ..probes.registry import scene_probes
-
         return scene_probes(bundle, self.semantic, self.structural, compat=compat, defaults=self.defaults)
 
 
 def _context(device):
     """The GPU context of evaluate()'s ``device`` (an adapter choice, a device or a context)."""
-    from ..gpu import get_context
-
     if device is None or isinstance(device, str):
         return get_context(device)
     return get_context(None, device=device)
@@ -165,8 +164,6 @@ def _load_and_evaluate(bundles, plan: Plan, *, force: bool) -> dict:
 
 
 def _evaluate(loaded, plan: Plan, cache: RunCache, sink: PictureSink) -> dict:
-    from ..util.imports import ImportAhead
-
     opts, ctx, out, progress, log, executor = plan.opts, plan.ctx, plan.out, plan.progress, plan.log, plan.executor
 
     # the cross-scene statistics (two scenes or more) use scipy.stats, first needed once every view is scored
