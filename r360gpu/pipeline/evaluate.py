@@ -96,8 +96,8 @@ class Plan:
     @classmethod
     def open(cls, *, out=None, options=None, semantic_probes=None, structural_probes=None, device=None,
              executor=None, progress=True, log=print, kept=None) -> Plan:
-        """The plan of :func:`evaluate`'s arguments (see there), the options checked and the
-        executor and GPU context opened; ``kept`` as :class:`Plan` has it."""
+        """The plan of `evaluate`'s arguments (see there), the options checked and the
+        executor and GPU context opened; ``kept`` as `Plan` has it."""
         opts = options or EvaluateOptions()
         opts._check()  # before any work, also when a field was changed after the options were built
         host_threads()  # R360GPU_HOST_THREADS too
@@ -111,7 +111,7 @@ class Plan:
                    executor=executor, kept=kept)
 
     def scene_probes(self, bundle, compat) -> tuple:
-        """(semantic, structural, selection) of ``bundle`` (:func:`r360gpu.probes.registry.scene_probes`)."""
+        """(semantic, structural, selection) of ``bundle`` (`r360gpu.probes.registry.scene_probes`)."""
         return scene_probes(bundle, self.semantic, self.structural, compat=compat, defaults=self.defaults)
 
 
@@ -123,7 +123,7 @@ def _context(device):
 
 
 def evaluate_plan(bundles, plan: Plan, *, force: bool = False) -> dict:
-    """:func:`evaluate` with its plan already opened (`Plan.open`): what ``r360gpu score`` runs,
+    """`evaluate` with its plan already opened (`Plan.open`): what ``r360gpu score`` runs,
     with the demo's kept renders in ``plan.kept``."""
     with warning_log.collecting():
         return _load_and_evaluate(bundles, plan, force=force)
