@@ -77,7 +77,7 @@ def main(argv=None) -> int:
                     ex = RayExecutor(RayOptions(chunk=args.chunk), log=lambda *a: None)
                 try:
                     t, c = time.perf_counter(), time.process_time()
-                    res = evaluate(bundle, out=out, options=opts, ctx=ctx, progress=False, executor=ex)
+                    res = evaluate(bundle, out=out, options=opts, device=ctx, progress=False, executor=ex)
                     wall, cpu = time.perf_counter() - t, time.process_time() - c
                 finally:
                     if n:

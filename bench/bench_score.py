@@ -96,7 +96,7 @@ def main() -> int:
     stru = parse_probe_spec(f"sam-json:{work / 'masks' / 'str'}")
     t = time.perf_counter()
     res = evaluate(bundle, out=work / "out", semantic_probes=[sem], structural_probes=[stru],
-                   options=EvaluateOptions(pictures=not args.no_pictures), ctx=ctx, progress=True)
+                   options=EvaluateOptions(pictures=not args.no_pictures), device=ctx, progress=True)
     total = time.perf_counter() - t
     from r360gpu.report.outputs import write_outputs
 

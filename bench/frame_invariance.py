@@ -104,7 +104,7 @@ def outputs(bundle_dir: Path, work: Path, args, ctx) -> dict:
     n_floaters = load_gaussians(bundle.methods["floaters"].path).n - n_bg
     opts = EvaluateOptions(n_boot=200, n_perm=100, pictures=False, boundary=False, orbit=args.orbit,
                            residuals=True, prune_residuals=n_floaters)
-    res = evaluate(bundle, out=work / "out", ctx=ctx, progress=False, options=opts)["scenes"]["room"]
+    res = evaluate(bundle, out=work / "out", device=ctx, progress=False, options=opts)["scenes"]["room"]
     out["axes"] = {m: res["methods"][m]["axes"] for m in res["methods"]}
     orbit = res.get("orbit", {})
     out["orbit_kept"] = [v["view"] for v in next(iter(orbit.get("methods", {}).values()), {}).get("views", [])]

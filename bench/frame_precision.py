@@ -93,7 +93,7 @@ def main() -> int:
         room = generate_benchmark(root / "gen", scenes=("room",), methods=("clean", "floaters"), ctx=ctx, **ARGS)[0]
 
         def axes(folder: Path) -> dict:
-            res = evaluate(load_bundle(folder), out=root / "out" / folder.name, ctx=ctx, progress=False, options=opts)
+            res = evaluate(load_bundle(folder), out=root / "out" / folder.name, device=ctx, progress=False, options=opts)
             return {m: e["axes"] for m, e in res["scenes"]["room"]["methods"].items()}
 
         plain = axes(room)

@@ -95,7 +95,7 @@ def main(argv=None) -> int:
                                methods={"removed": removed, "half": g.subset(~half), "unedited": g},
                                cameras={v: cams[v] for v in masks})
     t0 = time.perf_counter()
-    res = evaluate(scene, out=args.out, ctx=ctx, progress=False,
+    res = evaluate(scene, out=args.out, device=ctx, progress=False,
                    options=EvaluateOptions(n_boot=2000, n_perm=500, pictures=args.out is not None))
     print(f"scored in {time.perf_counter() - t0:.1f} s")
     s = res["scenes"][scene.name]

@@ -26,7 +26,7 @@ def serial_run(scenes, out: Path, ctx) -> tuple[Path, dict]:
     from r360gpu.pipeline import EvaluateOptions, evaluate
     from r360gpu.report.outputs import write_outputs
 
-    res = evaluate(scenes, out=out, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    res = evaluate(scenes, out=out, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     kept = copy.deepcopy(res)  # write_outputs adds the plots' paths to the document it writes
     write_outputs(res, out)
     return out, kept

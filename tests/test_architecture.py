@@ -179,6 +179,33 @@ def test_import_parser(src, expect):
     assert imports_in(src, ["r360gpu", "metrics"]) == expect
 
 
+#: The data flow, stage by stage (docs/architecture.md): a package imports only its own stage and the
+#: ones before it.  The runners (pipeline, synthetic, viewer, cli) sit above the flow; the only way
+#: back up is the facade's lazy top-level names (``__init__``).
+FLOW = [{"util", "gpu", "kernels"}, {"io", "bundle"}, {"render", "lift"}, {"probes"}, {"metrics"}, {"aggregate"},
+        {"report"}]
+RUNNERS = {"pipeline", "synthetic", "viewer", "cli", "__main__", "__init__"}
+
+
+def edges_up_the_flow(allowed: dict[str, set[str]]) -> list[str]:
+    """"src -> dst" of every allowed edge from a stage of FLOW to a later stage or to a runner."""
+    stage = {pkg: i for i, pkgs in enumerate(FLOW) for pkg in pkgs}
+    return sorted(f"{src} -> {dst}" for src, dsts in allowed.items() if src in stage for dst in dsts
+                  if dst in RUNNERS or stage.get(dst, -1) > stage[src])
+
+
+def test_no_allowed_edge_runs_up_the_flow():
+    """ALLOWED itself (so every import, lazy ones inside functions too: imports_in walks the whole
+    module) keeps to the flow; every package is in FLOW or a runner."""
+    assert set(ALLOWED) - LEAVES == {p for pkgs in FLOW for p in pkgs} | RUNNERS
+    assert edges_up_the_flow(ALLOWED) == []
+
+
+def test_an_allowed_edge_up_the_flow_is_reported():
+    assert edges_up_the_flow({**ALLOWED, "metrics": {"render", "aggregate"}, "probes": {"pipeline"}}) == [
+        "metrics -> aggregate", "probes -> pipeline"]
+
+
 def test_an_edge_up_the_flow_is_reported():
     edges = {"report": {"pipeline": ["report/html.py"]}, "pipeline": {"report": ["pipeline/evaluate.py"]}}
     assert violations(edges) == ["report -> pipeline (report/html.py)"]

@@ -44,7 +44,7 @@ def test_each_method_is_scored_against_its_own_pre(root, ctx, monkeypatch):
     assert b.name == "room" and list(b.methods) == ["GC", "AF", "OC"]
     assert {m: s.rgb_dir for m, s in b.method_pres.items()} == {m: root / m / "room" / "rgb" / "before"
                                                                for m in ("GC", "AF", "OC")}
-    res = evaluate(b, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    res = evaluate(b, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     # every source once per view: the default pre (GC's before) is shared with GC, not rendered twice
     assert set(calls.values()) == {1} and len(calls) == 6 * len(b.views)
     assert set(res["scenes"]["room"]["sources"]["method_pres"]) == {"AF", "OC"}
@@ -52,18 +52,18 @@ def test_each_method_is_scored_against_its_own_pre(root, ctx, monkeypatch):
     # the same geometric and structural axes as scoring each method's folder alone (its own before as pre)
     for m in ("GC", "AF", "OC"):
         alone = evaluate(load_bundle(root / m / "room", method_name=m), options=EvaluateOptions(**OPTS),
-                         ctx=ctx, progress=False)
+                         device=ctx, progress=False)
         a = _axes(alone, "room")[m]
         assert (grouped[m]["s_geo"], grouped[m]["s_str"]) == (a["s_geo"], a["s_str"]), m
     # with one shared pre instead (GC's), AF's IoU_pre is read on GC's pre renders: another value
-    shared = evaluate(replace(b, method_pres={}), options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    shared = evaluate(replace(b, method_pres={}), options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert _axes(shared, "room")["AF"]["iou_pre"] != grouped["AF"]["iou_pre"]
     assert (_axes(shared, "room")["GC"]["s_geo"], _axes(shared, "room")["GC"]["s_str"]) == \
         (grouped["GC"]["s_geo"], grouped["GC"]["s_str"])
     # two methods with the same own pre: one source, rendered once per view
     calls.clear()
     same = replace(b, method_pres={"AF": b.method_pres["AF"], "OC": b.method_pres["AF"]})
-    res = evaluate(same, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    res = evaluate(same, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert set(calls.values()) == {1} and len(calls) == 5 * len(b.views)
     # (the probe is fitted on the pre sources there are, here two: the semantic readings differ)
     assert (_axes(res, "room")["AF"]["s_geo"], _axes(res, "room")["AF"]["s_str"]) == \
@@ -200,8 +200,8 @@ def test_the_appearance_probe_is_fitted_on_every_pre_source(root, ctx, monkeypat
     monkeypatch.setattr(BuiltinAppearanceProbe, "fit", recording)
     b = group_scene({"GC": root / "GC" / "room", "AF": root / "AF" / "room", "OC": root / "OC" / "room"})
     n_fit = min(EvaluateOptions().fit_views, len(b.views))
-    evaluate(b, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    evaluate(b, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert seen == [3 * n_fit]  # GC's (the default), AF's and OC's pre renders
     seen.clear()
-    evaluate(replace(b, method_pres={}), options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    evaluate(replace(b, method_pres={}), options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert seen == [n_fit]

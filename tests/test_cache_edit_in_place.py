@@ -60,9 +60,9 @@ def test_a_method_edited_in_place_is_scored_anew(bench, tmp_path, ctx, kind):
     b = make(bench, tmp_path / "b")
     opts = EvaluateOptions(**OPTS, **extra)
     out = tmp_path / "out"
-    first = evaluate(str(b), out=out, options=opts, ctx=ctx, progress=False)
+    first = evaluate(str(b), out=out, options=opts, device=ctx, progress=False)
     edit_in_place(b / "methods" / "clean.ply", b / "methods" / "floaters.ply")
-    again = evaluate(str(b), out=out, options=opts, ctx=ctx, progress=False)
-    fresh = evaluate(str(b), out=tmp_path / "fresh", options=opts, ctx=ctx, progress=False)
+    again = evaluate(str(b), out=out, options=opts, device=ctx, progress=False)
+    fresh = evaluate(str(b), out=tmp_path / "fresh", options=opts, device=ctx, progress=False)
     assert _methods(again, part) == _methods(fresh, part)
     assert _methods(again, part) != _methods(first, part)  # the edit changes the numbers

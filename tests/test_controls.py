@@ -20,7 +20,7 @@ def bundle(tmp_path_factory, ctx):
 @pytest.fixture(scope="module")
 def with_controls(bundle, tmp_path_factory, ctx):
     out = tmp_path_factory.mktemp("out")
-    return out, evaluate(bundle, out=out, options=EvaluateOptions(pictures=False, **OPTS), ctx=ctx, progress=False)
+    return out, evaluate(bundle, out=out, options=EvaluateOptions(pictures=False, **OPTS), device=ctx, progress=False)
 
 
 def test_controls_are_scored_reported_and_never_ranked(with_controls):
@@ -48,7 +48,7 @@ def test_controls_are_scored_reported_and_never_ranked(with_controls):
 
 def test_controls_leave_the_methods_numbers_alone(bundle, with_controls, ctx):
     _, res = with_controls
-    plain = evaluate(bundle, options=EvaluateOptions(controls=False, **OPTS), ctx=ctx, progress=False)
+    plain = evaluate(bundle, options=EvaluateOptions(controls=False, **OPTS), device=ctx, progress=False)
     assert "controls" not in plain["scenes"]["room"]
     a = {m: e["axes"] for m, e in res["scenes"]["room"]["methods"].items()}
     b = {m: e["axes"] for m, e in plain["scenes"]["room"]["methods"].items()}
@@ -59,14 +59,14 @@ def test_controls_leave_the_methods_numbers_alone(bundle, with_controls, ctx):
 
 def test_controls_come_from_the_cache_on_a_rerun(bundle, with_controls, ctx):
     out, first = with_controls
-    again = evaluate(bundle, out=out, options=EvaluateOptions(pictures=False, **OPTS), ctx=ctx, progress=False)
+    again = evaluate(bundle, out=out, options=EvaluateOptions(pictures=False, **OPTS), device=ctx, progress=False)
     assert "render" not in again["timing"]["stages_s"]
     assert again["scenes"]["room"]["controls"] == first["scenes"]["room"]["controls"]
     # A lost control cell is recomputed, not silently dropped.
     cells = sorted((out / ".r360cache" / "views").glob("*/room/pre/*.json"))
     assert cells
     cells[0].unlink()
-    partial = evaluate(bundle, out=out, options=EvaluateOptions(pictures=False, **OPTS), ctx=ctx, progress=False)
+    partial = evaluate(bundle, out=out, options=EvaluateOptions(pictures=False, **OPTS), device=ctx, progress=False)
     assert partial["scenes"]["room"]["controls"] == first["scenes"]["room"]["controls"]
 
 

@@ -23,7 +23,7 @@ def bundle(tmp_path_factory, ctx):
 @pytest.fixture(scope="module")
 def scored(bundle, tmp_path_factory, ctx):
     out = tmp_path_factory.mktemp("out")
-    res = evaluate(bundle, out=out, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    res = evaluate(bundle, out=out, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     return out, res
 
 
@@ -81,16 +81,16 @@ def test_plots_drawn_while_scoring_are_those_of_the_finished_results(scored, tmp
 
 def test_rerun_resumes_from_the_cache_and_force_recomputes(bundle, scored, ctx):
     out, first = scored
-    again = evaluate(bundle, out=out, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    again = evaluate(bundle, out=out, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert "render" not in again["timing"]["stages_s"]  # nothing rendered: every view came from the cache
     assert _axes(again) == _axes(first)
     # a run killed half-way: the missing views are recomputed, the rest reused
     views = sorted((out / ".r360cache" / "views").glob("*/room/clean/*.json"))
     views[-1].unlink()
-    partial = evaluate(bundle, out=out, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    partial = evaluate(bundle, out=out, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert partial["timing"]["stages_s"].get("render", 0) > 0
     assert _axes(partial) == _axes(first)
-    forced = evaluate(bundle, out=out, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False, force=True)
+    forced = evaluate(bundle, out=out, options=EvaluateOptions(**OPTS), device=ctx, progress=False, force=True)
     assert _axes(forced) == _axes(first)  # deterministic
 
 
@@ -130,11 +130,11 @@ def test_scene_from_objects_with_renders_already_on_the_device(bundle, ctx):
     dev = {name: DeviceViewsSource({v: Renderer(g, ctx=ctx).render_device(b.cameras[v]) for v in views}, ctx=ctx)
            for name, g in (("pre", pre_g), ("post", post_g))}
     scene = r360gpu.scene_from_objects("room", "sofa", masks, dev["pre"], {"recoloured": dev["post"]})
-    res = r360gpu.evaluate(scene, ctx=ctx, options=r360gpu.EvaluateOptions(**OPTS), progress=False)
+    res = r360gpu.evaluate(scene, device=ctx, options=r360gpu.EvaluateOptions(**OPTS), progress=False)
     # the same numbers as rendering the same scenes from memory
     ref = r360gpu.evaluate(
         r360gpu.scene_from_objects("room", "sofa", masks, pre_g, {"recoloured": post_g}, cameras=b.cameras),
-        ctx=ctx, options=r360gpu.EvaluateOptions(**OPTS), progress=False)
+        device=ctx, options=r360gpu.EvaluateOptions(**OPTS), progress=False)
     a, r = _axes(res)["recoloured"], _axes(ref)["recoloured"]
     assert a["s_geo"] == r["s_geo"] and a["s_sem"] == r["s_sem"] and a["s_str"] == r["s_str"]
     assert res["scenes"]["room"]["sources"]["pre"]["kind"] == "device"
@@ -144,19 +144,19 @@ def test_pictures_are_outputs_the_view_cache_knows(bundle, tmp_path, ctx):
     """A run without pictures, then one with: the pictures appear; a deleted one is written again."""
     opts = dict(views=("view_00[12]",), boundary=False, **OPTS)
     out = tmp_path / "o"
-    first = evaluate(bundle, out=out, options=EvaluateOptions(pictures=False, **opts), ctx=ctx, progress=False)
+    first = evaluate(bundle, out=out, options=EvaluateOptions(pictures=False, **opts), device=ctx, progress=False)
     assert not (out / "pictures").exists()
     assert all(not e["pictures"] for e in first["scenes"]["room"]["methods"].values())
-    second = evaluate(bundle, out=out, options=EvaluateOptions(**opts), ctx=ctx, progress=False)
+    second = evaluate(bundle, out=out, options=EvaluateOptions(**opts), device=ctx, progress=False)
     pics = second["scenes"]["room"]["methods"]["clean"]["pictures"]
     assert set(pics) == {"view_001", "view_002"} and all((out / p).is_file() for p in pics.values())
     assert _axes(second) == _axes(first)
     gone = out / pics["view_002"]
     gone.unlink()
-    third = evaluate(bundle, out=out, options=EvaluateOptions(**opts), ctx=ctx, progress=False)
+    third = evaluate(bundle, out=out, options=EvaluateOptions(**opts), device=ctx, progress=False)
     assert gone.is_file() and _axes(third) == _axes(first)
     # everything there: nothing is rendered again
-    fourth = evaluate(bundle, out=out, options=EvaluateOptions(**opts), ctx=ctx, progress=False)
+    fourth = evaluate(bundle, out=out, options=EvaluateOptions(**opts), device=ctx, progress=False)
     assert "render" not in fourth["timing"]["stages_s"]
 
 
@@ -174,7 +174,7 @@ def test_every_source_is_rendered_once_per_view(bundle, ctx, monkeypatch):
         return images(self, view, camera)
 
     monkeypatch.setattr(SceneSource, "images", counting)
-    res = evaluate(bundle, options=EvaluateOptions(boundary=False, **OPTS), ctx=ctx, progress=False)
+    res = evaluate(bundle, options=EvaluateOptions(boundary=False, **OPTS), device=ctx, progress=False)
     n_sources = 2 + len(res["scenes"]["room"]["methods"])  # pre, reference, methods
     assert len(calls) == n_sources * len(res["scenes"]["room"]["views"])
     assert set(calls.values()) == {1}
@@ -204,7 +204,7 @@ def test_scenes_from_objects_rescored_when_what_they_hold_changes(bundle, tmp_pa
 
     def run(method, cameras=b.cameras, masks=masks, at=out):
         scene = r360gpu.scene_from_objects("room", "sofa", masks, pre_g, {"m": method}, cameras=cameras)
-        return r360gpu.evaluate(scene, out=at, ctx=ctx, options=opts, progress=False)["scenes"]["room"]["methods"]["m"]
+        return r360gpu.evaluate(scene, out=at, device=ctx, options=opts, progress=False)["scenes"]["room"]["methods"]["m"]
 
     def fresh(method, **kw):
         return run(method, at=None, **kw)
@@ -225,6 +225,6 @@ def test_scenes_from_objects_rescored_when_what_they_hold_changes(bundle, tmp_pa
         dev = DeviceViewsSource({v: Renderer(g, ctx=ctx).render_device(b.cameras[v]) for v in views}, ctx=ctx)
         pre_dev = DeviceViewsSource({v: Renderer(pre_g, ctx=ctx).render_device(b.cameras[v]) for v in views}, ctx=ctx)
         scene = r360gpu.scene_from_objects("room", "sofa", masks, pre_dev, {"m": dev})
-        got = r360gpu.evaluate(scene, out=dev_out, ctx=ctx, options=opts, progress=False)
+        got = r360gpu.evaluate(scene, out=dev_out, device=ctx, options=opts, progress=False)
         assert got["scenes"]["room"]["methods"]["m"]["views"] == fresh(g)["views"]
     assert not list(dev_out.rglob("views"))  # nothing cached for device renders

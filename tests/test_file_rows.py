@@ -109,7 +109,7 @@ def test_top_residual_indices_are_rows_of_the_methods_file(bench, tmp_path, ctx)
     with_bad_rows(bench / "methods" / "floaters.ply", b / "methods" / "nan.ply", np.zeros(N_NAN, int))
     (b / "scene.toml").write_text((b / "scene.toml").read_text() + '\n[methods.nan]\nscene = "methods/nan.ply"\n')
     opts = EvaluateOptions(n_boot=20, n_perm=10, pictures=False, boundary=False, controls=False, residuals=True)
-    res = evaluate(str(b), out=tmp_path / "out", options=opts, ctx=ctx, progress=False)
+    res = evaluate(str(b), out=tmp_path / "out", options=opts, device=ctx, progress=False)
     entry = res["scenes"]["room"]["residuals"]
     assert entry["floaters"]["top"] and entry["nan"]["top"] == [i + N_NAN for i in entry["floaters"]["top"]]
     plain = read_ply(tmp_path / "out" / entry["floaters"]["file"]).arrays["vertex"]["residual"]

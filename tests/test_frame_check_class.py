@@ -149,7 +149,7 @@ def test_a_flat_outline_is_a_quiet_note_in_results_json(tmp_path, ctx):
         m = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
         cv2.imwrite(str(png), cv2.dilate(m, np.ones((7, 7), np.uint8)))
     res = evaluate(folder, options=EvaluateOptions(n_boot=50, n_perm=20, boundary=False, pictures=False,
-                                                   controls=False), ctx=ctx, progress=False)
+                                                   controls=False), device=ctx, progress=False)
     check = res["scenes"]["room"]["frame_check"]["pre"]
     assert check["level"] == "note" and check["step"] < frame_check.STEP_NOTE
     assert check["cones"] >= frame_check.CONES_MIN and "little depth step" in check["note"]
@@ -169,8 +169,8 @@ def test_a_reference_that_still_holds_the_object_is_refused_before_scoring(tmp_p
     scene = make_scene("room", seed=0, n_views=5, width=96, height=72, detail=0.1)
     folder = write_bundle(scene, tmp_path / "room", methods=["clean"], ctx=ctx)
     opts = EvaluateOptions(n_boot=50, n_perm=20, boundary=False, pictures=False, controls=False)
-    assert evaluate(folder, options=opts, ctx=ctx, progress=False)["scenes"]["room"]["frame_check"]["pre"][
+    assert evaluate(folder, options=opts, device=ctx, progress=False)["scenes"]["room"]["frame_check"]["pre"][
         "removed"] >= frame_check.REMOVED_MIN
     shutil.copy(folder / "pre.ply", folder / "reference.ply")
     with pytest.raises(InputError, match="the reference render the same thing under the target masks"):
-        evaluate(folder, options=opts, ctx=ctx, progress=False)
+        evaluate(folder, options=opts, device=ctx, progress=False)

@@ -84,7 +84,7 @@ def _outputs(folder, work, ctx, n_floaters, target) -> dict:
     orbit, info = orbit_bundle(bundle, ORBIT, ctx=ctx)
     opts = EvaluateOptions(n_boot=50, n_perm=20, pictures=False, boundary=False, controls=False, orbit=ORBIT,
                            residuals=True, prune_residuals=n_floaters)
-    res = evaluate(bundle, out=work / "out", ctx=ctx, progress=False, options=opts)["scenes"]["room"]
+    res = evaluate(bundle, out=work / "out", device=ctx, progress=False, options=opts)["scenes"]["room"]
     layers = build_layers(bundle, ctx)
     try:
         view = bundle.views[0]

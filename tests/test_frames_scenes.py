@@ -58,7 +58,7 @@ def plain(synthetic, tmp_path_factory, ctx):
     shutil.copy(synthetic / "pre.ply", folder / "pre.ply")
     shutil.copy(synthetic / "methods" / "clean.ply", folder / "clean.ply")
     _toml(folder, "pre.ply", "clean.ply")
-    return folder, evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    return folder, evaluate(folder, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
 
 
 def _same_renders(a: Path, b: Path, ctx, depth_rtol=1e-3):
@@ -103,7 +103,7 @@ def test_gsplat_normalised_scene_is_scored_with_frame_gsplat(synthetic, plain, t
     # the same PLYs with the cameras as they are: the cameras miss the splats, refused naming the fix
     _toml(folder, "results/ply/point_cloud_29999.ply", "results/clean.ply", cameras="colmap")
     with pytest.raises(InputError, match="different world frames") as refused:
-        evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+        evaluate(folder, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert 'frame = "gsplat"' in str(refused.value) and "--frame gsplat" in str(refused.value)
     # the remedy from the command line: --frame gsplat, for check and score alike
     capsys.readouterr()
@@ -132,7 +132,7 @@ def test_cameras_that_see_nothing_are_refused(synthetic, tmp_path, ctx, capsys):
     assert "renders nothing" in err and "dataparser_transforms.json" in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1 and not (tmp_path / "out" / "results.json").exists()
     with pytest.raises(InputError, match="different world frames"):
-        evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+        evaluate(folder, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
 
 
 def test_nerfstudio_layout_applies_dataparser_transforms_beside_the_export(synthetic, plain, tmp_path, ctx,

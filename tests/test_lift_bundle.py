@@ -95,7 +95,7 @@ def test_scoring_records_given_and_rendered_views(bench, tmp_path, ctx):
     folder, _ = bench
     given = _object_views(folder)
     bundle = load_bundle(_variant(folder, tmp_path, 'masks = "given"', given))
-    res = evaluate(bundle, options=EvaluateOptions(n_boot=200, n_perm=100), ctx=ctx, progress=False)
+    res = evaluate(bundle, options=EvaluateOptions(n_boot=200, n_perm=100), device=ctx, progress=False)
     rec = res["scenes"]["room"]["target"]
     assert rec["given"] == sorted(given) and len(rec["rendered"]) == ARGS["n_views"] - len(given)
     assert rec["lifted_from"] == sorted(given)

@@ -105,7 +105,7 @@ def test_the_warning_is_recorded_in_results_json(scene, ctx, tmp_path):
     bundle = r360gpu.scene_from_objects("blob", "blob", {}, g, {"m": g.subset(~truth)}, reference=g.subset(~truth),
                                         cameras={c.name: c for c in cams},
                                         target={"masks": {c.name: m for c, m in zip(cams, masks["alone"])}})
-    evaluate([bundle], out=tmp_path, ctx=ctx, progress=False, log=lambda *a, **k: None,
+    evaluate([bundle], out=tmp_path, device=ctx, progress=False, log=lambda *a, **k: None,
              options=EvaluateOptions(controls=False, pictures=False, boundary=False, n_boot=10, n_perm=10))
     warned = json.dumps(json.loads((tmp_path / "results.json").read_text())["warnings"])
     assert "look like an occluder" in warned and "view 'v0'" in warned

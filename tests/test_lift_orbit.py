@@ -92,7 +92,7 @@ def _score_with_orbit(tmp_path_factory, ctx, scene: str) -> dict:
     b = generate_benchmark(root, seed=0, n_views=8, width=240, height=180, scenes=(scene,), detail=0.25,
                            methods=("clean", "backside"), ctx=ctx)[0]
     opts = EvaluateOptions(n_boot=200, n_perm=100, orbit=12, pictures=False, boundary=False)
-    return evaluate(load_bundle(b), options=opts, ctx=ctx, progress=False)
+    return evaluate(load_bundle(b), options=opts, device=ctx, progress=False)
 
 
 @pytest.fixture(scope="module")

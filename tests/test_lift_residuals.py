@@ -84,7 +84,7 @@ def floaters_run(tmp_path_factory):
     n_bg = scene.background.n
     n_floaters = load_gaussians(load_bundle(b).methods["floaters"].path).n - n_bg
     opts = dict(n_boot=200, n_perm=100, pictures=False, boundary=False, prune_residuals=n_floaters)
-    runs = [evaluate(load_bundle(b), out=root / f"out{k}", ctx=ctx, progress=False,
+    runs = [evaluate(load_bundle(b), out=root / f"out{k}", device=ctx, progress=False,
                      options=EvaluateOptions(**opts)) for k in range(2)]
     return root, runs, n_bg, n_floaters, load_bundle(b), scene
 

@@ -42,7 +42,7 @@ def score(bundle, out, ctx):
     from r360gpu.pipeline import EvaluateOptions, evaluate
 
     opts = EvaluateOptions(n_boot=20, n_perm=10, orbit=ORBIT, pictures=False, boundary=False, controls=False)
-    return evaluate(load_bundle(bundle), out=out, ctx=ctx, progress=False, options=opts)["scenes"]["room"]
+    return evaluate(load_bundle(bundle), out=out, device=ctx, progress=False, options=opts)["scenes"]["room"]
 
 
 @pytest.fixture(scope="module")

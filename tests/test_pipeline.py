@@ -27,7 +27,7 @@ def test_overlapped_views_give_the_cells_of_one_view_at_a_time(tmp_path, ctx, la
     """remove360: every source read on host threads; mixed: splat scenes on the GPU thread too."""
     root = make_remove360(tmp_path / "b") if layout == "remove360" else make_bundle(tmp_path / "b")
     bundle = load_bundle(root)
-    res = evaluate(bundle, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    res = evaluate(bundle, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     sem, stru = default_probes()
     run = SceneRun(bundle, EvaluateOptions(**OPTS), ctx, sem, stru, cache=RunCache(None), timer=Timer())
     one_by_one = {v: score_view(run, v, PictureSink(None, False)) for v in run.views}
@@ -47,7 +47,7 @@ def test_view_records_are_dicts_only_where_written(tmp_path, ctx):
     bundle = load_bundle(make_remove360(tmp_path / "b"))
     out = tmp_path / "o"
     opts = EvaluateOptions(pictures=False, **OPTS)
-    first = evaluate(bundle, out=out, options=opts, ctx=ctx, progress=False)
+    first = evaluate(bundle, out=out, options=opts, device=ctx, progress=False)
     cell_file = sorted((out / ".r360cache" / "views").glob(f"*/{bundle.name}/after/*.json"))[0]
     on_disk = json.loads(cell_file.read_text())
     assert on_disk["record"]["view"] == cell_file.stem and on_disk["record"]["method"] == "after"
@@ -55,7 +55,7 @@ def test_view_records_are_dicts_only_where_written(tmp_path, ctx):
     assert isinstance(cell.record, ViewRecord) and cell.record.to_dict() == on_disk["record"]
     entry = first["scenes"][bundle.name]["methods"]["after"]["views"]
     assert on_disk["record"] in entry
-    again = evaluate(bundle, out=out, options=opts, ctx=ctx, progress=False)
+    again = evaluate(bundle, out=out, options=opts, device=ctx, progress=False)
     assert "render" not in again["timing"]["stages_s"] and "measure" not in again["timing"]["stages_s"]
     drop = lambda d: {k: v for k, v in d.items() if k not in ("created", "timing")}  # noqa: E731
     assert json.dumps(drop(again)) == json.dumps(drop(first))
@@ -88,7 +88,7 @@ def test_an_error_on_a_host_thread_stops_the_run_and_leaves_no_cell_behind(tmp_p
     before = threading.active_count()
     with pytest.raises(InputError, match="view_01: broken probe file"):
         evaluate(root, out=tmp_path / "out", structural_probes=[_FailsOn("view_01")],
-                 options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+                 options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert threading.active_count() == before  # no thread left running
     cells = sorted(p.stem for p in (tmp_path / "out" / ".r360cache" / "views").rglob("*.json"))
     assert "view_01" not in cells and "view_02" not in cells
@@ -158,11 +158,11 @@ def test_a_fully_cached_rerun_renders_nothing_and_a_stale_fit_record_is_caught(t
 
     root = make_bundle(tmp_path / "b")
     opts = EvaluateOptions(**OPTS)
-    first = evaluate(root, out=tmp_path / "out", options=opts, ctx=ctx, progress=False)
+    first = evaluate(root, out=tmp_path / "out", options=opts, device=ctx, progress=False)
     images = SceneSource.images
     calls = []
     monkeypatch.setattr(SceneSource, "images", lambda self, v, c: calls.append(v) or images(self, v, c))
-    again = evaluate(root, out=tmp_path / "out", options=opts, ctx=ctx, progress=False)
+    again = evaluate(root, out=tmp_path / "out", options=opts, device=ctx, progress=False)
     assert calls == [] and "fit probes" not in again["timing"]["stages_s"]
     assert again["scenes"] == first["scenes"] and again["probes"] == first["probes"]
     # a fit record that no longer holds: the views are looked up again under the fitted key
@@ -171,7 +171,7 @@ def test_a_fully_cached_rerun_renders_nothing_and_a_stale_fit_record_is_caught(t
     doc["semantic"][0]["params"]["model_sha256"] = "0" * 64
     rec.write_text(json.dumps(doc))
     next(iter((tmp_path / "out" / ".r360cache" / "views").rglob("view_01.json"))).unlink()
-    third = evaluate(root, out=tmp_path / "out", options=opts, ctx=ctx, progress=False)
+    third = evaluate(root, out=tmp_path / "out", options=opts, device=ctx, progress=False)
     assert third["scenes"] == first["scenes"] and third["probes"] == first["probes"]
 
 
@@ -183,7 +183,7 @@ def test_chunks_scored_from_pickled_inputs_give_the_runs_cells(tmp_path, ctx):
 
     root = make_bundle(tmp_path / "b")
     opts = EvaluateOptions(**OPTS)
-    res = evaluate(root, options=opts, ctx=ctx, progress=False)
+    res = evaluate(root, options=opts, device=ctx, progress=False)
     sem, stru = default_probes()
     cells = {}
     for chunk in (["view_00", "view_02"], ["view_01"]):
@@ -298,7 +298,7 @@ def test_splat_views_are_rendered_ahead_while_the_first_is_probed(tmp_path, ctx,
 
     monkeypatch.setattr(st, "render_on_device", render)
     monkeypatch.setattr(ev, "_gather", gather)
-    evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    evaluate(folder, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert waited == [True] and len(rendered) == 4
 
 
@@ -308,7 +308,7 @@ def test_the_next_scene_is_opened_while_the_last_views_are_probed(tmp_path, ctx,
     ev = importlib.import_module("r360gpu.pipeline.evaluate")  # (the package exports a function of that name)
 
     folders = _small_benchmark(tmp_path / "b", ctx, scenes=("room", "garden"))
-    alone = {f.name: evaluate(f, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)["scenes"][f.name]
+    alone = {f.name: evaluate(f, options=EvaluateOptions(**OPTS), device=ctx, progress=False)["scenes"][f.name]
              for f in folders}
     events = []
 
@@ -325,7 +325,7 @@ def test_the_next_scene_is_opened_while_the_last_views_are_probed(tmp_path, ctx,
 
     monkeypatch.setattr(ev, "SceneRun", Recorded)
     monkeypatch.setattr(st, "measure", measure)
-    both = evaluate(folders, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    both = evaluate(folders, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     room_views = both["scenes"]["room"]["views"]
     assert events.index(("open", "garden")) < events.index(("measure", "room", room_views[-1]))
     assert [e for e in events if e[0] == "open"] == [("open", "room"), ("open", "garden")]
@@ -361,14 +361,14 @@ def test_a_scene_that_cannot_be_opened_ahead_fails_at_its_turn(tmp_path, ctx, mo
     for p in masks:  # no target in any view: found once the scene is opened
         assert cv2.imwrite(str(p), np.zeros((48, 64), np.uint8))
     with pytest.raises(InputError) as err:
-        evaluate([room, garden], out=tmp_path / "out", options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+        evaluate([room, garden], out=tmp_path / "out", options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert "garden" in str(err.value) and "empty" in str(err.value)
     for p, data in good.items():
         p.write_bytes(data)
     rendered = []
     real_render = st.render_on_device
     monkeypatch.setattr(st, "render_on_device", lambda run, v: rendered.append(run.bundle.name) or real_render(run, v))
-    evaluate([room, garden], out=tmp_path / "out", options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    evaluate([room, garden], out=tmp_path / "out", options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert rendered.count("room") == 0 and rendered.count("garden") == 4  # every room view was cached
 
 
@@ -405,7 +405,7 @@ def test_results_do_not_depend_on_the_number_of_host_threads(tmp_path, ctx, monk
     for n in ("1", "4"):
         monkeypatch.setenv("R360GPU_HOST_THREADS", n)
         out = tmp_path / f"out{n}"
-        res = evaluate(load_bundle(root), out=out, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+        res = evaluate(load_bundle(root), out=out, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
         runs[n] = {k: v for k, v in res.items() if k not in ("created", "timing")}
         sheets[n] = {p.relative_to(out).as_posix(): cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
                      for p in sorted((out / "pictures").rglob("*.png"))}

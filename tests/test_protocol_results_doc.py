@@ -59,7 +59,7 @@ def two_scenes(tmp_path_factory, ctx):
     folders = generate_benchmark(root / "b", n_views=4, width=64, height=48, scenes=("room", "garden"),
                                  detail=0.08, ctx=ctx)
     out = root / "out"
-    res = evaluate(folders, out=out, options=EvaluateOptions(n_boot=50, n_perm=20, pictures=False), ctx=ctx,
+    res = evaluate(folders, out=out, options=EvaluateOptions(n_boot=50, n_perm=20, pictures=False), device=ctx,
                    progress=False, log=lambda *a: None)
     return res, out
 

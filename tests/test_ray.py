@@ -171,7 +171,7 @@ def test_scenes_holding_device_renders_are_refused(scenes, ray_instance, ctx):
     dev = DeviceViewsSource({v: Renderer(load_gaussians(b.pre.path), ctx=ctx).render_device(b.cameras[v])}, ctx=ctx)
     scene = r360gpu.scene_from_objects("room", "sofa", {v: load_mask(b.masks[v])}, dev, {"m": dev})
     with pytest.raises(InputError, match="DeviceViewsSource"):
-        evaluate(scene, ctx=ctx, options=EvaluateOptions(**OPTS), progress=False, executor="ray")
+        evaluate(scene, device=ctx, options=EvaluateOptions(**OPTS), progress=False, executor="ray")
 
 
 def test_resource_requests_are_checked(ray_instance):

@@ -13,6 +13,7 @@ import pytest
 from r360gpu.gpu import get_context
 from r360gpu.io import save_ply
 from r360gpu.pipeline import EvaluateOptions, evaluate
+from r360gpu.pipeline.evaluate import Plan, evaluate_plan
 from r360gpu.render.kept import KeptRenders
 from r360gpu.render.sources import SceneSource
 from r360gpu.synthetic import generate_benchmark, make_scene
@@ -98,9 +99,10 @@ def test_scoring_with_the_generators_renders_equals_scoring_alone(tmp_path, ctx)
     folder = generate_benchmark(tmp_path / "bench", **kw, kept=kept)[0]
     assert len(kept) == n_views  # every reference view the masks were drawn from
     opts = EvaluateOptions(n_boot=50, n_perm=20)
-    a = evaluate(folder, out=tmp_path / "with", options=opts, ctx=ctx, progress=False, kept=kept)
+    plan = Plan.open(out=tmp_path / "with", options=opts, device=ctx, progress=False, kept=kept)
+    a = evaluate_plan(folder, plan)
     assert kept.taken == n_views and len(kept) == 0
-    b = evaluate(folder, out=tmp_path / "without", options=opts, ctx=ctx, progress=False)
+    b = evaluate(folder, out=tmp_path / "without", options=opts, device=ctx, progress=False)
     for r in (a, b):
         r.pop("timing"), r.pop("created")
     assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)

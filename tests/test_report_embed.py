@@ -180,14 +180,14 @@ def test_a_run_embeds_without_decoding_pictures(tmp_path, ctx, monkeypatch):
     monkeypatch.setattr(embed, "jpeg_from_png", lambda png: calls.append(1) or real(png))
     out = tmp_path / "out"
     opts = EvaluateOptions(n_boot=50, n_perm=20)
-    res = evaluate(bundle, out=out, options=opts, ctx=ctx, progress=False)
+    res = evaluate(bundle, out=out, options=opts, device=ctx, progress=False)
     sheets = set(_sheets(res))
     assert len(sheets) >= 4 and calls == []
     assert len(list((out / ".r360cache" / "embed").iterdir())) == len(sheets)
     first = (out / "report.html").read_text(encoding="utf-8")
     for p in (out / ".r360cache" / "embed").iterdir():
         p.unlink()
-    evaluate(bundle, out=out, options=opts, ctx=ctx, progress=False)  # every view from the view cache
+    evaluate(bundle, out=out, options=opts, device=ctx, progress=False)  # every view from the view cache
     assert len(calls) == len(sheets) and len(list((out / ".r360cache" / "embed").iterdir())) == len(sheets)
     again = (out / "report.html").read_text(encoding="utf-8")
     # the page differs only where results.json does (creation time, timings), never in a picture

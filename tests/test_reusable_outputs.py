@@ -24,7 +24,7 @@ def run(tmp_path_factory, ctx):
                            cameras={c.name: c for c in scene.cameras}, target={"indices": idx})
     out = tmp_path_factory.mktemp("reusable")
     opts = EvaluateOptions(n_boot=20, n_perm=10, orbit=ORBIT, pictures=False, boundary=False, controls=False)
-    res = evaluate(b, out=out, options=opts, ctx=ctx, progress=False, log=lambda *a: None)
+    res = evaluate(b, out=out, options=opts, device=ctx, progress=False, log=lambda *a: None)
     return scene, b, idx, out, res
 
 

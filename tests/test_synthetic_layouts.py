@@ -27,7 +27,7 @@ def written(tmp_path_factory, ctx):
 
 
 def _axes(folder, ctx):
-    res = evaluate(folder, options=EvaluateOptions(**OPTS), ctx=ctx, progress=False)
+    res = evaluate(folder, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     (scene,) = res["scenes"].values()
     return {m: v["axes"] for m, v in scene["methods"].items()}, res
 

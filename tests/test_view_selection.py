@@ -50,9 +50,9 @@ def _objects(folder):
 
 def test_folder_bundle_and_objects_select_the_same_views(folder, ctx):
     opts = EvaluateOptions(views=("view_0[12]", "View_*"), **OPTS)
-    runs = {"folder": evaluate(folder, options=opts, ctx=ctx, progress=False),
-            "bundle": evaluate(load_bundle(folder), options=opts, ctx=ctx, progress=False),
-            "objects": evaluate(_objects(folder), options=opts, ctx=ctx, progress=False)}
+    runs = {"folder": evaluate(folder, options=opts, device=ctx, progress=False),
+            "bundle": evaluate(load_bundle(folder), options=opts, device=ctx, progress=False),
+            "objects": evaluate(_objects(folder), options=opts, device=ctx, progress=False)}
     for name, res in runs.items():
         scene = res["scenes"]["r"]
         assert scene["views"] == ["View_03", "view_01", "view_02"], name
@@ -73,7 +73,7 @@ def test_a_bundle_is_selected_once(folder):
 
 def test_a_pattern_that_selects_nothing_names_it_and_the_scene(folder, ctx):
     with pytest.raises(InputError, match=r"--views 'View_00\*' matches no evaluation view of scene 'r'"):
-        evaluate(_objects(folder), options=EvaluateOptions(views=("View_00*",), **OPTS), ctx=ctx, progress=False)
+        evaluate(_objects(folder), options=EvaluateOptions(views=("View_00*",), **OPTS), device=ctx, progress=False)
     with pytest.raises(InputError, match="'view_09' is not an evaluation view") as e:
         narrow_views(load_bundle(folder), ["view_00", "view_09"])
     assert e.value.path == str(folder / "scene.toml")

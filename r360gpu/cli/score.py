@@ -292,12 +292,12 @@ def score_and_report(bundles, out, args, executor=None, kept=None) -> int:
 
 
 def _score_and_report(bundles, out, args, executor, kept=None) -> int:
-    from ..pipeline import evaluate
+    from ..pipeline.evaluate import Plan, evaluate_plan
 
     sem, stru = probes_from_args(args)
-    results = evaluate(bundles, out=out, semantic_probes=sem, structural_probes=stru,
-                       options=options_from_args(args), adapter=args.adapter, force=args.force,
-                       progress=not args.quiet, executor=executor, kept=kept)
+    plan = Plan.open(out=out, options=options_from_args(args), semantic_probes=sem, structural_probes=stru,
+                     device=args.adapter, executor=executor, progress=not args.quiet, kept=kept)
+    results = evaluate_plan(bundles, plan, force=args.force)
     # Imported once scoring is done: report.html and report.outputs import matplotlib (0.3 s),
     # which the first view does not need.
     from ..report.html import REPORT_HTML

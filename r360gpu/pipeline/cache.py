@@ -28,8 +28,10 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -38,7 +40,8 @@ import numpy as np
 from .. import __version__
 from ..errors import InputError
 from ..schema import ScoredView, ViewCell
-from ..util import code_id
+from ..util import code_id, warning_log
+from ..util.filehash import changed_stamps, content_digest, decoded_digests, UNSETTLED
 
 CACHE_DIR = ".r360cache"
 #: What a view cell holds, in the view cache key: a cell written before a per-view value was added
@@ -132,8 +135,6 @@ class ViewCache:
         """Every method's cell of ``view`` as a :class:`~r360gpu.schema.ScoredView` (the view's
         warnings stored with its first cell), or None when any is missing (or its picture is, or a
         precomputed probe file it was scored from has changed since: the cells' ``inputs``)."""
-        from ..util.filehash import changed_stamps
-
         cells, inputs, warnings = {}, {}, None
         for m in methods:
             d = self._load(m, view)
@@ -162,8 +163,6 @@ class ViewCache:
         view was scored from has another stamp now than before it was read (the cells' ``inputs``);
         then warn and store nothing.  A probe file written within the last 2 s (its stamp proves
         nothing yet) keeps the view out of the cache without a warning.  True when stored."""
-        from ..util.filehash import UNSETTLED, changed_stamps
-
         inputs: dict = {}
         for cell in scored.cells.values():
             inputs.update(cell.inputs)
@@ -171,8 +170,6 @@ class ViewCache:
             return False
         changed = list(changed) + changed_stamps(inputs)
         if changed:
-            from ..util import warning_log
-
             for f in changed:
                 warning_log.warn(f"changed while the run read it: view {view!r} was scored from other bytes "
                                  f"than the run's cache key says, so its result is not cached (the next run "
@@ -225,19 +222,20 @@ def fingerprint(bundle, sources, digests: dict | None = None) -> str | None:
     digests: the bundle's :meth:`~r360gpu.bundle.Bundle.file_digests`, when the run keeps them.
     """
     from ..bundle import is_from_objects
+    from ..render.sources import SceneSource
 
     if not is_from_objects(bundle):
         return bundle.fingerprint() if digests is None else bundle.fingerprint_of(digests)
     h = hashlib.sha256()
     for s in sources:
-        if s is not None and getattr(s, "kind", None) == "device":
+        if s is not None and s.kind == "device":
             return None
         h.update(json.dumps(None if s is None else s.describe(), sort_keys=True, default=str).encode())
         # the description holds the path and count, not the values: two edits of the same size must not
         # share results, whether the Gaussians are in memory or a file edited in place
         for part in _content(s, bundle.views):
             h.update(part.encode())
-        h.update(repr(getattr(s, "background", None)).encode())
+        h.update(repr(s.background if isinstance(s, SceneSource) else None).encode())
     for v in bundle.views:
         cam = (bundle.cameras or {}).get(v)
         if cam is not None:  # every value exactly (repr(float) round-trips)
@@ -245,14 +243,14 @@ def fingerprint(bundle, sources, digests: dict | None = None) -> str | None:
             h.update(repr((cam.fx, cam.fy, cam.cx, cam.cy, cam.width, cam.height)).encode())
         m = bundle.masks.get(v)
         h.update(np.ascontiguousarray(m).tobytes() if isinstance(m, np.ndarray) else str(m).encode())
-    _update_target(h, getattr(bundle, "target", None))
+    _update_target(h, bundle.target)
     return h.hexdigest()
 
 
 def _content(source, views) -> list[str]:
     """Digests of what an opened source holds: its Gaussians' values (in memory), its splat file's
     bytes, or its renderings' bytes at ``views`` (a missing file hashed as missing)."""
-    from ..util.filehash import content_digest
+    from ..render.sources import RendersSource, SceneSource
 
     def of(path) -> str:
         try:
@@ -262,13 +260,11 @@ def _content(source, views) -> list[str]:
 
     if source is None:
         return []
-    if getattr(source, "in_memory", False):
-        return [source.gaussians.content_digest()]
-    if getattr(source, "kind", None) == "scene":
-        return [of(source.path)]
-    reader = getattr(source, "reader", None)
-    if reader is None:
+    if isinstance(source, SceneSource):
+        return [source.gaussians.content_digest() if source.in_memory else of(source.path)]
+    if not isinstance(source, RendersSource):
         return []
+    reader = source.reader
     out = []
     for v in views:
         for lookup in (reader.rgb_path, reader.depth_path) if reader.has_depth else (reader.rgb_path,):
@@ -286,13 +282,11 @@ def _update_target(h, spec) -> None:
         return
     for name in ("indices", "prop", "box", "masks"):
         h.update(name.encode())
-        _update_value(h, getattr(spec, name, None))
+        _update_value(h, getattr(spec, name))  # a TargetSpec's fields
 
 
 def _update_value(h, value) -> None:
     """Every value exactly: arrays by their bytes, dicts by sorted key, dataclasses (a Box) field by field."""
-    import dataclasses
-
     if isinstance(value, dict):
         for k in sorted(value, key=str):
             h.update(repr(k).encode())
@@ -317,10 +311,6 @@ def changed_inputs(keyed: dict | None, files: list, decoded: dict | None = None)
     """
     if keyed is None:
         return []
-    import os
-
-    from ..util.filehash import decoded_digests
-
     absolute = {f: os.path.abspath(f) for f in files}
     decoded = decoded_digests(absolute.values()) if decoded is None else decoded
     return [f for f, a in absolute.items() if a in decoded and decoded[a] != keyed.get(f)]

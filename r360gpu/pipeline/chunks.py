@@ -11,6 +11,14 @@ chunk scores with the same fitted probe.
 """
 from __future__ import annotations
 
+from ..bundle import load_bundle
+from ..errors import InputError
+from ..gpu import get_context
+from .cache import cell_json, RunCache
+from .picture_sink import PictureSink
+from .run import SceneRun, Timer
+from .stages import score_view
+
 
 def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, adapter: str | None = None,
                 ctx=None) -> dict:
@@ -23,14 +31,6 @@ def score_chunk(bundle, options, semantic_probes, structural_probes, views, *, a
     gives them, written as JSON-ready dicts (:func:`~.cache.cell_json`: the record a dict) to cross
     the process boundary (no pictures, no cache: the caller owns the output folder).
     """
-    from ..bundle import load_bundle
-    from ..errors import InputError
-    from ..gpu import get_context
-    from .cache import RunCache, cell_json
-    from .picture_sink import PictureSink
-    from .run import SceneRun, Timer
-    from .stages import score_view
-
     ctx = ctx or get_context(adapter)
     b = load_bundle(bundle, views=list(options.views) if options.views else None)
     run = SceneRun(b, options, ctx, list(semantic_probes), list(structural_probes), cache=RunCache(None),

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 import os
+import platform
 import socket
 import sys
 import time
@@ -44,7 +45,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError, R360Error
+from ..gpu import get_context, GpuContext
 from ..util import warning_log
+from ..util.code_id import version_id
+from ..util.filehash import decoded_digests
+from ..util.progress import duration
+from .cache import RunCache
+from .picture_sink import PictureSink
+from .run import SceneRun, Timer
+from .stages import score_view
 
 INSTALL_HINT = "scoring on Ray needs the ray package: pip install 'r360gpu[ray]'"
 FAIL_ONCE_ENV = "R360GPU_RAY_FAIL_ONCE"
@@ -135,20 +144,24 @@ class RayOptions:
             raise InputError(f"--ray-chunk must be at least 1, got {self.chunk}")
 
 
-def open_executor(executor, *, ray_address=None, adapter=None, device=None, log=print):
-    """The executor ``evaluate(executor=...)`` names: None/"serial" (none), "ray", or an executor
-    object (a :class:`RayExecutor`, a :class:`~.processes.ProcessExecutor`)."""
+def open_executor(executor, *, device=None, log=print):
+    """The executor ``evaluate(executor=...)`` names: None/"serial" (none), "ray" (a local Ray), or an
+    executor object (a :class:`RayExecutor`, a :class:`~.processes.ProcessExecutor`).  device:
+    evaluate()'s; with "ray" an adapter choice is passed to the workers, a caller's device cannot be."""
     if executor is None or executor == "serial":
-        if ray_address is not None:
-            raise InputError("ray_address is given but executor is not 'ray'")
         return None
     if isinstance(executor, ChunkExecutor):
         return executor
     if executor != "ray":
-        raise InputError(f"unknown executor {executor!r} (use 'serial' or 'ray')")
-    if device is not None:
+        raise InputError(f"unknown executor {executor!r} (use 'serial', 'ray' or an executor object)")
+    if device is not None and not isinstance(device, str) and not _is_context(device):
         raise InputError("executor='ray' opens a GPU device in each worker; a caller's device cannot be sent")
-    return RayExecutor(RayOptions(address=ray_address or "local"), adapter=adapter, log=log)
+    return RayExecutor(RayOptions(), adapter=device if isinstance(device, str) else None, log=log)
+
+
+def _is_context(device) -> bool:
+    """An opened r360gpu context (its workers open their own on the default adapter, as before)."""
+    return isinstance(device, GpuContext)
 
 
 def chunk_views(views: list, size: int) -> list[list]:
@@ -208,8 +221,6 @@ class ChunkExecutor:
 
     def common(self, run, sink) -> dict:
         """What every task of ``run``'s scene needs besides its views."""
-        from ..util.code_id import version_id
-
         _check_sendable(run.bundle)
         return {"version": version_id(), "bundle": run.bundle, "opts": run.opts, "adapter": self.adapter,
                 "sem": _fitted_probes(run.sem), "stru": _fitted_probes(run.stru), "pictures": sink.enabled,
@@ -379,8 +390,6 @@ class TaskProgress:
         if self.bar is not None:
             self.bar.update(1)
         elif self.enabled:
-            from ..util.progress import duration
-
             spent = time.perf_counter() - self.t0
             left = f", about {duration(spent * (self.n - self.i) / self.i)} left" if self.i < self.n else ""
             self.log(f"{self.scene} {self.where}: task {self.i}/{self.n} done ({n_views} views){left}")
@@ -393,12 +402,7 @@ class TaskProgress:
 def score_task(common: dict, views: list) -> dict:
     """One task (Ray's, or a worker process's): score ``views`` of one scene on this node
     (module docstring); common: :meth:`ChunkExecutor.common`."""
-    import platform
-
-    from ..gpu import get_context
     from ..gpu.assign import worker_adapter
-    from ..util.code_id import version_id
-    from .run import Timer
 
     _fail_once_hook()
     node = platform.node()
@@ -426,12 +430,6 @@ def _ray_gpu_ids() -> list:
 
 def _score_task(common, views, ctx, timer, node) -> dict:
     import tempfile
-
-    from .cache import RunCache
-    from .picture_sink import PictureSink
-    from .run import SceneRun
-    from ..util.filehash import decoded_digests
-    from .stages import score_view
 
     run = SceneRun(common["bundle"], common["opts"], ctx, common["sem"], common["stru"], cache=RunCache(None),
                    timer=timer, fit=False)

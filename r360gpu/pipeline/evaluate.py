@@ -2,16 +2,20 @@
 from __future__ import annotations
 
 import time
-from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..gpu import get_context
+from ..probes.registry import scene_probes
 from ..schema import SceneEntry
 from ..util import warning_log
+from ..util.imports import ImportAhead
 from .cache import RunCache
+from .distributed import open_executor
 from .options import EvaluateOptions, default_probes
 from .picture_sink import PictureSink
 from .results_doc import ResultsDocument
@@ -23,18 +27,14 @@ def evaluate(
     bundles,
     *,
     out=None,
+    options: EvaluateOptions | None = None,
     semantic_probes=None,
     structural_probes=None,
-    options: EvaluateOptions | None = None,
-    ctx=None,
-    adapter: str | None = None,
     device=None,
+    executor=None,
     force: bool = False,
     progress: bool = True,
     log=print,
-    executor=None,
-    ray_address: str | None = None,
-    kept=None,
 ) -> dict:
     """Score one or more scene bundles; returns the results document (a dict).
 
@@ -46,51 +46,40 @@ def evaluate(
         plots and report.html are written there, as ``r360gpu score`` does,
         and the per-view cache is kept there (None: nothing is written and
         nothing is cached).
+    options: the scoring options (`EvaluateOptions`; None: the defaults).
     semantic_probes, structural_probes: lists of probes (default: the
         weight-free built-ins).  With several probes per axis the axes use the
         "most alarming" reading per view; each probe's own axes are kept.
-    ctx / adapter / device: the GPU context, an adapter choice, or a caller's
-        ``wgpu.GPUDevice``.
-    force: recompute everything (the cache under ``out`` is cleared first).
+    device: where the views are rendered and scored: None (the default adapter), an adapter
+        choice as ``--adapter`` takes it ("auto", "gpu", "gpu:N", "cpu", part of a name), a
+        caller's ``wgpu.GPUDevice``, or a context from `r360gpu.gpu.get_context`.
     executor: None or "serial" (views scored here, overlapped), "ray"
-        (uncached views scored as Ray tasks, `.distributed`; needs the
-        ``r360gpu[ray]`` extra), a `RayExecutor`, or a
-        `ProcessExecutor` (worker processes on this machine).
-    ray_address: with executor="ray": "local" (default), "auto" or a cluster address.
-    kept: renders made before (`KeptRenders`, as
-        ``r360gpu demo`` keeps the generator's reference renders), used where
-        they are exactly what would be rendered; emptied when the run ends.
+        (uncached views scored as Ray tasks on a local Ray, `.distributed`; needs the
+        ``r360gpu[ray]`` extra), a `RayExecutor` (``RayExecutor(RayOptions(address="auto"))``
+        for a cluster), or a `ProcessExecutor` (worker processes on this machine).
+    force: recompute everything (the cache under ``out`` is cleared first).
+    progress: progress bars while views are scored.
+    log: where notes are said (the probes a public folder runs, moved frames, missing methods).
     """
     # One collector from the first file read: warnings of loading (a COLMAP model's distortion,
     # a BOM in prompt.txt) reach results.json as the pipeline's do.
     with warning_log.collecting():
-        opts = options or EvaluateOptions()
-        opts._check()  # before any work, also when a field was changed after the options were built
-        host_threads()  # R360GPU_HOST_THREADS too
-        if executor is not None or ray_address is not None:
-            from .distributed import open_executor
-
-            executor = open_executor(executor, ray_address=ray_address, adapter=adapter, device=device, log=log)
-        if ctx is None:
-            from ..gpu import get_context
-
-            ctx = get_context(adapter, device=device)
-        # None: not given; each scene then takes its folder's probe outputs or the defaults
-        # (probes.registry.scene_probes)
-        defaults = default_probes() if semantic_probes is None or structural_probes is None else None
-        plan = _Plan(opts=opts, ctx=ctx, semantic=semantic_probes, structural=structural_probes, defaults=defaults,
-                     out=Path(out) if out is not None else None, progress=progress, log=log, executor=executor,
-                     kept=kept)
-        return _load_and_evaluate(bundles, plan, force=force)
+        plan = Plan.open(out=out, options=options, semantic_probes=semantic_probes,
+                         structural_probes=structural_probes, device=device, executor=executor,
+                         progress=progress, log=log)
+        return evaluate_plan(bundles, plan, force=force)
 
 
 @dataclass(frozen=True)
-class _Plan:
-    """What one evaluate() call runs with, built once from the caller's arguments: the options,
-    the opened GPU context and executor, and the probes.
+class Plan:
+    """What one evaluate() call runs with, built once from the caller's arguments (`Plan.open`):
+    the options, the opened GPU context and executor, and the probes.
 
     semantic / structural: the probes given for an axis, used for every scene; None lets each
     scene take its folder's probe outputs or ``defaults``.
+    kept: renders made before on ``ctx`` (`KeptRenders`, as ``r360gpu demo`` keeps the
+    generator's reference renders), used where they are exactly what would be rendered; emptied
+    when the run ends.
     """
 
     opts: EvaluateOptions
@@ -104,14 +93,43 @@ class _Plan:
     executor: Any = None
     kept: Any = None
 
-    def scene_probes(self, bundle, compat) -> tuple:
-        """(semantic, structural, selection) of ``bundle`` (:func:`r360gpu.probes.registry.scene_probes`)."""
-        from ..probes.registry import scene_probes
+    @classmethod
+    def open(cls, *, out=None, options=None, semantic_probes=None, structural_probes=None, device=None,
+             executor=None, progress=True, log=print, kept=None) -> Plan:
+        """The plan of `evaluate`'s arguments (see there), the options checked and the
+        executor and GPU context opened; ``kept`` as `Plan` has it."""
+        opts = options or EvaluateOptions()
+        opts._check()  # before any work, also when a field was changed after the options were built
+        host_threads()  # R360GPU_HOST_THREADS too
+        if executor is not None:
+            executor = open_executor(executor, device=device, log=log)
+        # None: not given; each scene then takes its folder's probe outputs or the defaults
+        # (probes.registry.scene_probes)
+        defaults = default_probes() if semantic_probes is None or structural_probes is None else None
+        return cls(opts=opts, ctx=_context(device), semantic=semantic_probes, structural=structural_probes,
+                   defaults=defaults, out=Path(out) if out is not None else None, progress=progress, log=log,
+                   executor=executor, kept=kept)
 
+    def scene_probes(self, bundle, compat) -> tuple:
+        """(semantic, structural, selection) of ``bundle`` (`r360gpu.probes.registry.scene_probes`)."""
         return scene_probes(bundle, self.semantic, self.structural, compat=compat, defaults=self.defaults)
 
 
-def _load_and_evaluate(bundles, plan: _Plan, *, force: bool) -> dict:
+def _context(device):
+    """The GPU context of evaluate()'s ``device`` (an adapter choice, a device or a context)."""
+    if device is None or isinstance(device, str):
+        return get_context(device)
+    return get_context(None, device=device)
+
+
+def evaluate_plan(bundles, plan: Plan, *, force: bool = False) -> dict:
+    """`evaluate` with its plan already opened (`Plan.open`): what ``r360gpu score`` runs,
+    with the demo's kept renders in ``plan.kept``."""
+    with warning_log.collecting():
+        return _load_and_evaluate(bundles, plan, force=force)
+
+
+def _load_and_evaluate(bundles, plan: Plan, *, force: bool) -> dict:
     from ..bundle import Bundle, load_bundle
 
     opts, log = plan.opts, plan.log
@@ -145,9 +163,7 @@ def _load_and_evaluate(bundles, plan: _Plan, *, force: bool) -> dict:
                 plan.kept.clear()
 
 
-def _evaluate(loaded, plan: _Plan, cache: RunCache, sink: PictureSink) -> dict:
-    from ..util.imports import ImportAhead
-
+def _evaluate(loaded, plan: Plan, cache: RunCache, sink: PictureSink) -> dict:
     opts, ctx, out, progress, log, executor = plan.opts, plan.ctx, plan.out, plan.progress, plan.log, plan.executor
 
     # the cross-scene statistics (two scenes or more) use scipy.stats, first needed once every view is scored
@@ -213,7 +229,7 @@ def _evaluate(loaded, plan: _Plan, cache: RunCache, sink: PictureSink) -> dict:
     return results
 
 
-def _what_ifs(bundle, scene_res: SceneEntry, plan: _Plan, open_what_if, score) -> dict:
+def _what_ifs(bundle, scene_res: SceneEntry, plan: Plan, open_what_if, score) -> dict:
     """The scene beyond its capture views, as :class:`~r360gpu.schema.SceneEntry` fields: the orbit
     (``--orbit N``, ``orbit``), the residual Gaussians (``residuals``) and the unranked METHOD+pruned
     what-ifs (``pruned``)."""
@@ -249,7 +265,7 @@ def _reusable_target(run, scene_res: SceneEntry, out) -> dict | None:
 
 def _say_probes(run: SceneRun, log) -> None:
     """On the console: which probes a public folder's scene runs and why (its own outputs or not)."""
-    if getattr(run.bundle, "layout", None) != "remove360":
+    if run.bundle.layout != "remove360":
         return
     for axis, sel in run.probe_selection.items():
         log(f"probes: {run.bundle.name} {axis}: {', '.join(sel['probes'])} ({sel['source']}) -- {sel['why']}")
@@ -259,7 +275,7 @@ def _say_frames(run: SceneRun, log) -> None:
     """On the console: the splat sources whose cameras are moved into another frame (r360gpu.io.frames)."""
     named = [("pre", run.pre), ("reference", run.reference), *run.methods.items()]
     for name, src in named:
-        frame = getattr(src, "frame", None)
+        frame = src.frame if src is not None and src.kind == "scene" else None  # (render.sources.Source)
         if frame is not None:
             log(f"frame: {run.bundle.name} {name}: cameras moved by {frame.origin} (scale {frame.scale:.6g}; "
                 f"depth reported in the cameras' units)")

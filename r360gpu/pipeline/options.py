@@ -1,9 +1,15 @@
 """Scoring options: what ``r360gpu score`` and ``r360gpu demo`` take on the command line."""
 from __future__ import annotations
 
+import math
+import os
 from dataclasses import asdict, dataclass, field
+from numbers import Integral, Real
 
+from ..errors import InputError
+from ..metrics.compat import check_compat
 from ..metrics.geometric import GhtParams
+from ..probes.providers import choose, plan
 from ..probes.registry import default_probes  # noqa: F401  (the pipeline's default probes)
 from ..protocol import N_BOOT, N_PERM, XI_SWEEP
 
@@ -68,10 +74,6 @@ class EvaluateOptions:
     prune_residuals: int | float | None = None
 
     def __post_init__(self):
-        from ..metrics.compat import check_compat
-
-        from ..errors import InputError
-
         self.compat = check_compat(self.compat)
         if isinstance(self.ght, dict):
             unknown = sorted(set(self.ght) - set(GhtParams().as_dict()))
@@ -84,12 +86,6 @@ class EvaluateOptions:
     def _check(self) -> None:
         """InputError for an option no run can use: the checks of the CLI flags and of the library,
         made when the options are built, before any view is scored."""
-        import math
-        import os
-        from numbers import Integral, Real
-
-        from ..errors import InputError
-
         xis = tuple(self.xis) if isinstance(self.xis, (list, tuple)) else None
         if not xis:
             raise InputError(f"xis (--xi) must be a non-empty list of thresholds, got {self.xis!r}")
@@ -123,8 +119,6 @@ class EvaluateOptions:
                 raise InputError(f"ght.{name} must be a finite number >= 0, got {value!r}")
         if ght.omega > 1:
             raise InputError(f"ght.omega must lie in [0, 1], got {ght.omega!r}")
-        from ..probes.providers import choose, plan
-
         choose(self.probe_device)  # an unknown name
         if self.lpips_model and self.probe_device != "auto":
             plan(self.probe_device)  # a provider asked for by name that onnxruntime lacks
@@ -141,11 +135,6 @@ class EvaluateOptions:
 
     def _check_orbit_shape(self) -> None:
         """InputError unless the orbit's radius, elevations and azimuths can place cameras."""
-        import math
-        from numbers import Real
-
-        from ..errors import InputError
-
         def number(x) -> bool:
             return not isinstance(x, bool) and isinstance(x, Real) and math.isfinite(x)
 

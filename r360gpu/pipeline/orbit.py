@@ -20,16 +20,25 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..bundle.model import Bundle
 from ..errors import InputError
+from ..io import Gaussians, load_gaussians
+from ..io.frames import depth_in_cameras, in_frame, points_in_cameras
+from ..lift.device import MaskLifter
+from ..lift.masks import TargetMaskRenderer
+from ..lift.orbit import captured, keep_pose, OCCLUDED, orbit_cameras, seen_share
+from ..lift.resolve import scene_target
+from ..render import Renderer
+from ..render.conventions import RenderOptions
+from ..render.sources import frame_of
 from ..schema import OrbitEntry
+from .reusable import write_orbit, write_target
 
 RENDERINGS_ONLY = "no orbit (renderings only)"
 
 
 def _is_scene(spec) -> bool:
-    from ..io import Gaussians
-
-    return isinstance(spec, Gaussians) or getattr(spec, "kind", None) == "scene"
+    return isinstance(spec, Gaussians) or spec.kind == "scene"
 
 
 def _at_orbit(spec):
@@ -61,14 +70,9 @@ def orbit_renders_problem(orbit) -> str | None:
 
 def _gaussians(spec):
     """(Gaussians, RenderOptions or None, world frame or None) of a splat source ``spec``."""
-    from ..io import Gaussians, load_gaussians
-    from ..render.sources import frame_of
-
     if isinstance(spec, Gaussians):
         return spec, None, None
     settings = getattr(spec, "render", None)
-    from ..render.conventions import RenderOptions
-
     return (load_gaussians(spec.path), RenderOptions(**(settings.given() if settings is not None else {})),
             frame_of(spec))
 
@@ -88,14 +92,6 @@ def orbit_bundle(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
 def _orbit(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
     """(orbit bundle or None, info, (pre's Gaussians, LiftedTarget) or None): `orbit_bundle` and
     the target it lifted."""
-    from ..bundle.model import Bundle
-    from ..io.frames import depth_in_cameras, in_frame, points_in_cameras
-    from ..lift.masks import TargetMaskRenderer
-    from ..lift.device import MaskLifter
-    from ..lift.orbit import OCCLUDED, captured, keep_pose, orbit_cameras, seen_share
-    from ..lift.resolve import scene_target
-    from ..render import Renderer
-
     info: dict = {"requested": int(n), "kept": 0, "dropped": {}, "no_orbit": {}}
     if orbit_shape:
         info["shape"] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in orbit_shape.items()}
@@ -170,8 +166,6 @@ def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None, 
     out: the output folder (None: nothing written), where the kept poses' cameras.json and target
     masks, and the lifted target, go (`r360gpu.pipeline.reusable`; paths under "files").
     """
-    from .reusable import write_orbit, write_target
-
     try:
         orbit, info, lifted = _orbit(bundle, opts.orbit, ctx=ctx, warn=warn, orbit_shape=opts.orbit_shape())
     except InputError as e:
@@ -183,7 +177,7 @@ def score_orbit(bundle, opts, open_run, evaluate_scene, *, ctx=None, warn=None, 
         raise InputError(problem)
     if out is not None and lifted is not None:
         files = info["files"] = {}
-        if getattr(bundle, "target", None) is None:  # a [target]'s lift is written with the scene's
+        if bundle.target is None:  # a [target]'s lift is written with the scene's
             files["target"] = write_target(out, bundle.name, lifted[0], lifted[1].target, {}, source=getattr(bundle.pre, "path", None))
         if orbit is not None:
             files.update(write_orbit(out, bundle.name, [orbit.cameras[v] for v in orbit.views], orbit.masks))

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..kernels.depth_change import no_depth
+from ..metrics.compat import compat_quantise, depth_delta
 from ..util.memo import ByIdentity
 
 
@@ -60,8 +62,6 @@ class PictureSink:
         shrink / panels: a view's :class:`_Shrink` and panel memo, shared by its methods' sheets
         (:meth:`view`).
         """
-        from ..kernels.depth_change import no_depth
-        from ..metrics.compat import compat_quantise, depth_delta
         from ..report.contact_sheets import view_contact_sheet
 
         geo, pre_rgb, post_rgb, ref_rgb, mask = job.geo, job.pre_rgb, job.post_rgb, job.ref_rgb, job.mask

@@ -36,9 +36,11 @@ import signal
 import tempfile
 import threading
 import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 
 from ..errors import InputError, R360Error, WorkerLostError
+from ..gpu.assign import worker_slots
 from .distributed import ChunkExecutor, TaskProgress, chunk_views, score_task
 
 
@@ -135,9 +137,6 @@ class ProcessExecutor(ChunkExecutor):
     def _start(self):
         if self._pool is None:
             import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            from ..gpu.assign import worker_slots
 
             threads = max(1, (os.cpu_count() or 1) // self.workers)
             spawn = multiprocessing.get_context("spawn")
@@ -166,7 +165,6 @@ class ProcessExecutor(ChunkExecutor):
 
     def score_scene(self, run, view_cache, sink, progress: bool) -> dict:
         """{view: ScoredView} for the views of ``run`` the view cache lacks; stored there as they arrive."""
-        from concurrent.futures import FIRST_COMPLETED, wait
         from concurrent.futures.process import BrokenProcessPool
 
         todo = self.todo(run, view_cache, sink)

@@ -22,8 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..aggregate.results import per_view_axes
 from ..bundle.names import DERIVED_SUFFIXES
 from ..errors import InputError
+from ..io import Gaussians, load_mask
+from ..io.inria_ply import save_ply
+from ..lift.residuals import depth_behind, flagged_views, residuals, surface_depth, top_residuals, write_residual_ply
+from ..lift.resolve import scene_target
 from ..protocol import XI_DEFAULT
 from .orbit import _gaussians, _is_scene
 
@@ -71,8 +76,6 @@ def why_fewer(asked: int, n: int, n_residual: int) -> str | None:
 
 
 def _masks(bundle, cams) -> list:
-    from ..io import load_mask
-
     out = []
     for v, c in zip(bundle.views, cams):
         mk = bundle.masks[v]
@@ -84,9 +87,6 @@ def _behind(bundle, cams, ctx, warn):
     """(per-view depth of the surface behind the target, or None, and how the residual was gated):
     the reference's when it is a splat scene (the capture after the removal shows exactly what the
     object hid), else pre's without the lifted target."""
-    from ..lift.residuals import depth_behind, surface_depth
-    from ..lift.resolve import scene_target
-
     if bundle.reference is not None and _is_scene(bundle.reference):
         g, options, frame = _gaussians(bundle.reference)
         return (surface_depth(g, cams, ctx=ctx, options=options, frame=frame),
@@ -108,9 +108,6 @@ def scene_residuals(bundle, methods: dict, out, *, ctx=None, xis=(XI_DEFAULT,), 
     """({method: {"file", "flagged_views", "top", "max", "gate"} or {"note"}}, {method: (N,) residual})
     for ``bundle`` scored as ``methods`` (the scene entry's: {method: {"views": [view record dicts]}});
     the PLYs are written under ``out`` (None: not written)."""
-    from ..aggregate.results import per_view_axes
-    from ..lift.residuals import flagged_views, residuals, top_residuals, write_residual_ply
-
     entry: dict = {}
     values: dict = {}
     cams = [bundle.cameras[v] for v in bundle.views] if bundle.cameras else []
@@ -142,10 +139,6 @@ def pruned_bundle(bundle, values: dict, q, out):
     residual Gaussians, {name: {"method", "removed", "of", "asked"[, "fewer"]}}: "fewer" says why
     fewer than asked were removed).  The pruned scenes are written as
     ``residuals/SCENE/METHOD+pruned.ply`` under ``out`` (kept in memory when ``out`` is None)."""
-    from ..io import Gaussians
-    from ..io.inria_ply import save_ply
-    from ..lift.residuals import top_residuals
-
     methods, info = {}, {}
     for m, r in values.items():
         spec = bundle.methods[m]

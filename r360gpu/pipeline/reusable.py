@@ -18,6 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bundle.model import ORBIT_CAMERAS
+from ..io.cameras_json import save_cameras_json
+from ..io.inria_ply import TARGET, write_labelled_ply
+from ..util.atomic import atomic_open, write_bytes
+
 TARGET_DIR = "target"
 ORBIT_DIR = "orbit"
 
@@ -25,7 +30,6 @@ ORBIT_DIR = "orbit"
 def _masks(out: Path, folder: Path, masks: dict) -> dict:
     """{view: relative path} of ``masks`` {view: (H, W) bool} written as PNGs under ``out/folder/masks``."""
     from ..report.png import encode
-    from ..util.atomic import write_bytes
 
     paths = {}
     for v, m in masks.items():
@@ -39,9 +43,6 @@ def write_target(out, scene: str, gaussians, target: np.ndarray, masks: dict, *,
     """{"indices", "ply", "masks": {view: path}} of the lifted ``target`` (N,) bool over pre's
     ``gaussians`` (read from ``source``) and the rendered ``masks`` {view: (H, W) bool}, written under
     ``out/target/SCENE``."""
-    from ..io.inria_ply import TARGET, write_labelled_ply
-    from ..util.atomic import atomic_open
-
     out, folder = Path(out), Path(TARGET_DIR) / scene
     rows = np.sort(gaussians.rows[np.asarray(target, bool)]).astype(np.int64)
     with atomic_open(out / folder / "target.npy", "wb") as f:
@@ -55,9 +56,6 @@ def write_target(out, scene: str, gaussians, target: np.ndarray, masks: dict, *,
 def write_orbit(out, scene: str, cameras: list, masks: dict) -> dict:
     """{"cameras", "masks": {view: path}}: the orbit's kept ``cameras`` as ``out/orbit/SCENE/cameras.json``
     and their target ``masks`` {view: (H, W) bool} as PNGs."""
-    from ..bundle.model import ORBIT_CAMERAS
-    from ..io.cameras_json import save_cameras_json
-
     out, folder = Path(out), Path(ORBIT_DIR) / scene
     save_cameras_json(out / folder / ORBIT_CAMERAS, cameras)
     return {"cameras": str(folder / ORBIT_CAMERAS), "masks": _masks(out, folder, masks)}

@@ -26,6 +26,7 @@ score a chunk of its views (:func:`r360gpu.pipeline.stages.score_view`).
 from __future__ import annotations
 
 import copy
+import json
 import threading
 import time
 from dataclasses import dataclass, field
@@ -33,7 +34,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..metrics import frame_check
+from ..probes.providers import choose
 from ..util import warning_log
+from ..util.filehash import forget_decoded
+from .cache import changed_inputs, digest, fingerprint
 
 
 @dataclass
@@ -73,7 +78,7 @@ def open_pres(bundle, src) -> tuple[dict, dict]:
     names = {key(bundle.pre): "pre"}
     pre_of = {}
     for m in bundle.methods:
-        spec = (getattr(bundle, "method_pres", None) or {}).get(m)
+        spec = bundle.method_pres.get(m)
         if spec is None:
             pre_of[m] = "pre"
             continue
@@ -92,8 +97,6 @@ class SceneRun:
         from ..bundle import is_from_objects
         from ..bundle.views import require_target
         from ..metrics.fidelity import LpipsModel
-        from ..probes.providers import choose
-        from .cache import fingerprint
 
         self.bundle, self.opts, self.ctx = bundle, opts, ctx
         self.timer, self.kept = timer, kept
@@ -105,7 +108,7 @@ class SceneRun:
         self._open_sources()
         self.target_record = self.target_lifted = None
         loaded = bundle  # the key is made of what was loaded: the target's masks are rendered from it
-        if getattr(bundle, "target", None) is not None:  # [target]: a mask for every view (r360gpu.lift)
+        if bundle.target is not None:  # [target]: a mask for every view (r360gpu.lift)
             from ..lift.resolve import resolve_lifted
 
             t0 = time.perf_counter()
@@ -137,7 +140,6 @@ class SceneRun:
         """The pre sources, the reference, the methods and the controls, opened (timed as "load")."""
         from ..bundle import is_from_objects
         from ..render.sources import open_source
-        from ..util.filehash import forget_decoded
 
         bundle, t0 = self.bundle, time.perf_counter()
         if not is_from_objects(bundle):  # what an earlier run in this process decoded is not this run's
@@ -164,8 +166,6 @@ class SceneRun:
     def _open_probes(self, sem_probes, str_probes, cache, fit: bool) -> None:
         """The probes, wrapped in the probe cache; those that learn from the scene fitted now, or
         (``fit_pending``) once a view has to be scored when a fit record gives their descriptions."""
-        from .cache import digest
-
         # Probes that learn from the scene are fitted as copies, one per scene: the caller's
         # objects stay as given, so the fit record's key (their description) is the same every run.
         learns = lambda p: getattr(p, "learns_from_scene", False)  # noqa: E731 (probes.base.Probe.fit)
@@ -217,8 +217,6 @@ class SceneRun:
 
     def changed_inputs(self, view: str, decoded: dict | None = None) -> list[str]:
         """Inputs of ``view`` decoded from other bytes than the cache key's (see cache.changed_inputs)."""
-        from .cache import changed_inputs
-
         return changed_inputs(self.file_digests, self.view_files(view), decoded)
 
     def mask(self, view: str) -> np.ndarray:
@@ -260,8 +258,6 @@ class SceneRun:
     def _describe(self) -> dict:
         """The probes' descriptions as JSON gives them back (lists, not tuples), so a fresh one
         compares equal to a recorded one."""
-        import json
-
         return json.loads(json.dumps({"semantic": [p.describe() for p in self.sem],
                                       "structural": [p.describe() for p in self.stru]}, default=str))
 
@@ -304,16 +300,14 @@ class SceneRun:
         step; the renders are kept for scoring.  The verdict is cached with the bundle's
         fingerprint (a rerun renders nothing for it).  Returns {pre name: verdict dict} of the
         sources checked."""
-        from ..metrics import frame_check
         from ..render.sources import host_depth
-        from .cache import digest
 
         pick = frame_check.checked_views([v for v in self.views if self.mask(v).any()])
         if not pick:
             return {}
         out = {}
         for name, src in self.pres.items():
-            if getattr(src, "kind", None) != "scene" or self.camera(pick[0]) is None:
+            if src.kind != "scene" or self.camera(pick[0]) is None:
                 continue  # renders made elsewhere are images already: no frame to get wrong
             key = digest({"frame_check": self.fingerprint, "views": pick, "source": src.describe(),
                           "check": frame_check.CHECK_VERSION})
@@ -335,7 +329,7 @@ class SceneRun:
             if verdict.level == "note":
                 out[name]["note"] = frame_check.note_message(verdict)
             elif verdict.missed:
-                frame = getattr(src, "frame", None)
+                frame = src.frame  # a scene source's (render.sources.SceneSource)
                 raise InputError(f"scene {self.bundle.name}: " + frame_check.mismatch_message(
                     verdict, source=str(src.path), frame=None if frame is None else frame.origin,
                     cameras=None if self.bundle.cameras_path is None else str(self.bundle.cameras_path)))

@@ -10,15 +10,21 @@ finishes first, so the results do not depend on the thread counts.
 from __future__ import annotations
 
 import contextvars
+import os
+import time
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 
 from ..errors import InputError
 from ..protocol import XI_DEFAULT
 from ..schema import SceneEntry, ScoredView
 from ..util import warning_log
+from ..util.progress import progress
 from .cache import RunCache
 from .picture_sink import PictureSink
 from .run import SceneRun
-from .stages import gather
+from .stages import gather, measure, on_host, picture_jobs, render_on_device, view_sources
+from .writer import BackgroundWriter
 
 
 #: Views whose host-side work (reading, probes) may run ahead of the view being measured, at least.
@@ -38,8 +44,6 @@ def host_threads() -> int:
     to compare counts in a benchmark.  Results do not depend on it: views are
     measured and written in their order whatever finishes first.
     """
-    import os
-
     given = os.environ.get("R360GPU_HOST_THREADS", "").strip()
     if given:
         try:
@@ -138,7 +142,7 @@ def _scene_header(run: SceneRun) -> dict:
         "frame_check": run.frame_check or None,  # do pre's cameras see its splats (r360gpu.metrics.frame_check)
         "target": run.target_record,  # [target]: which views' masks were given, which rendered
         # scene.toml [expected.METHOD]: known failures, checked by the report
-        "expected": getattr(bundle, "expected", None) or None,
+        "expected": bundle.expected or None,
     }
 
 
@@ -174,12 +178,6 @@ def score_views(run: SceneRun, views: list, sink: PictureSink, view_cache, rende
     bytes (large images: 4K and up).  ``rendered`` is called once the last
     view is rendered.
     """
-    from collections import deque
-    from concurrent.futures import ThreadPoolExecutor
-
-    from .stages import measure, on_host, picture_jobs, render_on_device, view_sources
-    from .writer import BackgroundWriter
-
     if not views:
         return
     # files read by the host threads: a view's size is known once its first one is read
@@ -264,8 +262,6 @@ def writer_threads(threads: int) -> int:
 
 def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, scored: ScoredView, jobs: list) -> None:
     """Writer thread: the view's pictures, then its cache cells."""
-    import time
-
     t = time.perf_counter()
     if jobs:
         sink.view(jobs)
@@ -276,6 +272,4 @@ def _finish_view(run: SceneRun, sink: PictureSink, view_cache, view: str, scored
 
 
 def _progress(views, desc, enabled):
-    from ..util.progress import progress
-
     return progress(views, desc=desc, unit="view", enabled=enabled)

@@ -19,10 +19,17 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from ..errors import InputError
+from ..metrics import depth_checks
+from ..probes.base import ProbeView
 from ..schema import ScoredView, ViewCell
 from ..util import warning_log
+from .picture_sink import PictureJob
+
+if TYPE_CHECKING:  # the render package is imported once a scene's sources are opened
+    from ..render.sources import Source
 
 
 @dataclass
@@ -48,9 +55,9 @@ class ViewData:
     inputs: dict = field(default_factory=dict)  # {path: stamp} of the probes' per-view files, before reading
 
 
-def on_host(source) -> bool:
+def on_host(source: Source) -> bool:
     """True for sources that only read files (safe to run off the GPU thread)."""
-    return getattr(source, "kind", None) == "renders"
+    return source.kind == "renders"
 
 
 def view_sources(run):
@@ -91,8 +98,6 @@ def _check_size(view, img, what, mask):
 def _ask(data: ViewData, probe, images, rendering, method=None, *prompt):
     """``probe``'s reading of one rendering of the view; the stamps of the files it reads for it
     (precomputed masks) go into ``data.inputs`` first."""
-    from ..probes.base import ProbeView
-
     data.inputs.update(probe.input_stamps(data.view, rendering, method))
     return probe.predict([ProbeView(name=data.view, image=images.rgb, rendering=rendering, method=method)],
                          *prompt)[0]
@@ -194,11 +199,10 @@ def measure_methods(run, data: ViewData, methods: list, *, boundary_sweep: bool 
 
 def _check_depth(run, data: ViewData, method: str, record, pre, post) -> None:
     """Warn about (and note in the record) a post depth with no valid pixel or in another unit than pre's."""
-    from ..metrics import depth_checks
     from ..render.sources import host_depth
 
     is_method = method in run.bundle.methods  # else a control: the "pre" or "reference" source
-    source = run.bundle.methods[method] if is_method else getattr(run.bundle, method, None)
+    source = run.bundle.sources().get(method)  # a method, or the control's "pre" / "reference"
     d_pre, d_post = host_depth(pre.depth, run.ctx), host_depth(post.depth, run.ctx)  # the run's own device
     depth_checks.annotate(record, depth_checks.check_view(
         run.bundle.name, method, data.view, d_pre, d_post, data.mask, source=getattr(source, "path", None),
@@ -209,8 +213,6 @@ def _check_depth(run, data: ViewData, method: str, record, pre, post) -> None:
 def _depth_file(spec, view: str):
     """The file a source's depth of ``view`` comes from (its depth image for renders, else the source's
     path), named in a warning about that depth."""
-    from ..errors import InputError
-
     if getattr(spec, "kind", None) == "renders":
         try:
             return spec.reader().depth_path(view)
@@ -246,7 +248,6 @@ def picture_jobs(run, data: ViewData, geos: dict, cells: dict | None = None) -> 
     image's once, however many methods share it (a pre source is every method's).
     """
     from ..render.sources import host_depth
-    from .picture_sink import PictureJob
 
     read: dict = {}
 

@@ -194,7 +194,7 @@ class DeviceViewsSource:
             self._ctx = ctx
         elif self._ctx.device is not ctx.device:
             raise InputError(f"{self.name}: its buffers' context is on another device than the run's; "
-                             f"pass the same device (or ctx) to DeviceViewsSource and evaluate()")
+                             f"pass the same device (or context) to DeviceViewsSource and evaluate()")
 
     def images(self, view: str, camera=None) -> ViewImages:
         from ..gpu.context import DeviceDepth
