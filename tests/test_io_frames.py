@@ -472,3 +472,8 @@ def test_check_views_flags_a_mask_off_the_object():
     asked = []
     check_views(with_rgb(views((1.5, -1.5, 0.0))), lambda name: asked.append(name))
     assert not asked  # the cones refuse already: the reference is not rendered
+    # masks over most of the image are no object's: the removal is not judged on them (the coverage
+    # and the cones still are), so an unremoved reference under them is no refusal
+    whole = [(n, c, a, d, np.ones_like(m), rgb) for n, c, a, d, m, rgb in with_rgb(views((0.0, 0.0, 0.0)))]
+    big = check_views(whole, pre.get)
+    assert big.removed is None and big.level != "refuse"

@@ -139,6 +139,11 @@ DIFFERS = 0.1
 #: scans 0.83-0.97; of the wrong frames the coverage and the cones let through, all but one 0.00-0.01,
 #: the one (its object still 47% under its masks) 0.62 (bench/frame_check_scenes.py, frame seed 1).
 REMOVED_MIN = 0.7
+#: A view whose mask covers more of the image than this has no say in the removal: masks that hold
+#: most of the picture are not an object's (a target of most of the scene, warned about where the
+#: target is resolved), and the removal a reference shows is then a small part of them whatever
+#: the frame.  The coverage and the cones still judge such views.
+REMOVAL_MASK_MAX = 0.5
 #: Median outline ``step`` below this: the target's outline has little depth step (a note).
 #: Framed right with exact or 1-pixel-off masks, objects step 0.44-0.62; the guitar's cut-out target
 #: (a patch of its surface) 0.00-0.08, masks 2 pixels off 0.04-0.20; the wrong frames that pass
@@ -396,8 +401,8 @@ def check_views(views: list, reference=None) -> FrameVerdict:
     depth, mask[, rgb])] with alpha, depth (z-depth in the camera's units) and mask (H, W), rgb
     (H, W, 3).  ``reference``: None, or a function of a view name giving the reference's renders
     there (``rgb``, ``alpha``, ``depth``, host arrays; None where it has none), called at the
-    views with an rgb unless the coverage or the cones already refuse: the median
-    :func:`removal` then decides too."""
+    views with an rgb and a mask of at most :data:`REMOVAL_MASK_MAX` of the image unless the
+    coverage or the cones already refuse: the median :func:`removal` then decides too."""
     seen, cones = [], []
     for name, camera, alpha, depth, mask, *_ in views:
         seen.append(view_coverage(name, alpha, mask, depth))
@@ -411,7 +416,7 @@ def check_views(views: list, reference=None) -> FrameVerdict:
 
     removed = []
     for name, _, alpha, depth, mask, *rgb in views:
-        ref = reference(name) if rgb else None
+        ref = reference(name) if rgb and np.asarray(mask, bool).mean() <= REMOVAL_MASK_MAX else None
         if ref is not None:
             removed.append(removal(SimpleNamespace(rgb=rgb[0], alpha=alpha, depth=depth), ref, mask))
     removed = [r for r in removed if r is not None]
