@@ -134,6 +134,43 @@ def test_captured_tells_the_side_the_capture_saw(ctx):
     assert shares[0] > 0.9 and shares[1] < 0.5  # from behind: mostly the side the capture never saw
 
 
+def test_the_capture_weights_summed_in_the_lifts_passes_are_the_separate_lifters(ctx):
+    """lift_target(capture=...) sums the whole weights in the masks' own passes (and alone at a
+    capture camera with no mask): exactly the integers `captured` gets from a lifter of its own, and
+    the lift itself is unchanged."""
+    from r360gpu.io import Gaussians
+    from r360gpu.lift.device import MaskLifter
+    from r360gpu.lift.target import lift_target
+
+    g = Gaussians.concat([_layer(0.05, n=20, spacing=0.02), _layer(-0.05)])
+    target = np.zeros(g.n, bool)
+    target[::3] = True
+    capture = [_look_at(np.array([2.0, 0.3 * i - 0.3, 0.1 * i]), np.zeros(3), f"c{i}") for i in range(3)]
+    capture.append(_look_at(np.array([-2.0, 0.1, 0.2]), np.zeros(3), "behind"))
+    rng = np.random.default_rng(7)
+    masked = capture[:3]  # the one behind has no mask: its weights go to the capture's sums only
+    masks = [rng.random((c.height, c.width)) < 0.4 for c in masked]
+    plain = lift_target(g, masked, masks, ctx=ctx)
+    both = lift_target(g, masked, masks, ctx=ctx, capture=capture)
+    assert plain.w_capture is None
+    assert np.array_equal(both.w_in, plain.w_in) and np.array_equal(both.w_out, plain.w_out)
+    assert np.array_equal(both.target, plain.target)
+    lifter = MaskLifter(g, ctx=ctx)
+    try:
+        lifter.reset()
+        for cam in capture:
+            lifter.add_view(cam, np.ones((cam.height, cam.width), np.float32))
+        alone = lifter.weights()[0]
+    finally:
+        lifter.release()
+    assert np.array_equal(both.w_capture, alone)
+    assert (alone > 0).sum() > g.n // 2  # the capture sees most Gaussians: the comparison is not of zeros
+    for cams, lifted in ((capture, both), (masked, lift_target(g, masked, masks, ctx=ctx, capture=masked))):
+        seen = captured(g, target, cams, ctx=ctx)
+        assert np.array_equal(captured(g, target, cams, weights=lifted.w_capture), seen)
+    assert not seen.all()  # from the front only, the back layer is hidden: both verdicts occur
+
+
 def test_options_and_flags_of_the_orbit_shape():
     from r360gpu.pipeline import EvaluateOptions
 

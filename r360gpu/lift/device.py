@@ -53,6 +53,17 @@ class LiftPass:
                      ctx.grid(window.end - window.begin))
 
 
+@dataclass(frozen=True)
+class _Together:
+    """Several tile passes recorded over one view's tile lists (one projection and sort for all)."""
+
+    passes: tuple
+
+    def record(self, ctx: GpuContext, enc, lists: TileLists, cam: dict) -> None:
+        for tile_pass in self.passes:
+            tile_pass.record(ctx, enc, lists, cam)
+
+
 class MaskLifter:
     """Accumulates, per Gaussian, its compositing weight inside and outside target masks.
 
@@ -61,25 +72,33 @@ class MaskLifter:
     (camera, mask), then `weights`.  ``acc`` is the device buffer of
     N x 4 u32: (in low, in high, out low, out high) words of the 64-bit
     fixed-point sums (`SCALE` units per unit weight); ``renderer`` the
-    renderer whose tile lists the pass walks.
+    renderer whose tile lists the pass walks.  ``capture``: also sum each
+    Gaussian's whole weight (a mask of ones) over the views added with
+    ``capture=True``, into ``acc_capture`` (`capture_weights`), in the same
+    pass as the view's mask: the integer sums a lifter of its own would make
+    over those views with masks of ones, without projecting and sorting again.
     """
 
-    def __init__(self, scene, **kwargs):
+    def __init__(self, scene, *, capture: bool = False, **kwargs):
         self.renderer = Renderer(scene, **kwargs)
         self.ctx = self.renderer.ctx
         self.n = self.renderer.scene.n
         self.acc = self.ctx.buffer(max(16, self.n * 16), label="lift.acc")
+        self.acc_capture = self.ctx.buffer(max(16, self.n * 16), label="lift.acc_capture") if capture else None
         self.views = 0
 
     def reset(self) -> None:
         """Zero the accumulators."""
         enc = self.ctx.encoder()
         enc.clear_buffer(self.acc, 0, self.acc.size)
+        if self.acc_capture is not None:
+            enc.clear_buffer(self.acc_capture, 0, self.acc_capture.size)
         self.ctx.submit(enc)
         self.views = 0
 
-    def add_view(self, camera, mask) -> None:
-        """Add the weights of one view.
+    def add_view(self, camera, mask, *, capture: bool = False) -> None:
+        """Add the weights of one view (mask None: none to the masks' sums; with ``capture``, to the
+        capture's only).
 
         mask: (H, W) array (bool, or float in [0, 1]: the pixel's share of
         target) at the camera's size, or a device buffer of H x W float32 in
@@ -91,6 +110,22 @@ class MaskLifter:
         if width * height * 4 > self.ctx.max_binding_bytes:
             raise InputError(f"{cam['name']}: a {width}x{height} mask exceeds one "
                              f"{self.ctx.max_binding_bytes}-byte storage binding")
+        passes = []
+        if capture:
+            if self.acc_capture is None:
+                raise ValueError("MaskLifter: capture=True needs a lifter made with capture=True")
+            ones = self.ctx.scratch("lift.ones", np.ones((height, width), np.float32))
+            passes.append(LiftPass(BufferRange(ones, 0, max(4, width * height * 4)), self.acc_capture))
+        if mask is not None:
+            passes.insert(0, LiftPass(BufferRange(self._mask_buffer(cam, mask), 0, max(4, width * height * 4)),
+                                      self.acc))
+            self.views += 1
+        if passes:
+            self.renderer.run_pass(camera, passes[0] if len(passes) == 1 else _Together(tuple(passes)))
+
+    def _mask_buffer(self, cam: dict, mask):
+        """The device buffer of ``mask`` (see `add_view`) at ``cam``'s size."""
+        width, height = cam["width"], cam["height"]
         if isinstance(mask, np.ndarray) or not hasattr(mask, "size"):
             m = np.asarray(mask)
             if m.shape != (height, width):
@@ -99,22 +134,28 @@ class MaskLifter:
             m = m.astype(np.float32)
             if not np.isfinite(m).all():
                 raise InputError(f"{cam['name']}: mask has NaN or infinite values")
-            buf = self.ctx.scratch("lift.mask", np.clip(m, 0.0, 1.0))
-        else:
-            if mask.size < width * height * 4:
-                raise InputError(f"{cam['name']}: mask buffer holds {mask.size} bytes, "
-                                 f"a {width}x{height} float32 mask needs {width * height * 4}")
-            buf = mask
-        self.renderer.run_pass(camera, LiftPass(BufferRange(buf, 0, max(4, width * height * 4)), self.acc))
-        self.views += 1
+            return self.ctx.scratch("lift.mask", np.clip(m, 0.0, 1.0))
+        if mask.size < width * height * 4:
+            raise InputError(f"{cam['name']}: mask buffer holds {mask.size} bytes, "
+                             f"a {width}x{height} float32 mask needs {width * height * 4}")
+        return mask
 
     def weights(self) -> tuple[np.ndarray, np.ndarray]:
         """(w_in, w_out): (N,) float64 summed compositing weight inside / outside the masks."""
-        words = self.ctx.read(self.acc, np.uint32, 4 * self.n).reshape(-1, 4).astype(np.float64)
+        return self._sums(self.acc)
+
+    def capture_weights(self) -> np.ndarray:
+        """(N,) float64 each Gaussian's whole compositing weight over the views added with ``capture``."""
+        return self._sums(self.acc_capture)[0]
+
+    def _sums(self, acc) -> tuple[np.ndarray, np.ndarray]:
+        words = self.ctx.read(acc, np.uint32, 4 * self.n).reshape(-1, 4).astype(np.float64)
         w_in = (words[:, 0] + words[:, 1] * 4294967296.0) / SCALE
         w_out = (words[:, 2] + words[:, 3] * 4294967296.0) / SCALE
         return w_in, w_out
 
     def release(self) -> None:
         self.acc.destroy()
+        if self.acc_capture is not None:
+            self.acc_capture.destroy()
         self.renderer.release()

@@ -189,10 +189,15 @@ def seen_share(weights: np.ndarray, seen: np.ndarray) -> float | None:
     return float(w[np.asarray(seen, bool)].sum()) / total if total > 0 else None
 
 
-def captured(gaussians, target: np.ndarray, cameras, *, ctx=None, options=None, frame=None) -> np.ndarray:
+def captured(gaussians, target: np.ndarray, cameras, *, ctx=None, options=None, frame=None,
+             weights=None) -> np.ndarray:
     """(K,) bool over the K target Gaussians of ``gaussians`` (``target`` (N,) bool): seen by some
     evaluation camera, i.e. compositing weight >= `SEEN_WEIGHT` over ``cameras`` with pre
-    rendered there (occluders included), each camera moved into ``frame``."""
+    rendered there (occluders included), each camera moved into ``frame``.  weights: those (N,)
+    weights when already summed (`r360gpu.lift.target.LiftedTarget.w_capture`: the same sums,
+    made in the lift's passes); None: rendered here."""
+    if weights is not None:
+        return np.asarray(weights)[np.asarray(target, bool)] >= SEEN_WEIGHT
     from ..io.frames import in_frame
     from .device import MaskLifter
 

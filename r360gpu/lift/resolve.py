@@ -175,9 +175,10 @@ def resolve_lifted(bundle, pre, *, ctx=None, warn=None):
     return replace(bundle, masks=masks), record, lifted
 
 
-def scene_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn=None):
+def scene_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn=None, capture=None):
     """The LiftedTarget of any bundle with cameras: its ``[target]``, else its views' masks lifted
-    (views with a camera and a non-empty mask) to ``gaussians`` in ``frame`` (None: the cameras')."""
+    (views with a camera and a non-empty mask) to ``gaussians`` in ``frame`` (None: the cameras'),
+    with the whole weights over ``capture`` (`lift_target`; not for a ``[target]``)."""
     if getattr(bundle, "target", None) is not None:
         return lifted_target(bundle, gaussians, ctx=ctx, options=options, frame=frame, warn=warn)[0]
     from ..io import load_mask
@@ -194,5 +195,5 @@ def scene_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn=
             masks.append(m)
     if not cams:
         raise InputError(f"scene {bundle.name!r}: no view with a camera shows the target; cannot lift it")
-    return check_extent(lift_target(gaussians, cams, masks, ctx=ctx, options=options, frame=frame),
+    return check_extent(lift_target(gaussians, cams, masks, ctx=ctx, options=options, frame=frame, capture=capture),
                         f"{_where(bundle)}: masks", warn)

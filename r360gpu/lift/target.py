@@ -45,7 +45,8 @@ class LiftedTarget:
     target: (N,) bool.  source: "masks", "indices" or "box".  w_in / w_out:
     (N,) float64 compositing weight inside / outside the masks (source
     "masks" only, else None).  views: names of the views whose masks were
-    lifted (source "masks").
+    lifted (source "masks").  w_capture: (N,) float64 each Gaussian's whole compositing weight
+    over the cameras given to ``lift_target(capture=...)``, else None.
     """
 
     target: np.ndarray
@@ -55,6 +56,7 @@ class LiftedTarget:
     views: tuple = field(default_factory=tuple)
     #: (V, 2, N) float64: each given view's own (w_in, w_out), in ``views``' order (lift_target(per_view=True)).
     w_views: np.ndarray | None = None
+    w_capture: np.ndarray | None = None
 
     @property
     def indices(self) -> np.ndarray:
@@ -97,7 +99,7 @@ def decide(w_in: np.ndarray, w_out: np.ndarray, *, min_share: float = MIN_SHARE,
 
 
 def lift_target(scene, cameras, masks, *, ctx=None, options=None, frame=None, min_share: float = MIN_SHARE,
-                min_weight: float = MIN_WEIGHT, per_view: bool = False) -> LiftedTarget:
+                min_weight: float = MIN_WEIGHT, per_view: bool = False, capture=None) -> LiftedTarget:
     """Lift target masks of some views to pre's Gaussians (see the module docstring).
 
     scene: `Gaussians` (N Gaussians).
@@ -110,6 +112,9 @@ def lift_target(scene, cameras, masks, *, ctx=None, options=None, frame=None, mi
         moved into it (`r360gpu.io.frames.in_frame`).
     per_view: also keep each view's own weights (``w_views``; the accumulators are read after each
         view: the sums are exact fixed point, so the differences are each view's exactly).
+    capture: None, or cameras (the evaluation cameras) over which each Gaussian's whole weight is
+        also summed (``w_capture``): in the mask's pass where a camera is one of ``cameras`` (the
+        same object), so its projection and sort serve both.
     Returns a `LiftedTarget` with w_in, w_out (N,) float64.
     """
     from ..io.frames import in_frame
@@ -120,20 +125,24 @@ def lift_target(scene, cameras, masks, *, ctx=None, options=None, frame=None, mi
         raise InputError(f"lift_target: {len(cameras)} cameras but {len(masks)} masks")
     if not cameras:
         raise InputError("lift_target: no views to lift the target from")
-    lifter = MaskLifter(scene, ctx=ctx, options=options)
+    also = {id(c): c for c in capture or ()}
+    lifter = MaskLifter(scene, ctx=ctx, options=options, capture=capture is not None)
     try:
         lifter.reset()
         sums = []
         for cam, m in zip(cameras, masks):
-            lifter.add_view(in_frame(frame, cam), m)
+            lifter.add_view(in_frame(frame, cam), m, capture=also.pop(id(cam), None) is not None)
             if per_view:
                 sums.append(np.stack(lifter.weights()))
+        for cam in also.values():  # evaluation cameras with no mask to lift
+            lifter.add_view(in_frame(frame, cam), None, capture=True)
         w_in, w_out = sums[-1] if per_view else lifter.weights()
+        w_capture = None if capture is None else lifter.capture_weights()
     finally:
         lifter.release()
     w_views = np.diff(np.stack(sums), axis=0, prepend=0.0) if per_view else None
     return LiftedTarget(decide(w_in, w_out, min_share=min_share, min_weight=min_weight), "masks", w_in, w_out,
-                        tuple(getattr(c, "name", "") for c in cameras), w_views)
+                        tuple(getattr(c, "name", "") for c in cameras), w_views, w_capture)
 
 
 def target_from_indices(n: int, indices, *, where: str = "indices", rows=None, warn=None) -> LiftedTarget:

@@ -106,10 +106,11 @@ def _orbit(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
         info["note"] = "no orbit: every method is renderings only"
         return None, info, None
     g, options, frame = _gaussians(bundle.pre)
-    lifted = scene_target(bundle, g, ctx=ctx, options=options, frame=frame, warn=warn)
+    given = [bundle.cameras[v] for v in bundle.views if v in bundle.cameras]
+    # what the capture saw ("never seen" vs "target occluded") is summed in the lift's own passes
+    lifted = scene_target(bundle, g, ctx=ctx, options=options, frame=frame, warn=warn, capture=given)
     # the poses live in the cameras' world, as the evaluation views do; each source sees them in its frame
     centre, _ = lifted.extent(points_in_cameras(frame, g.means))
-    given = [bundle.cameras[v] for v in bundle.views if v in bundle.cameras]
     shape = orbit_shape or {}
     cams = orbit_cameras(centre, given, n, **shape)
     pre_r = Renderer(g, ctx=ctx, options=options)
@@ -127,7 +128,8 @@ def _orbit(bundle, n: int, *, ctx=None, warn=None, orbit_shape=None):
             why = keep_pose(*args)
             if why == OCCLUDED:  # or is this side of the target one no given view saw?
                 if side is None:
-                    by_capture = captured(g, lifted.target, given, ctx=ctx, options=options, frame=frame)
+                    by_capture = captured(g, lifted.target, given, ctx=ctx, options=options, frame=frame,
+                                          weights=lifted.w_capture)
                     side = MaskLifter(g.subset(lifted.target), ctx=ctx, options=options)
                 side.reset()
                 side.add_view(seen, np.ones((cam.height, cam.width), np.float32))
