@@ -296,7 +296,7 @@ def test_splat_views_are_rendered_ahead_while_the_first_is_probed(tmp_path, ctx,
             waited.append(second.wait(timeout=20))
         return real_gather(run, data)
 
-    monkeypatch.setattr(st, "render_on_device", render)
+    monkeypatch.setattr(ev, "render_on_device", render)  # the scheduler's own name for the stage
     monkeypatch.setattr(ev, "_gather", gather)
     evaluate(folder, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert waited == [True] and len(rendered) == 4
@@ -324,7 +324,7 @@ def test_the_next_scene_is_opened_while_the_last_views_are_probed(tmp_path, ctx,
         return real_measure(run, data, sink)
 
     monkeypatch.setattr(ev, "SceneRun", Recorded)
-    monkeypatch.setattr(st, "measure", measure)
+    monkeypatch.setattr(importlib.import_module("r360gpu.pipeline.schedule"), "measure", measure)
     both = evaluate(folders, options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     room_views = both["scenes"]["room"]["views"]
     assert events.index(("open", "garden")) < events.index(("measure", "room", room_views[-1]))
@@ -367,7 +367,8 @@ def test_a_scene_that_cannot_be_opened_ahead_fails_at_its_turn(tmp_path, ctx, mo
         p.write_bytes(data)
     rendered = []
     real_render = st.render_on_device
-    monkeypatch.setattr(st, "render_on_device", lambda run, v: rendered.append(run.bundle.name) or real_render(run, v))
+    monkeypatch.setattr(importlib.import_module("r360gpu.pipeline.schedule"), "render_on_device",
+                        lambda run, v: rendered.append(run.bundle.name) or real_render(run, v))
     evaluate([room, garden], out=tmp_path / "out", options=EvaluateOptions(**OPTS), device=ctx, progress=False)
     assert rendered.count("room") == 0 and rendered.count("garden") == 4  # every room view was cached
 
