@@ -34,6 +34,15 @@ def test_table_model_renders_in_both_formats():
     assert r"\begin{tabular}{lc}" in tex and tex.count(r"\toprule") == 1
 
 
+def test_latex_text_keeps_double_hyphens_and_angle_brackets():
+    """An option named in a note (--lpips-model) must not become an en dash, nor "<=" an inverted mark."""
+    t = Table(key="k", title="t", header=[Cell("a")], rows=[[Cell("x <= 1 --- y > 2")]],
+              notes=("LPIPS: not computed (--lpips-model)",))
+    tex = render_latex(t)
+    assert r"(-{}-lpips-model)" in tex and "(--lpips" not in tex
+    assert r"x \textless{}= 1 -{}-{}- y \textgreater{} 2" in tex
+
+
 def test_paper_tables_all_present_with_paper_emphasis(paper_result):
     tables, notes = build_tables(paper_result)
     assert [t.key for t in tables] == ["rqs_per_scene", "overall", "scene_macro", "rank_agg", "reliability",

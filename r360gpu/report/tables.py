@@ -294,11 +294,19 @@ def build_tables(result: dict) -> tuple[list[Table], list[str]]:
 _LATEX_SPECIAL = {
     "\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
     "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
+    "<": r"\textless{}", ">": r"\textgreater{}",
 }
 
 
 def _latex_escape(text: str) -> str:
-    return "".join(_LATEX_SPECIAL.get(ch, ch) for ch in text)
+    # "--" and "---" are dash ligatures in LaTeX (an option such as --lpips-model would print with an en
+    # dash), and "<" / ">" print as inverted marks in the default OT1 font encoding.
+    out = []
+    for i, ch in enumerate(text):
+        out.append(_LATEX_SPECIAL.get(ch, ch))
+        if ch == "-" and text[i + 1:i + 2] == "-":
+            out.append("{}")
+    return "".join(out)
 
 
 def _latex_cell(cell: Cell) -> str:
