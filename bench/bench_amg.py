@@ -8,9 +8,9 @@ same 640 x 480 image and the same parameters it times, per image:
 
 * official: ``SamAutomaticMaskGenerator.generate`` on CPU torch (``--torch-device
   cuda``: on CUDA torch, for the GPU comparison of bench/device_suite.py);
-* r360gpu before: the path of r360gpu before this bench (the batch-1 export,
-  one decoder run per prompt computing every decoder output);
-* r360gpu after: the batched export, the decoder cut to the outputs the
+* r360gpu, run "before": the plain path (the batch-1 export, one decoder run
+  per prompt computing every decoder output), kept as the yardstick of the rewrites;
+* r360gpu, run "after": the batched export, the decoder cut to the outputs the
   generator reads and its prompt-independent work run once per batch
   (``SamModels``), ``points_per_batch`` prompts per run;
 * r360gpu unhoisted (only when asked for in ``--runs``): "after" without the
@@ -119,7 +119,7 @@ def scene(rng, width: int, height: int) -> np.ndarray:
 
 
 class BeforeDecoder:
-    """r360gpu's decoder as it ran before the cut: the whole graph, every output requested."""
+    """The plain decoder path (run "before"): the whole graph, every output requested."""
 
     def __init__(self, path: Path):
         from r360gpu.probes.onnx_models import OnnxModel
