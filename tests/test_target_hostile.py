@@ -81,6 +81,61 @@ def _truncated_png(v, m) -> bytes:
     return data[: data.index(b"IDAT") + 12]
 
 
+def _save(write, name="target.npy"):
+    """A [target] whose indices file ``name`` is written by ``write(path)``."""
+    def build(folder, dst):
+        b = variant(folder, dst, f'indices = "{name}"')
+        write(b / name)
+        return b
+    return build
+
+
+def _labelled(label, extra: int = 0):
+    """A [target] given as a PLY of pre's vertex count (plus ``extra``) whose float property 'label'
+    is ``label(n)``."""
+    def write(path):
+        from r360gpu.io.ply import write_ply
+
+        n = load_gaussians(path.parent / "pre.ply").n + extra
+        vert = np.zeros(n, [("x", "f4"), ("y", "f4"), ("z", "f4"), ("label", "f4")])
+        vert["label"] = label(n)
+        write_ply(path, [("vertex", vert)])
+    return _save(write, "labels.ply")
+
+
+def _unseen(folder, dst):
+    """Indices of Gaussians no view composites at all (zero weight in every view's lift): their
+    rendered target mask is empty at every view."""
+    from r360gpu.lift import lift_target
+
+    b = load_bundle(folder)
+    g = load_gaussians(b.pre.path)
+    cams = [b.cameras[v] for v in b.views]
+    lt = lift_target(g, cams, [np.ones((c.height, c.width), bool) for c in cams])
+    hidden = np.flatnonzero(lt.w_in + lt.w_out == 0)
+    assert hidden.size >= 3
+    return _npy(lambda n: hidden[:3])(folder, dst)
+
+
+def _one_gaussian_pre(folder, dst):
+    """pre cut down to one Gaussian, and a target of that Gaussian: nothing would be left."""
+    from r360gpu.io.ply import read_ply, write_ply
+
+    b = _npy(lambda n: np.array([0]))(folder, dst)
+    vert = read_ply(b / "pre.ply").arrays["vertex"]
+    write_ply(b / "pre.ply", [("vertex", vert[:1])])
+    return b
+
+
+def _pickled(path):
+    np.save(path, np.array([1, "a", None], dtype=object), allow_pickle=True)
+
+
+def _truncated_npy(path):
+    np.save(path, np.arange(50))
+    path.write_bytes(path.read_bytes()[:-100])
+
+
 CASES = {
     "indices file missing": (_table('indices = "nowhere.npy"'), "no such file", "nowhere.npy"),
     "indices out of range": (_npy(lambda n: np.array([0, n + 5])), "outside 0..", "target.npy"),
@@ -106,7 +161,63 @@ CASES = {
                         "no given target mask shows the target", "scene.toml"),
     "all-full masks": (_table('masks = "given"', given=True, mask=lambda v, m: np.ones_like(m)),
                        "target at every pixel", "scene.toml"),
+    # -- further cases: values a file can hold that numpy would take without a word
+    "indices fractional": (_npy(lambda n: np.array([1.5, 2.0])), "whole numbers", "target.npy"),
+    "indices NaN": (_npy(lambda n: np.array([1.0, np.nan])), "whole numbers", "target.npy"),
+    "indices negative": (_npy(lambda n: np.array([-1, 3])), "outside 0..", "target.npy"),
+    "indices a column (N, 1)": (_npy(lambda n: np.arange(10, 40).reshape(-1, 1)), "flat (1-D)", "target.npy"),
+    "indices a row (1, N)": (_npy(lambda n: np.arange(10, 40).reshape(1, -1)), "flat (1-D)", "target.npy"),
+    "indices a 0-d array": (_npy(lambda n: np.array(5)), "flat (1-D)", "target.npy"),
+    "indices empty": (_npy(lambda n: np.array([], np.int64)), "no Gaussians", "target.npy"),
+    "indices complex": (_npy(lambda n: np.array([1 + 0j, 2 + 0j])), "integers or booleans", "target.npy"),
+    "indices uint64 beyond int64": (_npy(lambda n: np.array([2 ** 63 + 5, 3], np.uint64)), "too large",
+                                    "target.npy"),
+    "indices float beyond int64": (_npy(lambda n: np.array([1e300, 3.0])), "too large", "target.npy"),
+    "indices pickled objects": (_save(_pickled), "not a readable .npy", "target.npy"),
+    "indices truncated .npy": (_save(_truncated_npy), "not a readable .npy", "target.npy"),
+    "indices a text file": (_save(lambda p: p.write_text("1 2 3\n"), "target.txt"), ".npy or .ply", "target.txt"),
+    "indices of Gaussians no view shows": (_unseen, "shows in none of the", "target.npy"),
+    "labels with NaN": (_labelled(lambda n: np.where(np.arange(n) < 20, 1.0, np.where(np.arange(n) < 40, np.nan,
+                                                                                       0.0))),
+                        "is NaN at 20", "labels.ply"),
+    "labels all zero": (_labelled(np.zeros), "no Gaussians", "labels.ply"),
+    "labels one vertex too many": (_labelled(lambda n: np.arange(n) < 20, extra=1), "vertices, pre's file has",
+                                   "labels.ply"),
+    "target of pre's only Gaussian": (_one_gaussian_pre, "every one of pre's 1 Gaussians", "target.npy"),
+    "box coordinates as text": (_table('box = { min = ["0", "0", "0"], max = ["1", "1", "1"] }'),
+                                "must be 3 finite numbers", "scene.toml"),
+    "box coordinates as booleans": (_table("box = { min = [false, false, false], max = [true, true, true] }"),
+                                    "must be 3 finite numbers", "scene.toml"),
+    "box coordinates nested": (_table("box = { min = [[0, 0, 0]], max = [[1, 1, 1]] }"),
+                               "must be 3 finite numbers", "scene.toml"),
+    "box NaN centre": (_table("box = { centre = [nan, 0, 0], size = [1, 1, 1] }"), "finite numbers", "scene.toml"),
+    "box infinite size": (_table("box = { centre = [0, 0, 0], size = [inf, 1, 1] }"), "finite numbers",
+                          "scene.toml"),
+    "box negative size": (_table("box = { centre = [0, 0, 0], size = [-1, 1, 1] }"), "size must be > 0",
+                          "scene.toml"),
+    "box rotation scaled": (_table("box = { centre = [0, 0, 0], size = [1, 1, 1], "
+                                   "rotation = [[2, 0, 0], [0, 1, 0], [0, 0, 1]] }"), "rotation must be", "scene.toml"),
+    "box rotation quaternion as text": (_table('box = { centre = [0, 0, 0], size = [1, 1, 1], '
+                                               'rotation = ["1", "0", "0", "0"] }'), "rotation must be", "scene.toml"),
+    "box with min, max and centre": (_table("box = { min = [0, 0, 0], max = [1, 1, 1], centre = [0, 0, 0] }"),
+                                     "needs min and max, or centre and size", "scene.toml"),
+    "box a string": (_table('box = "0 0 0 1 1 1"'), "must be a table", "scene.toml"),
+    "property without a .ply": (_table('box = { min = [0, 0, 0], max = [1, 1, 1] }\nproperty = "label"'),
+                                "[target].property names", "scene.toml"),
+    "masks folder empty": (_table('masks = "given"'), "masks folder has no", "given"),
+    "masks of views with no camera": (lambda folder, dst: _orphan_masks(folder, dst), "with no camera",
+                                      "scene.toml"),
+    "masks at half size": (_table('masks = "given"', given=True, mask=lambda v, m: m[::2, ::2]), "mask is 32x24",
+                           "given/"),
 }
+
+
+def _orphan_masks(folder, dst):
+    """Given masks named for views no camera has."""
+    b = _table('masks = "given"', given=True)(folder, dst)
+    for p in sorted((b / "given").glob("*.png")):
+        p.rename(p.with_name("nosuch_" + p.name))
+    return b
 
 
 @pytest.mark.parametrize("case", sorted(CASES))

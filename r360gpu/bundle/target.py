@@ -73,6 +73,10 @@ def parse_target_table(value, root: Path, bad) -> TargetSpec | None:
             bad("[target].property must be a PLY property name")
             return None
         out["prop"] = value["property"]
+        if not (isinstance(out.get("indices"), Path) and out["indices"].suffix.lower() == ".ply"):
+            bad("[target].property names the vertex property of a .ply indices file (indices = \"....ply\"); "
+                "without one it would be ignored")
+            return None
     if "box" in value:
         try:
             out["box"] = Box.from_table(value["box"], where="[target].box")

@@ -194,7 +194,7 @@ def check_extent(lifted: LiftedTarget, where: str, warn=None) -> LiftedTarget:
     k, n = int(lifted.target.sum()), lifted.n
     if k == 0:
         raise InputError(f"{where}: the target ({lifted.source}) holds no Gaussian of pre")
-    if k == n and n > 1:
+    if k == n:
         hint = {"box": "is the box in the scene's units?", "masks": "do the masks cover every pixel?",
                 "indices": "are these the object's indices?"}[lifted.source]
         raise InputError(f"{where}: the target ({lifted.source}) is every one of pre's {n} Gaussians, so "
@@ -233,7 +233,12 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None, ro
                              f"{', '.join(names)}")
         if len(vert) != n:
             raise InputError(f"{path}: {len(vert)} vertices, pre's file has {n} Gaussians")
-        return target_from_indices(n, np.asarray(vert[choice[0]]) != 0, where=str(path), rows=rows, warn=warn)
+        label = np.asarray(vert[choice[0]])
+        if label.dtype.kind == "f" and np.isnan(label).any():  # neither zero nor non-zero: not a label
+            raise InputError(f"{path}: vertex property {choice[0]!r} is NaN at {int(np.isnan(label).sum())} of "
+                             f"{len(label)} vertices (e.g. vertex {int(np.flatnonzero(np.isnan(label))[0])}); a "
+                             f"target label is non-zero on the target and 0 elsewhere")
+        return target_from_indices(n, label != 0, where=str(path), rows=rows, warn=warn)
     raise InputError(f"{path}: target indices must be a .npy or .ply file")
 
 
