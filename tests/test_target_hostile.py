@@ -257,6 +257,88 @@ def test_a_target_of_most_of_the_scene_is_warned_and_recorded(bench, tmp_path, c
     assert any("most of the scene" in json.dumps(w) and "target.npy" in json.dumps(w) for w in warned), warned
 
 
+def test_indices_and_box_together_are_warned_and_recorded(bench, tmp_path, capsys):
+    """The documented priority (indices over box) holds, and the ignored box is said, by check and score."""
+    import json
+
+    b = _npy(lambda n: _visible_target(bench))(bench, tmp_path / "b")
+    (b / "scene.toml").write_text((b / "scene.toml").read_text() + "box = { min = [0, 0, 0], max = [1, 1, 1] }\n")
+    assert cli.main(["check", str(b)]) == 0
+    out = capsys.readouterr()
+    assert "gives both indices and box" in out.out + out.err
+    assert cli.main(["score", str(b), "--out", str(tmp_path / "out"), "--no-pictures", "--no-controls",
+                     "--no-boundary", "--n-boot", "10", "--n-perm", "10", "--quiet"]) == 0
+    res = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert any("box is ignored" in json.dumps(w) for w in res["warnings"]), res["warnings"]
+    assert res["scenes"]["room"]["target"]["source"] == "indices"
+
+
+_VISIBLE: dict = {}
+
+
+def _visible_target(folder) -> np.ndarray:
+    """The indices of the target lifted from the bundle's own masks (a target every check accepts)."""
+    from r360gpu.lift.resolve import check_target
+
+    if folder not in _VISIBLE:
+        b = variant(folder, folder.parent / "visible", 'masks = "given"', shown_views(folder))
+        _VISIBLE[folder] = check_target(load_bundle(b)).indices
+    return _VISIBLE[folder]
+
+
+def _rgba(v, m) -> bytes:
+    import io
+
+    from PIL import Image
+
+    a = np.zeros(m.shape + (4,), np.uint8)
+    a[..., 0], a[..., 3] = m * 255, 255
+    buf = io.BytesIO()
+    Image.fromarray(a).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def _grey16(v, m) -> bytes:
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(m.astype(np.uint16) * 40000).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+# name -> (build, the build whose target it must equal): forms a user may write that mean the same
+SAME_TARGET = {
+    "indices with duplicates": (lambda f, d: _npy(lambda n: np.repeat(_visible_target(f), 3))(f, d),
+                                lambda f, d: _npy(lambda n: _visible_target(f))(f, d)),
+    "indices as whole floats": (lambda f, d: _npy(lambda n: _visible_target(f).astype(np.float64))(f, d),
+                                             lambda f, d: _npy(lambda n: _visible_target(f))(f, d)),
+    "indices as booleans": (lambda f, d: _npy(lambda n: np.isin(np.arange(n), _visible_target(f)))(f, d),
+                            lambda f, d: _npy(lambda n: _visible_target(f))(f, d)),
+    "box rotation a reflection": (_table("box = { centre = [0.8, 1.97, 0.4], size = [4.8, 1.75, 1.0], "
+                                         "rotation = [[1, 0, 0], [0, 1, 0], [0, 0, -1]] }"),
+                                  _table("box = { centre = [0.8, 1.97, 0.4], size = [4.8, 1.75, 1.0] }")),
+    "box quaternion not unit": (_table("box = { centre = [0.8, 1.97, 0.4], size = [4.8, 1.75, 1.0], "
+                                       "rotation = [2, 0, 0, 0] }"),
+                                _table("box = { centre = [0.8, 1.97, 0.4], size = [4.8, 1.75, 1.0] }")),
+    "box as min/max": (_table("box = { min = [-1.6, 1.095, -0.1], max = [3.2, 2.845, 0.9] }"),
+                       _table("box = { centre = [0.8, 1.97, 0.4], size = [4.8, 1.75, 1.0] }")),
+    "masks 16-bit": (_table('masks = "given"', given=True, mask=_grey16), _table('masks = "given"', given=True)),
+    "masks RGBA": (_table('masks = "given"', given=True, mask=_rgba), _table('masks = "given"', given=True)),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SAME_TARGET))
+def test_equivalent_forms_give_the_same_target(bench, tmp_path, case):
+    from r360gpu.lift.resolve import check_target
+
+    build, same = SAME_TARGET[case]
+    got = check_target(load_bundle(build(bench, tmp_path / "a")))
+    want = check_target(load_bundle(same(bench, tmp_path / "b")))
+    assert 0 < got.target.sum() < got.n and np.array_equal(got.target, want.target)
+
+
 OBJECT_CASES = {
     "indices a string": ({"indices": "12"}, "got a str"),
     "indices a set": ({"indices": {1, 2}}, "got a set"),
@@ -266,7 +348,16 @@ OBJECT_CASES = {
     "box rotation ragged": ({"box": {"centre": [0, 0, 0], "size": [1, 1, 1], "rotation": [[1, 0, 0], [0, 1]]}},
                             "rotation must be"),
     "mask text": ({"masks": {"VIEW": "mask.png"}}, "must be an (H, W) array"),
+    "box corners as text": ({"box": {"min": ["0", "0", "0"], "max": [1, 1, 1]}}, "must be 3 finite numbers"),
+    "box corners as booleans": ({"box": {"min": np.zeros(3, bool), "max": np.ones(3)}}, "must be 3 finite numbers"),
 }
+
+
+def test_a_box_of_numpy_arrays_is_taken():
+    from r360gpu.io.box import Box
+
+    box = Box.from_table({"centre": np.zeros(3, np.float32), "size": np.full(3, 2), "rotation": np.eye(3)})
+    assert box.contains(np.array([[0.9, -0.9, 0.5], [1.1, 0, 0]])).tolist() == [True, False]
 
 
 @pytest.mark.parametrize("case", sorted(OBJECT_CASES))
@@ -290,6 +381,18 @@ OPTION_CASES = [  # (EvaluateOptions keyword, bad value, CLI arguments or None, 
     ("orbit", 2.5, ["--orbit", "2.5"], "orbit"),
     ("orbit", "4", None, "orbit (--orbit)"),
     ("orbit", True, None, "orbit (--orbit)"),
+    ("orbit", 100000, ["--orbit", "100000"], "orbit (--orbit)"),  # a typo that would run for days
+    ("orbit", 10 ** 12, None, "orbit (--orbit)"),
+    ("orbit_radius", float("nan"), ["--orbit", "2", "--orbit-radius", "nan"], "orbit_radius (--orbit-radius)"),
+    ("orbit_radius", 0.0, ["--orbit", "2", "--orbit-radius", "0"], "orbit_radius (--orbit-radius)"),
+    ("orbit_elevation", (0.0, 95.0), ["--orbit", "2", "--orbit-elevation", "0", "95"], "orbit_elevation"),
+    ("orbit_elevation", (float("nan"), 10.0), ["--orbit", "2", "--orbit-elevation", "nan", "10"],
+     "orbit_elevation"),
+    ("orbit_azimuth", (10.0, 10.0), ["--orbit", "2", "--orbit-azimuth", "10", "10"], "orbit_azimuth"),
+    ("orbit_azimuth", (0.0, 720.0), ["--orbit", "2", "--orbit-azimuth", "0", "720"], "orbit_azimuth"),
+    ("prune_residuals", float("nan"), ["--prune-residuals", "nan"], "prune_residuals (--prune-residuals)"),
+    ("prune_residuals", -3, ["--prune-residuals", "-3"], "prune_residuals (--prune-residuals)"),
+    ("prune_residuals", 1.0, ["--prune-residuals", "1.0"], "prune_residuals (--prune-residuals)"),
     ("residuals", "yes", None, "residuals (--residuals)"),
     ("prune_residuals", 0, ["--prune-residuals", "0"], "prune_residuals (--prune-residuals)"),
     ("prune_residuals", 1.5, ["--prune-residuals", "1.5"], "prune_residuals (--prune-residuals)"),
@@ -329,6 +432,16 @@ def test_every_option_is_checked_when_built_and_by_the_cli(bench, tmp_path, caps
            or "error:" in ln]
     assert rc == 2 and not out.exists()
     assert sum("error" in ln for ln in err) == 1, err
+
+
+def test_the_orbit_pose_count_is_bounded_where_poses_are_made_and_for_inpaint():
+    from r360gpu.lift.orbit import MAX_POSES, orbit_cameras
+    from r360gpu.pipeline.inpaint import score_scenes
+
+    with pytest.raises(InputError, match=f"from 1 to {MAX_POSES}"):
+        orbit_cameras(np.zeros(3), [], MAX_POSES + 1)
+    with pytest.raises(InputError, match="orbit"):
+        score_scenes([], protocol="remove360", orbit=MAX_POSES + 1)
 
 
 @pytest.mark.parametrize("workers", [0, -3, 2.5, "4", True])
