@@ -273,6 +273,26 @@ def test_indices_and_box_together_are_warned_and_recorded(bench, tmp_path, capsy
     assert res["scenes"]["room"]["target"]["source"] == "indices"
 
 
+@pytest.mark.parametrize("ids", ["-1 for unlabelled", "object ids"])
+def test_labels_that_are_not_0_and_1_are_warned_and_recorded(bench, tmp_path, capsys, ids):
+    import json
+
+    def label(n):
+        out = np.zeros(n)
+        out[_visible_target(bench)] = 1.0
+        out[np.flatnonzero(out == 0)[::50]] = -1.0 if ids == "-1 for unlabelled" else 7.0
+        return out
+
+    b = _labelled(label)(bench, tmp_path / "b")
+    assert cli.main(["check", str(b)]) == 0
+    out = capsys.readouterr()
+    assert "labels.ply: vertex property 'label' takes 2 non-zero value(s)" in out.out + out.err
+    assert cli.main(["score", str(b), "--out", str(tmp_path / "out"), "--no-pictures", "--no-controls",
+                     "--no-boundary", "--n-boot", "10", "--n-perm", "10", "--quiet"]) == 0
+    warned = json.loads((tmp_path / "out" / "results.json").read_text())["warnings"]
+    assert any("map of object ids" in json.dumps(w) for w in warned), warned
+
+
 _VISIBLE: dict = {}
 
 

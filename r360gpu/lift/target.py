@@ -238,6 +238,13 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None, ro
             raise InputError(f"{path}: vertex property {choice[0]!r} is NaN at {int(np.isnan(label).sum())} of "
                              f"{len(label)} vertices (e.g. vertex {int(np.flatnonzero(np.isnan(label))[0])}); a "
                              f"target label is non-zero on the target and 0 elsewhere")
+        values = np.unique(label[label != 0])
+        if warn is not None and (values.size > 1 or (values.size and values[0] < 0)):
+            # -1 is a common "unlabelled", and several values a map of object ids: both read as target
+            warn(f"{path}: vertex property {choice[0]!r} takes {values.size} non-zero value(s) "
+                 f"({', '.join(f'{v:g}' for v in values[:4].tolist())}{', ...' if values.size > 4 else ''}); every "
+                 f"vertex where it is non-zero is target: is it a map of object ids, or -1 for unlabelled? "
+                 f"(a target label is 1 on the target and 0 elsewhere)")
         return target_from_indices(n, label != 0, where=str(path), rows=rows, warn=warn)
     raise InputError(f"{path}: target indices must be a .npy or .ply file")
 
