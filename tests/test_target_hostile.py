@@ -207,9 +207,18 @@ CASES = {
     "masks folder empty": (_table('masks = "given"'), "masks folder has no", "given"),
     "masks of views with no camera": (lambda folder, dst: _orphan_masks(folder, dst), "with no camera",
                                       "scene.toml"),
+    "masks in both folders differ": (lambda folder, dst: _masks_twice(folder, dst),
+                                     "different mask in masks and in [target].masks", "scene.toml"),
     "masks at half size": (_table('masks = "given"', given=True, mask=lambda v, m: m[::2, ::2]), "mask is 32x24",
                            "given/"),
 }
+
+
+def _masks_twice(folder, dst):
+    """Top-level masks kept, and [target].masks giving other masks of the same views."""
+    b = _table('masks = "given"', given=True, mask=lambda v, m: np.roll(m, 20, axis=1))(folder, dst)
+    (b / "scene.toml").write_text('masks = "masks"\n' + (b / "scene.toml").read_text())
+    return b
 
 
 def _orphan_masks(folder, dst):
