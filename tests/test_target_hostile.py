@@ -377,6 +377,7 @@ OBJECT_CASES = {
     "box rotation ragged": ({"box": {"centre": [0, 0, 0], "size": [1, 1, 1], "rotation": [[1, 0, 0], [0, 1]]}},
                             "rotation must be"),
     "mask text": ({"masks": {"VIEW": "mask.png"}}, "must be an (H, W) array"),
+    "mask with NaN": ({"masks": {"VIEW": np.full((48, 64), np.nan)}}, "the mask is NaN at 3072 pixels"),
     "box corners as text": ({"box": {"min": ["0", "0", "0"], "max": [1, 1, 1]}}, "must be 3 finite numbers"),
     "box corners as booleans": ({"box": {"min": np.zeros(3, bool), "max": np.ones(3)}}, "must be 3 finite numbers"),
 }

@@ -186,4 +186,7 @@ def _mask_array(value, where: str) -> np.ndarray:
     if m is None or m.dtype.kind not in "biuf" or m.ndim != 2:
         raise InputError(f"{where} must be an (H, W) array of booleans or numbers, got "
                          f"{type(value).__name__}{'' if m is None else f' of {m.dtype}, shape {m.shape}'}")
+    if m.dtype.kind == "f" and np.isnan(m).any():  # NaN != 0 would read as target
+        raise InputError(f"{where}: the mask is NaN at {int(np.isnan(m).sum())} pixels; a mask is non-zero on the "
+                         f"target and 0 elsewhere")
     return m
