@@ -131,6 +131,14 @@ def _pickled(path):
     np.save(path, np.array([1, "a", None], dtype=object), allow_pickle=True)
 
 
+def _npz_bytes() -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    np.savez(buf, a=np.arange(5))
+    return buf.getvalue()
+
+
 def _truncated_npy(path):
     np.save(path, np.arange(50))
     path.write_bytes(path.read_bytes()[:-100])
@@ -175,6 +183,10 @@ CASES = {
     "indices float beyond int64": (_npy(lambda n: np.array([1e300, 3.0])), "too large", "target.npy"),
     "indices pickled objects": (_save(_pickled), "not a readable .npy", "target.npy"),
     "indices truncated .npy": (_save(_truncated_npy), "not a readable .npy", "target.npy"),
+    "indices an empty file": (_save(lambda p: p.write_bytes(b"")), "not a readable .npy", "target.npy"),
+    "labels an empty file": (_save(lambda p: p.write_bytes(b""), "labels.ply"), "not a PLY file", "labels.ply"),
+    "indices an .npz archive": (_save(lambda p: p.write_bytes(_npz_bytes())), "an .npz archive (arrays a)",
+                                "target.npy"),
     "indices a text file": (_save(lambda p: p.write_text("1 2 3\n"), "target.txt"), ".npy or .ply", "target.txt"),
     "indices of Gaussians no view shows": (_unseen, "shows in none of the", "target.npy"),
     "labels with NaN": (_labelled(lambda n: np.where(np.arange(n) < 20, 1.0, np.where(np.arange(n) < 40, np.nan,
