@@ -139,6 +139,13 @@ def _npz_bytes() -> bytes:
     return buf.getvalue()
 
 
+def _npy_claiming(path, shape):
+    """A .npy whose header claims ``shape`` of int64 over 64 bytes of data (numpy would allocate it)."""
+    with open(path, "wb") as f:
+        np.lib.format.write_array_header_1_0(f, {"descr": "<i8", "fortran_order": False, "shape": shape})
+        f.write(bytes(64))
+
+
 def _truncated_npy(path):
     np.save(path, np.arange(50))
     path.write_bytes(path.read_bytes()[:-100])
@@ -181,11 +188,13 @@ CASES = {
     "indices uint64 beyond int64": (_npy(lambda n: np.array([2 ** 63 + 5, 3], np.uint64)), "too large",
                                     "target.npy"),
     "indices float beyond int64": (_npy(lambda n: np.array([1e300, 3.0])), "too large", "target.npy"),
-    "indices pickled objects": (_save(_pickled), "not a readable .npy", "target.npy"),
-    "indices truncated .npy": (_save(_truncated_npy), "not a readable .npy", "target.npy"),
-    "indices an empty file": (_save(lambda p: p.write_bytes(b"")), "not a readable .npy", "target.npy"),
+    "indices pickled objects": (_save(_pickled), "Object arrays cannot be loaded", "target.npy"),
+    "indices truncated .npy": (_save(_truncated_npy), "more than the file's", "target.npy"),
+    "indices .npy header claiming 1e15 values": (_save(lambda p: _npy_claiming(p, (10 ** 15,))), "more than the file's",
+                                                 "target.npy"),
+    "indices an empty file": (_save(lambda p: p.write_bytes(b"")), "not a valid .npy file", "target.npy"),
     "labels an empty file": (_save(lambda p: p.write_bytes(b""), "labels.ply"), "not a PLY file", "labels.ply"),
-    "indices an .npz archive": (_save(lambda p: p.write_bytes(_npz_bytes())), "an .npz archive (arrays a)",
+    "indices an .npz archive": (_save(lambda p: p.write_bytes(_npz_bytes())), "an .npz archive",
                                 "target.npy"),
     "indices a text file": (_save(lambda p: p.write_text("1 2 3\n"), "target.txt"), ".npy or .ply", "target.txt"),
     "indices of Gaussians no view shows": (_unseen, "shows in none of the", "target.npy"),

@@ -214,16 +214,9 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None, ro
     if not path.is_file():
         raise InputError(f"{path}: target indices file does not exist")
     if path.suffix.lower() == ".npy":
-        try:
-            arr = np.load(path, allow_pickle=False)
-        except (ValueError, OSError, EOFError) as e:
-            raise InputError(f"{path}: not a readable .npy array ({e})") from None
-        if not isinstance(arr, np.ndarray):  # an .npz archive under an .npy name
-            names = list(arr.files)
-            arr.close()
-            raise InputError(f"{path}: an .npz archive (arrays {', '.join(names[:5]) or 'none'}), not one .npy array; "
-                             f"save the indices with np.save")
-        return target_from_indices(n, arr, where=str(path), rows=rows, warn=warn)
+        from ..io.renders import read_npy
+
+        return target_from_indices(n, read_npy(path), where=str(path), rows=rows, warn=warn)
     if path.suffix.lower() == ".ply":
         from ..io.ply import read_ply
 
