@@ -376,7 +376,16 @@ SAME_TARGET = {
                        _table("box = { centre = [0.8, 1.97, 0.4], size = [4.8, 1.75, 1.0] }")),
     "masks 16-bit": (_table('masks = "given"', given=True, mask=_grey16), _table('masks = "given"', given=True)),
     "masks RGBA": (_table('masks = "given"', given=True, mask=_rgba), _table('masks = "given"', given=True)),
+    "one folder as masks and [target].masks": (
+        lambda f, d: _also_top_level(_table('masks = "given"', given=True)(f, d)),
+        _table('masks = "given"', given=True)),
 }
+
+
+def _also_top_level(b):
+    """The bundle ``b`` with its [target] mask folder also named as the top-level masks."""
+    (b / "scene.toml").write_text('masks = "given"\n' + (b / "scene.toml").read_text())
+    return b
 
 
 @pytest.mark.parametrize("case", sorted(SAME_TARGET))
