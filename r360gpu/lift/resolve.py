@@ -154,8 +154,9 @@ def _require_shown(bundle, lifted, shown: bool) -> None:
 
 def check_target(bundle, *, ctx=None, warn=None):
     """The LiftedTarget of a valid bundle's ``[target]`` over its pre, validated as ``score`` does
-    (:func:`lifted_target`, pre opened by :func:`~r360gpu.render.sources.open_source`): what
-    ``r360gpu check`` runs so that its OK means ``score`` accepts the target."""
+    (:func:`lifted_target`, pre opened by :func:`~r360gpu.render.sources.open_source`, and some
+    selected view showing the target, as `resolve_lifted` requires): what ``r360gpu check`` runs so
+    that its OK means ``score`` accepts the target."""
     from ..render.sources import open_source
 
     pre = open_source(bundle.pre, ctx=ctx, background=bundle.options.background)
