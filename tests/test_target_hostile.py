@@ -131,6 +131,14 @@ def _pickled(path):
     np.save(path, np.array([1, "a", None], dtype=object), allow_pickle=True)
 
 
+def _list_labels(path):
+    """An ASCII PLY of pre's vertex count whose 'label' is a list property."""
+    n = load_gaussians(path.parent / "pre.ply").n
+    head = ["ply", "format ascii 1.0", f"element vertex {n}", "property float x", "property list uchar int label",
+            "end_header"]
+    path.write_text("\n".join(head + [f"0 1 {i % 2}" for i in range(n)]) + "\n")
+
+
 def _npz_bytes() -> bytes:
     import io
 
@@ -193,6 +201,7 @@ CASES = {
     "indices .npy header claiming 1e15 values": (_save(lambda p: _npy_claiming(p, (10 ** 15,))), "more than the file's",
                                                  "target.npy"),
     "indices an empty file": (_save(lambda p: p.write_bytes(b"")), "not a valid .npy file", "target.npy"),
+    "labels a list property": (_save(_list_labels, "labels.ply"), "list properties (label)", "labels.ply"),
     "labels an empty file": (_save(lambda p: p.write_bytes(b""), "labels.ply"), "not a PLY file", "labels.ply"),
     "indices an .npz archive": (_save(lambda p: p.write_bytes(_npz_bytes())), "an .npz archive",
                                 "target.npy"),

@@ -223,6 +223,11 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None, ro
         ply = read_ply(path)
         vert = ply.arrays.get("vertex")
         if vert is None:
+            element = ply.element("vertex")
+            if element is not None and element.has_lists:  # read_ply keeps no array for such an element
+                lists = [q.name for q in element.properties if q.is_list]
+                raise InputError(f"{path}: the vertex element has list properties ({', '.join(lists)}), which "
+                                 f"r360gpu does not read; write the target label as one number per vertex")
             raise InputError(f"{path}: PLY has no vertex element")
         names = vert.dtype.names or ()
         choice = [prop] if prop else [p for p in ("target", "label", "is_target") if p in names]
