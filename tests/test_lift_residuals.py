@@ -26,6 +26,7 @@ def test_residuals_match_the_reference_and_ignore_unflagged_views(ctx, tmp_path)
     np.testing.assert_allclose(r[seen], want[seen], atol=1e-3)
     assert np.all((r >= 0) & (r <= 1)) and np.all(residuals(g, cams, masks, [], ctx=ctx) == 0)
     assert top_residuals(np.array([0.1, 0.9, 0.9, 0.0]), 3).tolist() == [1, 2, 0]
+    assert top_residuals(np.array([0.0, 0.3, 0.0, 0.0]), 3).tolist() == [1]  # residual 0: not a residual
     path = write_residual_ply(tmp_path / "r" / "m.ply", g, r)
     vert = read_ply(path).arrays["vertex"]
     assert np.allclose(vert["residual"], r.astype(np.float32)) and np.allclose(vert["x"], g.means[:, 0])

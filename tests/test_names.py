@@ -45,6 +45,8 @@ NAMES = [
     ("new\nline", True, True),
     ("nul\x00byte", True, True),
     ("CON", True, True),
+    ("a:b", True, True),           # not a file name on Windows, like CON
+    ("v1|v2?", True, True),
     ("x" * 201, True, True),
 ]
 IDS = [repr(n)[:24] for n, _, _ in NAMES]

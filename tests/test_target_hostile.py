@@ -81,6 +81,84 @@ def _truncated_png(v, m) -> bytes:
     return data[: data.index(b"IDAT") + 12]
 
 
+def _save(write, name="target.npy"):
+    """A [target] whose indices file ``name`` is written by ``write(path)``."""
+    def build(folder, dst):
+        b = variant(folder, dst, f'indices = "{name}"')
+        write(b / name)
+        return b
+    return build
+
+
+def _labelled(label, extra: int = 0):
+    """A [target] given as a PLY of pre's vertex count (plus ``extra``) whose float property 'label'
+    is ``label(n)``."""
+    def write(path):
+        from r360gpu.io.ply import write_ply
+
+        n = load_gaussians(path.parent / "pre.ply").n + extra
+        vert = np.zeros(n, [("x", "f4"), ("y", "f4"), ("z", "f4"), ("label", "f4")])
+        vert["label"] = label(n)
+        write_ply(path, [("vertex", vert)])
+    return _save(write, "labels.ply")
+
+
+def _unseen(folder, dst):
+    """Indices of Gaussians no view composites at all (zero weight in every view's lift): their
+    rendered target mask is empty at every view."""
+    from r360gpu.lift import lift_target
+
+    b = load_bundle(folder)
+    g = load_gaussians(b.pre.path)
+    cams = [b.cameras[v] for v in b.views]
+    lt = lift_target(g, cams, [np.ones((c.height, c.width), bool) for c in cams])
+    hidden = np.flatnonzero(lt.w_in + lt.w_out == 0)
+    assert hidden.size >= 3
+    return _npy(lambda n: hidden[:3])(folder, dst)
+
+
+def _one_gaussian_pre(folder, dst):
+    """pre cut down to one Gaussian, and a target of that Gaussian: nothing would be left."""
+    from r360gpu.io.ply import read_ply, write_ply
+
+    b = _npy(lambda n: np.array([0]))(folder, dst)
+    vert = read_ply(b / "pre.ply").arrays["vertex"]
+    write_ply(b / "pre.ply", [("vertex", vert[:1])])
+    return b
+
+
+def _pickled(path):
+    np.save(path, np.array([1, "a", None], dtype=object), allow_pickle=True)
+
+
+def _list_labels(path):
+    """An ASCII PLY of pre's vertex count whose 'label' is a list property."""
+    n = load_gaussians(path.parent / "pre.ply").n
+    head = ["ply", "format ascii 1.0", f"element vertex {n}", "property float x", "property list uchar int label",
+            "end_header"]
+    path.write_text("\n".join(head + [f"0 1 {i % 2}" for i in range(n)]) + "\n")
+
+
+def _npz_bytes() -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    np.savez(buf, a=np.arange(5))
+    return buf.getvalue()
+
+
+def _npy_claiming(path, shape):
+    """A .npy whose header claims ``shape`` of int64 over 64 bytes of data (numpy would allocate it)."""
+    with open(path, "wb") as f:
+        np.lib.format.write_array_header_1_0(f, {"descr": "<i8", "fortran_order": False, "shape": shape})
+        f.write(bytes(64))
+
+
+def _truncated_npy(path):
+    np.save(path, np.arange(50))
+    path.write_bytes(path.read_bytes()[:-100])
+
+
 CASES = {
     "indices file missing": (_table('indices = "nowhere.npy"'), "no such file", "nowhere.npy"),
     "indices out of range": (_npy(lambda n: np.array([0, n + 5])), "outside 0..", "target.npy"),
@@ -106,7 +184,79 @@ CASES = {
                         "no given target mask shows the target", "scene.toml"),
     "all-full masks": (_table('masks = "given"', given=True, mask=lambda v, m: np.ones_like(m)),
                        "target at every pixel", "scene.toml"),
+    # -- further cases: values a file can hold that numpy would take without a word
+    "indices fractional": (_npy(lambda n: np.array([1.5, 2.0])), "whole numbers", "target.npy"),
+    "indices NaN": (_npy(lambda n: np.array([1.0, np.nan])), "whole numbers", "target.npy"),
+    "indices negative": (_npy(lambda n: np.array([-1, 3])), "outside 0..", "target.npy"),
+    "indices a column (N, 1)": (_npy(lambda n: np.arange(10, 40).reshape(-1, 1)), "flat (1-D)", "target.npy"),
+    "indices a row (1, N)": (_npy(lambda n: np.arange(10, 40).reshape(1, -1)), "flat (1-D)", "target.npy"),
+    "indices a 0-d array": (_npy(lambda n: np.array(5)), "flat (1-D)", "target.npy"),
+    "indices empty": (_npy(lambda n: np.array([], np.int64)), "no Gaussians", "target.npy"),
+    "indices complex": (_npy(lambda n: np.array([1 + 0j, 2 + 0j])), "integers or booleans", "target.npy"),
+    "indices uint64 beyond int64": (_npy(lambda n: np.array([2 ** 63 + 5, 3], np.uint64)), "too large",
+                                    "target.npy"),
+    "indices float beyond int64": (_npy(lambda n: np.array([1e300, 3.0])), "too large", "target.npy"),
+    "indices pickled objects": (_save(_pickled), "Object arrays cannot be loaded", "target.npy"),
+    "indices truncated .npy": (_save(_truncated_npy), "more than the file's", "target.npy"),
+    "indices .npy header claiming 1e15 values": (_save(lambda p: _npy_claiming(p, (10 ** 15,))), "more than the file's",
+                                                 "target.npy"),
+    "indices an empty file": (_save(lambda p: p.write_bytes(b"")), "not a valid .npy file", "target.npy"),
+    "labels a list property": (_save(_list_labels, "labels.ply"), "list properties (label)", "labels.ply"),
+    "labels an empty file": (_save(lambda p: p.write_bytes(b""), "labels.ply"), "not a PLY file", "labels.ply"),
+    "indices an .npz archive": (_save(lambda p: p.write_bytes(_npz_bytes())), "an .npz archive",
+                                "target.npy"),
+    "indices a text file": (_save(lambda p: p.write_text("1 2 3\n"), "target.txt"), ".npy or .ply", "target.txt"),
+    "indices of Gaussians no view shows": (_unseen, "shows in none of the", "target.npy"),
+    "labels with NaN": (_labelled(lambda n: np.where(np.arange(n) < 20, 1.0, np.where(np.arange(n) < 40, np.nan,
+                                                                                       0.0))),
+                        "is NaN at 20", "labels.ply"),
+    "labels all zero": (_labelled(np.zeros), "no Gaussians", "labels.ply"),
+    "labels one vertex too many": (_labelled(lambda n: np.arange(n) < 20, extra=1), "vertices, pre's file has",
+                                   "labels.ply"),
+    "target of pre's only Gaussian": (_one_gaussian_pre, "every one of pre's 1 Gaussians", "target.npy"),
+    "box coordinates as text": (_table('box = { min = ["0", "0", "0"], max = ["1", "1", "1"] }'),
+                                "must be 3 finite numbers", "scene.toml"),
+    "box coordinates as booleans": (_table("box = { min = [false, false, false], max = [true, true, true] }"),
+                                    "must be 3 finite numbers", "scene.toml"),
+    "box coordinates nested": (_table("box = { min = [[0, 0, 0]], max = [[1, 1, 1]] }"),
+                               "must be 3 finite numbers", "scene.toml"),
+    "box NaN centre": (_table("box = { centre = [nan, 0, 0], size = [1, 1, 1] }"), "finite numbers", "scene.toml"),
+    "box infinite size": (_table("box = { centre = [0, 0, 0], size = [inf, 1, 1] }"), "finite numbers",
+                          "scene.toml"),
+    "box negative size": (_table("box = { centre = [0, 0, 0], size = [-1, 1, 1] }"), "size must be > 0",
+                          "scene.toml"),
+    "box rotation scaled": (_table("box = { centre = [0, 0, 0], size = [1, 1, 1], "
+                                   "rotation = [[2, 0, 0], [0, 1, 0], [0, 0, 1]] }"), "rotation must be", "scene.toml"),
+    "box rotation quaternion as text": (_table('box = { centre = [0, 0, 0], size = [1, 1, 1], '
+                                               'rotation = ["1", "0", "0", "0"] }'), "rotation must be", "scene.toml"),
+    "box with min, max and centre": (_table("box = { min = [0, 0, 0], max = [1, 1, 1], centre = [0, 0, 0] }"),
+                                     "needs min and max, or centre and size", "scene.toml"),
+    "box a string": (_table('box = "0 0 0 1 1 1"'), "must be a table", "scene.toml"),
+    "property without a .ply": (_table('box = { min = [0, 0, 0], max = [1, 1, 1] }\nproperty = "label"'),
+                                "[target].property names", "scene.toml"),
+    "masks folder empty": (_table('masks = "given"'), "masks folder has no", "given"),
+    "masks of views with no camera": (lambda folder, dst: _orphan_masks(folder, dst), "with no camera",
+                                      "scene.toml"),
+    "masks in both folders differ": (lambda folder, dst: _masks_twice(folder, dst),
+                                     "different mask in masks and in [target].masks", "scene.toml"),
+    "masks at half size": (_table('masks = "given"', given=True, mask=lambda v, m: m[::2, ::2]), "mask is 32x24",
+                           "given/"),
 }
+
+
+def _masks_twice(folder, dst):
+    """Top-level masks kept, and [target].masks giving other masks of the same views."""
+    b = _table('masks = "given"', given=True, mask=lambda v, m: np.roll(m, 20, axis=1))(folder, dst)
+    (b / "scene.toml").write_text('masks = "masks"\n' + (b / "scene.toml").read_text())
+    return b
+
+
+def _orphan_masks(folder, dst):
+    """Given masks named for views no camera has."""
+    b = _table('masks = "given"', given=True)(folder, dst)
+    for p in sorted((b / "given").glob("*.png")):
+        p.rename(p.with_name("nosuch_" + p.name))
+    return b
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
@@ -146,6 +296,117 @@ def test_a_target_of_most_of_the_scene_is_warned_and_recorded(bench, tmp_path, c
     assert any("most of the scene" in json.dumps(w) and "target.npy" in json.dumps(w) for w in warned), warned
 
 
+def test_indices_and_box_together_are_warned_and_recorded(bench, tmp_path, capsys):
+    """The documented priority (indices over box) holds, and the ignored box is said, by check and score."""
+    import json
+
+    b = _npy(lambda n: _visible_target(bench))(bench, tmp_path / "b")
+    (b / "scene.toml").write_text((b / "scene.toml").read_text() + "box = { min = [0, 0, 0], max = [1, 1, 1] }\n")
+    assert cli.main(["check", str(b)]) == 0
+    out = capsys.readouterr()
+    assert "gives both indices and box" in out.out + out.err
+    assert cli.main(["score", str(b), "--out", str(tmp_path / "out"), "--no-pictures", "--no-controls",
+                     "--no-boundary", "--n-boot", "10", "--n-perm", "10", "--quiet"]) == 0
+    res = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert any("box is ignored" in json.dumps(w) for w in res["warnings"]), res["warnings"]
+    assert res["scenes"]["room"]["target"]["source"] == "indices"
+
+
+@pytest.mark.parametrize("ids", ["-1 for unlabelled", "object ids"])
+def test_labels_that_are_not_0_and_1_are_warned_and_recorded(bench, tmp_path, capsys, ids):
+    import json
+
+    def label(n):
+        out = np.zeros(n)
+        out[_visible_target(bench)] = 1.0
+        out[np.flatnonzero(out == 0)[::50]] = -1.0 if ids == "-1 for unlabelled" else 7.0
+        return out
+
+    b = _labelled(label)(bench, tmp_path / "b")
+    assert cli.main(["check", str(b)]) == 0
+    out = capsys.readouterr()
+    assert "labels.ply: vertex property 'label' takes 2 non-zero value(s)" in out.out + out.err
+    assert cli.main(["score", str(b), "--out", str(tmp_path / "out"), "--no-pictures", "--no-controls",
+                     "--no-boundary", "--n-boot", "10", "--n-perm", "10", "--quiet"]) == 0
+    warned = json.loads((tmp_path / "out" / "results.json").read_text())["warnings"]
+    assert any("map of object ids" in json.dumps(w) for w in warned), warned
+
+
+_VISIBLE: dict = {}
+
+
+def _visible_target(folder) -> np.ndarray:
+    """The indices of the target lifted from the bundle's own masks (a target every check accepts)."""
+    from r360gpu.lift.resolve import check_target
+
+    if folder not in _VISIBLE:
+        b = variant(folder, folder.parent / "visible", 'masks = "given"', shown_views(folder))
+        _VISIBLE[folder] = check_target(load_bundle(b)).indices
+    return _VISIBLE[folder]
+
+
+def _rgba(v, m) -> bytes:
+    import io
+
+    from PIL import Image
+
+    a = np.zeros(m.shape + (4,), np.uint8)
+    a[..., 0], a[..., 3] = m * 255, 255
+    buf = io.BytesIO()
+    Image.fromarray(a).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def _grey16(v, m) -> bytes:
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(m.astype(np.uint16) * 40000).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+# name -> (build, the build whose target it must equal): forms a user may write that mean the same
+SAME_TARGET = {
+    "indices with duplicates": (lambda f, d: _npy(lambda n: np.repeat(_visible_target(f), 3))(f, d),
+                                lambda f, d: _npy(lambda n: _visible_target(f))(f, d)),
+    "indices as whole floats": (lambda f, d: _npy(lambda n: _visible_target(f).astype(np.float64))(f, d),
+                                             lambda f, d: _npy(lambda n: _visible_target(f))(f, d)),
+    "indices as booleans": (lambda f, d: _npy(lambda n: np.isin(np.arange(n), _visible_target(f)))(f, d),
+                            lambda f, d: _npy(lambda n: _visible_target(f))(f, d)),
+    "box rotation a reflection": (_table("box = { centre = [0.8, 1.97, 0.4], size = [4.8, 1.75, 1.0], "
+                                         "rotation = [[1, 0, 0], [0, 1, 0], [0, 0, -1]] }"),
+                                  _table("box = { centre = [0.8, 1.97, 0.4], size = [4.8, 1.75, 1.0] }")),
+    "box quaternion not unit": (_table("box = { centre = [0.8, 1.97, 0.4], size = [4.8, 1.75, 1.0], "
+                                       "rotation = [2, 0, 0, 0] }"),
+                                _table("box = { centre = [0.8, 1.97, 0.4], size = [4.8, 1.75, 1.0] }")),
+    "box as min/max": (_table("box = { min = [-1.6, 1.095, -0.1], max = [3.2, 2.845, 0.9] }"),
+                       _table("box = { centre = [0.8, 1.97, 0.4], size = [4.8, 1.75, 1.0] }")),
+    "masks 16-bit": (_table('masks = "given"', given=True, mask=_grey16), _table('masks = "given"', given=True)),
+    "masks RGBA": (_table('masks = "given"', given=True, mask=_rgba), _table('masks = "given"', given=True)),
+    "one folder as masks and [target].masks": (
+        lambda f, d: _also_top_level(_table('masks = "given"', given=True)(f, d)),
+        _table('masks = "given"', given=True)),
+}
+
+
+def _also_top_level(b):
+    """The bundle ``b`` with its [target] mask folder also named as the top-level masks."""
+    (b / "scene.toml").write_text('masks = "given"\n' + (b / "scene.toml").read_text())
+    return b
+
+
+@pytest.mark.parametrize("case", sorted(SAME_TARGET))
+def test_equivalent_forms_give_the_same_target(bench, tmp_path, case):
+    from r360gpu.lift.resolve import check_target
+
+    build, same = SAME_TARGET[case]
+    got = check_target(load_bundle(build(bench, tmp_path / "a")))
+    want = check_target(load_bundle(same(bench, tmp_path / "b")))
+    assert 0 < got.target.sum() < got.n and np.array_equal(got.target, want.target)
+
+
 OBJECT_CASES = {
     "indices a string": ({"indices": "12"}, "got a str"),
     "indices a set": ({"indices": {1, 2}}, "got a set"),
@@ -155,7 +416,17 @@ OBJECT_CASES = {
     "box rotation ragged": ({"box": {"centre": [0, 0, 0], "size": [1, 1, 1], "rotation": [[1, 0, 0], [0, 1]]}},
                             "rotation must be"),
     "mask text": ({"masks": {"VIEW": "mask.png"}}, "must be an (H, W) array"),
+    "mask with NaN": ({"masks": {"VIEW": np.full((48, 64), np.nan)}}, "the mask is NaN at 3072 pixels"),
+    "box corners as text": ({"box": {"min": ["0", "0", "0"], "max": [1, 1, 1]}}, "must be 3 finite numbers"),
+    "box corners as booleans": ({"box": {"min": np.zeros(3, bool), "max": np.ones(3)}}, "must be 3 finite numbers"),
 }
+
+
+def test_a_box_of_numpy_arrays_is_taken():
+    from r360gpu.io.box import Box
+
+    box = Box.from_table({"centre": np.zeros(3, np.float32), "size": np.full(3, 2), "rotation": np.eye(3)})
+    assert box.contains(np.array([[0.9, -0.9, 0.5], [1.1, 0, 0]])).tolist() == [True, False]
 
 
 @pytest.mark.parametrize("case", sorted(OBJECT_CASES))
@@ -179,6 +450,18 @@ OPTION_CASES = [  # (EvaluateOptions keyword, bad value, CLI arguments or None, 
     ("orbit", 2.5, ["--orbit", "2.5"], "orbit"),
     ("orbit", "4", None, "orbit (--orbit)"),
     ("orbit", True, None, "orbit (--orbit)"),
+    ("orbit", 100000, ["--orbit", "100000"], "orbit (--orbit)"),  # a typo that would run for days
+    ("orbit", 10 ** 12, None, "orbit (--orbit)"),
+    ("orbit_radius", float("nan"), ["--orbit", "2", "--orbit-radius", "nan"], "orbit_radius (--orbit-radius)"),
+    ("orbit_radius", 0.0, ["--orbit", "2", "--orbit-radius", "0"], "orbit_radius (--orbit-radius)"),
+    ("orbit_elevation", (0.0, 95.0), ["--orbit", "2", "--orbit-elevation", "0", "95"], "orbit_elevation"),
+    ("orbit_elevation", (float("nan"), 10.0), ["--orbit", "2", "--orbit-elevation", "nan", "10"],
+     "orbit_elevation"),
+    ("orbit_azimuth", (10.0, 10.0), ["--orbit", "2", "--orbit-azimuth", "10", "10"], "orbit_azimuth"),
+    ("orbit_azimuth", (0.0, 720.0), ["--orbit", "2", "--orbit-azimuth", "0", "720"], "orbit_azimuth"),
+    ("prune_residuals", float("nan"), ["--prune-residuals", "nan"], "prune_residuals (--prune-residuals)"),
+    ("prune_residuals", -3, ["--prune-residuals", "-3"], "prune_residuals (--prune-residuals)"),
+    ("prune_residuals", 1.0, ["--prune-residuals", "1.0"], "prune_residuals (--prune-residuals)"),
     ("residuals", "yes", None, "residuals (--residuals)"),
     ("prune_residuals", 0, ["--prune-residuals", "0"], "prune_residuals (--prune-residuals)"),
     ("prune_residuals", 1.5, ["--prune-residuals", "1.5"], "prune_residuals (--prune-residuals)"),
@@ -218,6 +501,16 @@ def test_every_option_is_checked_when_built_and_by_the_cli(bench, tmp_path, caps
            or "error:" in ln]
     assert rc == 2 and not out.exists()
     assert sum("error" in ln for ln in err) == 1, err
+
+
+def test_the_orbit_pose_count_is_bounded_where_poses_are_made_and_for_inpaint():
+    from r360gpu.lift.orbit import MAX_POSES, orbit_cameras
+    from r360gpu.pipeline.inpaint import score_scenes
+
+    with pytest.raises(InputError, match=f"from 1 to {MAX_POSES}"):
+        orbit_cameras(np.zeros(3), [], MAX_POSES + 1)
+    with pytest.raises(InputError, match="orbit"):
+        score_scenes([], protocol="remove360", orbit=MAX_POSES + 1)
 
 
 @pytest.mark.parametrize("workers", [0, -3, 2.5, "4", True])

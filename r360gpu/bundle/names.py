@@ -29,6 +29,8 @@ RESERVED_METHOD_NAMES = ("pre", "reference")
 DERIVED_SUFFIXES = ("+pruned",)
 # Windows device names: a folder called CON or NUL cannot be created there.
 _DEVICE_NAMES = {"con", "prn", "aux", "nul", *(f"com{i}" for i in range(1, 10)), *(f"lpt{i}" for i in range(1, 10))}
+# ...nor a file name holding one of these characters (the outputs of a run must copy to any system).
+_WINDOWS_FORBIDDEN = '<>:"|?*'
 _MAX_LEN = 200  # file names are at most 255 bytes on common file systems; leave room for suffixes
 
 
@@ -48,6 +50,8 @@ def bad_name(name) -> str | None:
         return "has leading or trailing spaces"
     if name.split(".")[0].lower() in _DEVICE_NAMES:
         return "is a reserved device name on Windows"
+    if any(c in _WINDOWS_FORBIDDEN for c in name):
+        return f"contains a character Windows file names cannot hold ({' '.join(_WINDOWS_FORBIDDEN)})"
     if len(name.encode("utf-8", "surrogatepass")) > _MAX_LEN:
         return f"is longer than {_MAX_LEN} bytes"
     try:

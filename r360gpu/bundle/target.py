@@ -73,6 +73,10 @@ def parse_target_table(value, root: Path, bad) -> TargetSpec | None:
             bad("[target].property must be a PLY property name")
             return None
         out["prop"] = value["property"]
+        if not (isinstance(out.get("indices"), Path) and out["indices"].suffix.lower() == ".ply"):
+            bad("[target].property names the vertex property of a .ply indices file (indices = \"....ply\"); "
+                "without one it would be ignored")
+            return None
     if "box" in value:
         try:
             out["box"] = Box.from_table(value["box"], where="[target].box")
@@ -99,7 +103,13 @@ def target_views(draft, where: str, cameras: dict | None, top_masks: dict | None
         problems.append(Problem(str(spec.indices), "[target].indices: no such file"))
     given: dict[str, Path] = dict(top_masks or {})
     if isinstance(spec.masks, Path):
-        given.update(list_masks(spec.masks, problems) or {})
+        extra = list_masks(spec.masks, problems) or {}
+        twice = sorted(v for v, path in extra.items() if v in given and not _same_file(given[v], path))
+        if twice:  # which one is the target? neither is read silently
+            problems.append(Problem(where, f"{len(twice)} view(s) have a different mask in masks and in "
+                                           f"[target].masks ({', '.join(str(extra[v]) for v in twice[:3])}"
+                                           f"{', ...' if len(twice) > 3 else ''}); give each view's mask once"))
+        given.update(extra)
     if spec.source == "masks" and not given:
         problems.append(Problem(where, "[target].masks gives no masks to lift the target from"))
     orphans = sorted(v for v in given if v not in cameras)
@@ -126,6 +136,14 @@ def target_views(draft, where: str, cameras: dict | None, top_masks: dict | None
                 problems.append(Problem(str(path), f"mask is {hw[1]}x{hw[0]}, the camera of view {v!r} is "
                                                    f"{c.width}x{c.height}"))
     return views, {v: p for v, p in given.items() if v in cameras}
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two mask files are one file or hold the same bytes (an unreadable one: not the same)."""
+    try:
+        return a.resolve() == b.resolve() or a.read_bytes() == b.read_bytes()
+    except OSError:
+        return False
 
 
 def target_from_objects(target: dict, views: list[str]) -> TargetSpec:
@@ -168,4 +186,7 @@ def _mask_array(value, where: str) -> np.ndarray:
     if m is None or m.dtype.kind not in "biuf" or m.ndim != 2:
         raise InputError(f"{where} must be an (H, W) array of booleans or numbers, got "
                          f"{type(value).__name__}{'' if m is None else f' of {m.dtype}, shape {m.shape}'}")
+    if m.dtype.kind == "f" and np.isnan(m).any():  # NaN != 0 would read as target
+        raise InputError(f"{where}: the mask is NaN at {int(np.isnan(m).sum())} pixels; a mask is non-zero on the "
+                         f"target and 0 elsewhere")
     return m

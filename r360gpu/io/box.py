@@ -6,6 +6,7 @@ here, beside the other geometry the loaders produce, so that loading does not im
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from numbers import Real
 
 import numpy as np
 
@@ -27,12 +28,17 @@ class Box:
         """A box from ``{min, max}`` (axis-aligned) or ``{centre, size[, rotation]}`` where rotation is a
         3x3 matrix (columns = box axes) or a (w, x, y, z) quaternion."""
         def vec(key, k=3):
-            try:
-                v = np.asarray(table[key], np.float64).reshape(-1)
-            except (TypeError, ValueError):
-                raise InputError(f"{where}.{key} must be {k} numbers") from None
-            if v.shape != (k,) or not np.isfinite(v).all():
-                raise InputError(f"{where}.{key} must be {k} finite numbers, got {table[key]!r}")
+            value = table[key]
+            # numbers only: numpy would read "1.5" and True as 1.5 and 1.0, and flatten [[x, y, z]]
+            if isinstance(value, (list, tuple)):
+                numbers = all(isinstance(x, Real) and not isinstance(x, (bool, np.bool_)) for x in value)
+            else:
+                numbers = isinstance(value, np.ndarray) and value.dtype.kind in "iuf"
+            if not numbers or np.ndim(value) != 1 or len(value) != k:
+                raise InputError(f"{where}.{key} must be {k} finite numbers, got {value!r}")
+            v = np.asarray(value, np.float64)
+            if not np.isfinite(v).all():
+                raise InputError(f"{where}.{key} must be {k} finite numbers, got {value!r}")
             return v
 
         if not isinstance(table, dict):
@@ -53,7 +59,10 @@ class Box:
             rot = np.eye(3)
             if "rotation" in table:
                 try:
-                    r = np.asarray(table["rotation"], np.float64)
+                    r = np.asarray(table["rotation"])
+                    if r.dtype.kind not in "iuf":  # text or booleans, which a float cast would read
+                        raise TypeError
+                    r = r.astype(np.float64)
                 except (TypeError, ValueError):  # text, or a ragged matrix numpy refuses
                     raise InputError(f"{where}.rotation must be a 3x3 rotation matrix or a (w, x, y, z) "
                                      f"quaternion of numbers, got {table['rotation']!r}") from None

@@ -29,4 +29,11 @@ def index_array(value, where: str) -> np.ndarray:
         return arr
     if arr.dtype.kind == "f" and arr.size and (not np.isfinite(arr).all() or np.any(arr != np.round(arr))):
         raise InputError(f"{where}: target indices must be whole numbers")
+    # beyond int64 a cast wraps (uint64) or is undefined (float): refused here, with the value given
+    limit = np.iinfo(np.int64).max
+    huge = (arr[arr > limit] if arr.dtype.kind == "u" else
+            arr[np.abs(arr.astype(np.float64)) >= 2.0 ** 63] if arr.dtype.kind == "f" else arr[:0])
+    if huge.size:
+        raise InputError(f"{where}: {huge.size} target indices too large to be a Gaussian's index (e.g. "
+                         f"{huge[0].item()!r}); are they indices into pre's Gaussians?")
     return arr.astype(np.int64)

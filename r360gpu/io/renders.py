@@ -454,15 +454,21 @@ def _npy_hw(shape: tuple[int, ...], path) -> tuple[int, int]:
     raise InputError(f"depth array has shape {shape}; expected (H, W), (H, W, 1) or (1, H, W)", path)
 
 
-def _npy_depth(path) -> np.ndarray:
+def read_npy(path, *, max_values: int | None = None) -> np.ndarray:
+    """The array of a .npy file (hashed as read), its header checked before numpy allocates what it
+    claims: a shape the file's bytes (or ``max_values``) cannot hold, a damaged file, pickled objects
+    (never unpickled) or an .npz archive are an InputError naming the file."""
     try:
         data = read_file(path)  # hashed as read (util.filehash)
     except OSError as e:
         raise read_error(e, path) from None
+    if data[:4] == b"PK\x03\x04":
+        raise InputError("an .npz archive, not one .npy array (save the array with np.save)", path)
     f = io.BytesIO(data)
     shape, dtype = _npy_header(f, path)
     n = int(np.prod(shape, dtype=object)) if shape else 1
-    if n > MAX_PIXELS or (not dtype.hasobject and n * dtype.itemsize > len(data) - f.tell()):
+    too_many = max_values is not None and n > max_values
+    if too_many or (not dtype.hasobject and n * dtype.itemsize > len(data) - f.tell()):
         raise InputError(f"the .npy header claims shape {shape} of {dtype}, more than the file's "
                          f"{len(data)} bytes hold (truncated?) or r360gpu decodes", path)
     try:
@@ -471,6 +477,11 @@ def _npy_depth(path) -> np.ndarray:
         raise InputError(f"not a valid .npy file ({type(e).__name__}: {str(e)[:200]})", path) from None
     if not isinstance(arr, np.ndarray):
         raise InputError("not a .npy array file", path)
+    return arr
+
+
+def _npy_depth(path) -> np.ndarray:
+    arr = read_npy(path, max_values=MAX_PIXELS)
     if arr.dtype == np.bool_ or not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
         raise InputError(f"depth array has dtype {arr.dtype}; expected real numbers", path)
     h, w = _npy_hw(arr.shape, path)

@@ -39,6 +39,10 @@ SEEN_WEIGHT = 0.05
 #: The reasons a pose is dropped (`keep_pose`).
 INSIDE, NEVER_SEEN, OCCLUDED = "inside geometry", "never seen", "target occluded"
 _GOLDEN = np.pi * (3.0 - np.sqrt(5.0))
+#: At most this many orbit poses: golden-angle spacing puts 10,000 poses about 2 degrees apart on the
+#: sphere, closer than views that differ; more only re-score the same views (and a count like 1e6
+#: is a typo that would run for days).
+MAX_POSES = 10_000
 
 
 def capture_up(cameras) -> np.ndarray:
@@ -94,6 +98,15 @@ def _reach(d: np.ndarray, radius: float, up: np.ndarray, offsets) -> float:
     return float(min(radius, (1 + BOUNDS_MARGIN) * float((offsets @ u).max()) / hn))
 
 
+def check_pose_count(n, what: str = "orbit (--orbit)", *, low: int = 0) -> None:
+    """InputError (naming ``what``) unless ``n`` is a whole number of poses from ``low`` to `MAX_POSES`."""
+    from numbers import Integral
+
+    if isinstance(n, bool) or not isinstance(n, Integral) or not low <= n <= MAX_POSES:
+        raise InputError(f"{what} must be a whole number of cameras from {low} to {MAX_POSES} (poses about 2 "
+                         f"degrees apart), got {n!r}")
+
+
 def orbit_cameras(centre, cameras, n: int, *, prefix: str = "orbit", radius: float = 1.0, elevation=None,
                   azimuth=(0.0, 360.0)) -> list[Camera]:
     """``n`` cameras around ``centre`` (3,) (see the module docstring), named ``{prefix}_000`` on.
@@ -112,6 +125,7 @@ def orbit_cameras(centre, cameras, n: int, *, prefix: str = "orbit", radius: flo
     cameras = list(cameras)
     if n < 1:
         raise InputError(f"an orbit needs at least 1 camera, got {n}")
+    check_pose_count(n, "an orbit", low=1)
     if not cameras:
         raise InputError("an orbit needs the evaluation cameras (distance, elevation and intrinsics)")
     centre = np.asarray(centre, np.float64).reshape(3)

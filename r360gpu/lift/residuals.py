@@ -156,10 +156,12 @@ def residuals(gaussians, cameras, masks, flagged, *, behind=None, ctx=None, opti
 
 
 def top_residuals(residual: np.ndarray, k: int) -> np.ndarray:
-    """(min(k, N),) int64 indices of the highest residuals, highest first (ties: lower index first)."""
+    """(at most k,) int64 indices of the highest residuals above 0, highest first (ties: lower index
+    first).  A Gaussian of residual 0 is in no flagged evidence, so it is never listed: filling
+    the list with such Gaussians (in row order) would name Gaussians 0, 1, 2, ... as residuals."""
     r = np.asarray(residual, np.float64)
-    order = np.lexsort((np.arange(len(r)), -r))
-    return order[: max(0, int(k))].astype(np.int64)
+    order = np.lexsort((np.arange(len(r)), -r))[: max(0, int(k))]
+    return order[r[order] > 0].astype(np.int64)
 
 
 def write_residual_ply(path: str | os.PathLike, gaussians, residual: np.ndarray, *, source=None) -> Path:

@@ -7,6 +7,7 @@ view gets the lifted target's mask rendered over pre
 """
 from __future__ import annotations
 
+from contextlib import closing
 from dataclasses import replace
 from pathlib import Path
 
@@ -14,7 +15,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..render.sources import frame_of
-from .masks import TargetMaskRenderer
+from .masks import target_masks
 from .occluders import find_occluders
 from .target import check_extent, lift_target, load_indices, target_from_box, target_from_indices
 
@@ -70,6 +71,9 @@ def lifted_target(bundle, gaussians, *, ctx=None, options=None, frame=None, warn
     spec = bundle.target
     where = _where(bundle)
     given, paths = _given_masks(bundle, warn)
+    if spec.indices is not None and spec.box is not None and warn is not None:
+        warn(f"{where}: [target] gives both indices and box; the indices define the target and the box is "
+             f"ignored (remove one)")
     if spec.indices is not None:
         rows = dict(rows=gaussians.file_rows, warn=warn)  # the user's indices are rows of pre's file
         if isinstance(spec.indices, np.ndarray):
@@ -125,18 +129,49 @@ def _against_reference(bundle, gaussians, masks: dict, *, ctx=None, options=None
         ref.release()
 
 
+def _view_masks(bundle, gaussians, lifted, given: dict, *, ctx=None, options=None, frame=None):
+    """(view, (H, W) bool target mask) for each selected view: the given masks, then the others
+    rendered from ``lifted`` over pre's ``gaussians`` (lazily: a consumer may stop early)."""
+    yield from ((v, given[v]) for v in bundle.views if v in given)
+    todo = [v for v in bundle.views if v not in given]
+    if todo:
+        yield from zip(todo, target_masks(gaussians, lifted.target, [bundle.cameras[v] for v in todo], ctx=ctx,
+                                          options=options, frame=frame))
+
+
+def _require_shown(bundle, lifted, shown: bool) -> None:
+    """InputError (naming the file that gave the target) unless some selected view shows it: a
+    target whose Gaussians every view sees hidden or not at all leaves nothing to evaluate."""
+    if shown or not bundle.views:
+        return
+    spec = bundle.target
+    where = str(spec.indices) if isinstance(spec.indices, Path) else _where(bundle)
+    raise InputError(f"the target ({lifted.source}, {int(lifted.target.sum())} of pre's {lifted.n} Gaussians) "
+                     f"shows in none of the {len(bundle.views)} selected views: every view's target mask, given "
+                     f"or rendered over pre, is empty (are these Gaussians hidden behind others, or outside "
+                     f"every camera?)", where)
+
+
 def check_target(bundle, *, ctx=None, warn=None):
     """The LiftedTarget of a valid bundle's ``[target]`` over its pre, validated as ``score`` does
-    (:func:`lifted_target`, pre opened by :func:`~r360gpu.render.sources.open_source`): what
-    ``r360gpu check`` runs so that its OK means ``score`` accepts the target."""
+    (:func:`lifted_target`, pre opened by :func:`~r360gpu.render.sources.open_source`, and some
+    selected view showing the target, as `resolve_lifted` requires): what ``r360gpu check`` runs so
+    that its OK means ``score`` accepts the target."""
     from ..render.sources import open_source
 
     pre = open_source(bundle.pre, ctx=ctx, background=bundle.options.background)
     try:
         if getattr(pre, "gaussians", None) is None:
             raise InputError(f"scene {bundle.name!r}: [target] needs pre as a splat scene", _where(bundle))
-        return lifted_target(bundle, pre.gaussians, ctx=pre.renderer.ctx if ctx is None else ctx,
-                             options=getattr(pre, "render_options", None), frame=frame_of(pre), warn=warn)[0]
+        ctx = pre.renderer.ctx if ctx is None else ctx
+        options, frame = getattr(pre, "render_options", None), frame_of(pre)
+        lifted, given = lifted_target(bundle, pre.gaussians, ctx=ctx, options=options, frame=frame, warn=warn)
+        # as score needs: some selected view shows the target (stops at the first that does: one
+        # render in the usual case)
+        with closing(_view_masks(bundle, pre.gaussians, lifted, given, ctx=ctx, options=options,
+                                 frame=frame)) as masks:
+            _require_shown(bundle, lifted, any(m.any() for _, m in masks))
+        return lifted
     finally:
         release = getattr(pre, "release", None)
         if release is not None:
@@ -160,15 +195,9 @@ def resolve_lifted(bundle, pre, *, ctx=None, warn=None):
     options = getattr(pre, "render_options", None)
     frame = frame_of(pre)
     lifted, given = lifted_target(bundle, pre.gaussians, ctx=ctx, options=options, frame=frame, warn=warn)
-    masks = {v: given[v] for v in bundle.views if v in given}
+    masks = dict(_view_masks(bundle, pre.gaussians, lifted, given, ctx=ctx, options=options, frame=frame))
+    _require_shown(bundle, lifted, any(m.any() for m in masks.values()))
     todo = [v for v in bundle.views if v not in given]
-    if todo:
-        r = TargetMaskRenderer(pre.gaussians, lifted.target, ctx=ctx, options=options, frame=frame)
-        try:
-            for v in todo:
-                masks[v] = r.mask(bundle.cameras[v])
-        finally:
-            r.release()
     record = {"source": lifted.source, "gaussians": int(lifted.target.sum()), "of": int(pre.gaussians.n),
               "given": sorted(v for v in bundle.views if v in given), "rendered": todo,
               "lifted_from": list(lifted.views)}

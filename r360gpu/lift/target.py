@@ -194,7 +194,7 @@ def check_extent(lifted: LiftedTarget, where: str, warn=None) -> LiftedTarget:
     k, n = int(lifted.target.sum()), lifted.n
     if k == 0:
         raise InputError(f"{where}: the target ({lifted.source}) holds no Gaussian of pre")
-    if k == n and n > 1:
+    if k == n:
         hint = {"box": "is the box in the scene's units?", "masks": "do the masks cover every pixel?",
                 "indices": "are these the object's indices?"}[lifted.source]
         raise InputError(f"{where}: the target ({lifted.source}) is every one of pre's {n} Gaussians, so "
@@ -214,17 +214,20 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None, ro
     if not path.is_file():
         raise InputError(f"{path}: target indices file does not exist")
     if path.suffix.lower() == ".npy":
-        try:
-            arr = np.load(path, allow_pickle=False)
-        except (ValueError, OSError) as e:
-            raise InputError(f"{path}: not a readable .npy array ({e})") from None
-        return target_from_indices(n, arr, where=str(path), rows=rows, warn=warn)
+        from ..io.renders import read_npy
+
+        return target_from_indices(n, read_npy(path), where=str(path), rows=rows, warn=warn)
     if path.suffix.lower() == ".ply":
         from ..io.ply import read_ply
 
         ply = read_ply(path)
         vert = ply.arrays.get("vertex")
         if vert is None:
+            element = ply.element("vertex")
+            if element is not None and element.has_lists:  # read_ply keeps no array for such an element
+                lists = [q.name for q in element.properties if q.is_list]
+                raise InputError(f"{path}: the vertex element has list properties ({', '.join(lists)}), which "
+                                 f"r360gpu does not read; write the target label as one number per vertex")
             raise InputError(f"{path}: PLY has no vertex element")
         names = vert.dtype.names or ()
         choice = [prop] if prop else [p for p in ("target", "label", "is_target") if p in names]
@@ -233,7 +236,19 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None, ro
                              f"{', '.join(names)}")
         if len(vert) != n:
             raise InputError(f"{path}: {len(vert)} vertices, pre's file has {n} Gaussians")
-        return target_from_indices(n, np.asarray(vert[choice[0]]) != 0, where=str(path), rows=rows, warn=warn)
+        label = np.asarray(vert[choice[0]])
+        if label.dtype.kind == "f" and np.isnan(label).any():  # neither zero nor non-zero: not a label
+            raise InputError(f"{path}: vertex property {choice[0]!r} is NaN at {int(np.isnan(label).sum())} of "
+                             f"{len(label)} vertices (e.g. vertex {int(np.flatnonzero(np.isnan(label))[0])}); a "
+                             f"target label is non-zero on the target and 0 elsewhere")
+        values = np.unique(label[label != 0])
+        if warn is not None and (values.size > 1 or (values.size and values[0] < 0)):
+            # -1 is a common "unlabelled", and several values a map of object ids: both read as target
+            warn(f"{path}: vertex property {choice[0]!r} takes {values.size} non-zero value(s) "
+                 f"({', '.join(f'{v:g}' for v in values[:4].tolist())}{', ...' if values.size > 4 else ''}); every "
+                 f"vertex where it is non-zero is target: is it a map of object ids, or -1 for unlabelled? "
+                 f"(a target label is 1 on the target and 0 elsewhere)")
+        return target_from_indices(n, label != 0, where=str(path), rows=rows, warn=warn)
     raise InputError(f"{path}: target indices must be a .npy or .ply file")
 
 

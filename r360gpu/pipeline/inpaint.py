@@ -32,6 +32,7 @@ import numpy as np
 from .. import __version__
 from ..errors import InputError
 from ..io.inpaint_folders import MethodFiles, SceneFiles, read_image, read_mask_binary, read_mask_script
+from ..lift.orbit import check_pose_count
 from ..metrics import json_values
 from ..metrics.fid import fid_from_features, fid_image_files, kid_from_features
 from ..metrics.inpainting import (METRICS, MODES, SET_METRICS, InpaintScene, overall_means, score_views,
@@ -148,6 +149,7 @@ def score_scenes(scenes: list[SceneFiles], *, protocol: str, mode: str = "defaul
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if (pre is None) != (target is None):
         raise InputError("--pre and --target go together: the target is lifted onto pre's Gaussians")
+    check_pose_count(orbit)
     if orbit and (reference is None or pre is None):
         raise InputError("--orbit needs --reference (the scene without the object, as splats) and --pre with "
                          "--target (the orbit circles the target)")

@@ -96,8 +96,9 @@ class EvaluateOptions:
                                  ("fit_views", self.fit_views, 1), ("seed (--seed)", self.seed, 0)):
             if isinstance(value, bool) or not isinstance(value, Integral) or value < low:
                 raise InputError(f"{flag} must be an integer >= {low}, got {value!r}")
-        if isinstance(self.orbit, bool) or not isinstance(self.orbit, Integral) or self.orbit < 0:
-            raise InputError(f"orbit (--orbit) must be a whole number of cameras >= 0, got {self.orbit!r}")
+        from ..lift.orbit import check_pose_count
+
+        check_pose_count(self.orbit)
         self._check_orbit_shape()
         for flag, value in (("boundary (--no-boundary)", self.boundary), ("pictures (--no-pictures)", self.pictures),
                             ("controls (--no-controls)", self.controls), ("antialiased (--antialiased)",

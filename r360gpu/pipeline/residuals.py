@@ -4,7 +4,7 @@ Gaussians behind the evidence, and the method scored again without them.
 Writes ``residuals/SCENE/METHOD.ply`` (the method's Gaussians with a
 ``residual`` property, :mod:`r360gpu.lift.residuals`) and records in the
 scene's results entry, per method, the file, the flagged views, the indices
-of the :data:`TOP` highest residuals and whether the residual was gated by
+of the :data:`TOP` highest residuals above 0 and whether the residual was gated by
 the surface pre has behind the target.  Methods given as renderings have no
 Gaussians: they are listed with a note.
 
