@@ -49,7 +49,8 @@ sys.path.insert(0, str(ROOT / "tests"))  # the comparison shared with tests/test
 sys.path.insert(0, str(ROOT / "bench"))
 
 from frame_outputs import (AXES_KINDS, AXES_TOL, POSE_TOL, RESIDUAL_TOL, compare, failures,  # noqa: E402
-                           file_rounding, make_room, outputs, rewritten, scene_radius, sweep_frame, ulp_moved, undone_bundle)
+                           file_rounding, make_room, outputs, rewritten, scene_radius, sweep_frame, ulp_moved,
+                           undone_bundle)
 
 #: ns-process-data's applied_transform for a COLMAP model (COLMAP world -> transforms.json world).
 APPLIED = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0], [0, -1.0, 0, 0]])
@@ -158,7 +159,8 @@ def main() -> int:
                 yield f"ulp {seed}", "no frame, 1 ulp", lambda d, s=seed: rewritten(
                     folder, d, lambda rel: ulp_moved(load_gaussians(folder / rel), np.random.default_rng(s))), None
 
-        head = f"{'frame':<19} {'similarity':<17} " + " ".join(f"{t:>{w}}" for t, w, _ in COLUMNS) + "  time  fails | vs undone"
+        head = (f"{'frame':<19} {'similarity':<17} " + " ".join(f"{t:>{w}}" for t, w, _ in COLUMNS)
+                + "  time  fails | vs undone")
         print(head, flush=True)
         rows = []
         for i, (name, what, make, frame) in enumerate(frames()):

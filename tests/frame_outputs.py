@@ -19,12 +19,9 @@ import numpy as np
 
 from r360gpu.bundle import load_bundle
 from r360gpu.io import load_gaussians, load_mask
-from r360gpu.io.frames import Frame
-from r360gpu.lift.resolve import lifted_target, resolve_target
-from r360gpu.pipeline import EvaluateOptions, evaluate
-from r360gpu.pipeline.orbit import orbit_bundle
-from r360gpu.render.sources import open_source
-from r360gpu.synthetic.frames import random_similarity
+
+# what else r360gpu gives is imported where used: bench/frame_invariance.py shares `with_target`
+# and may run on another checkout's code
 
 ARGS = dict(seed=0, n_views=5, width=160, height=120, detail=0.25)
 ORBIT = 4
@@ -53,8 +50,8 @@ def make_room(root: Path, ctx) -> tuple[Path, int, np.ndarray]:
     return folder, n_floaters, np.arange(scene.background.n, scene.pre.n)
 
 
-def with_target(src: Path, dst: Path, indices=None) -> Path:
-    """A copy whose scene.toml has no masks but a [target]: LIFT_VIEWS views' masks, or ``indices``."""
+def with_target(src: Path, dst: Path, indices=None, views: int = LIFT_VIEWS) -> Path:
+    """A copy whose scene.toml has no masks but a [target]: ``views`` views' masks, or ``indices``."""
     shutil.copytree(src, dst)
     text = (dst / "scene.toml").read_text().replace('masks = "masks"\n', "")
     if indices is not None:
@@ -63,7 +60,7 @@ def with_target(src: Path, dst: Path, indices=None) -> Path:
         return dst
     shown = [p.stem for p in sorted((dst / "masks").glob("*.png")) if load_mask(p).any()]
     (dst / "given").mkdir()
-    for i in np.linspace(0, len(shown) - 1, LIFT_VIEWS).round().astype(int):
+    for i in np.linspace(0, len(shown) - 1, views).round().astype(int):
         shutil.copy(dst / "masks" / f"{shown[i]}.png", dst / "given" / f"{shown[i]}.png")
     (dst / "scene.toml").write_text(text + '\n[target]\nmasks = "given"\n')
     return dst
@@ -72,6 +69,10 @@ def with_target(src: Path, dst: Path, indices=None) -> Path:
 def outputs(folder: Path, work: Path, ctx, n_floaters: int, target: np.ndarray) -> dict:
     """Every 3D output of the bundle at ``folder`` (module docstring); ``target``: pre's target rows,
     ``n_floaters``: how many Gaussians the pruned what-if removes."""
+    from r360gpu.lift.resolve import lifted_target, resolve_target
+    from r360gpu.pipeline import EvaluateOptions, evaluate
+    from r360gpu.pipeline.orbit import orbit_bundle
+    from r360gpu.render.sources import open_source
     from r360gpu.viewer.layers import build_layers
     from r360gpu.viewer.live import live_axis
 
@@ -199,7 +200,7 @@ def file_rounding(folder: Path) -> float:
     return float(np.spacing(means).max()) / 2 / (b.pre.frame.scale if b.pre.frame is not None else 1.0)
 
 
-def undone_bundle(folder: Path, moved: Path, frame: Frame, dst: Path) -> Path:
+def undone_bundle(folder: Path, moved: Path, frame, dst: Path) -> Path:
     """A copy of the unframed bundle ``folder`` whose splat files are those of ``moved`` (in ``frame``)
     moved back into the cameras' world in float64 and stored again, no frame declared: the float32
     rounding of the moved files, without any frame handling."""
@@ -246,11 +247,14 @@ def scene_radius(means) -> float:
     return float(np.linalg.norm(m - m.mean(axis=0), axis=1).max())
 
 
-def sweep_frame(seed: int, radius: float) -> Frame:
+def sweep_frame(seed: int, radius: float):
     """The sweep's similarity for ``seed``: a uniform random rotation; scale 0.1 when seed % 4 == 0, 10
     when seed % 4 == 1, log-uniform in [0.1, 10] otherwise; a shift of ``k`` scene radii (``radius``,
     in the splats' units: times the scale) in a random direction, ``k`` = 100 when seed % 3 == 0,
-    log-uniform in [0.1, 100] otherwise."""
+    log-uniform in [0.1, 100] otherwise: a `Frame`."""
+    from r360gpu.io.frames import Frame
+    from r360gpu.synthetic.frames import random_similarity
+
     rng = np.random.default_rng(seed)
     scale = {0: (0.1, 0.1), 1: (10.0, 10.0)}.get(seed % 4, (0.1, 10.0))
     frame = random_similarity(rng, scale=scale, shift=0.0)
