@@ -36,7 +36,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
-import json
 import sys
 import tempfile
 import time
@@ -49,11 +48,9 @@ sys.path.insert(0, str(ROOT / "tests"))  # the comparison shared with tests/test
 sys.path.insert(0, str(ROOT / "bench"))
 
 from frame_outputs import (AXES_KINDS, AXES_TOL, POSE_TOL, RESIDUAL_TOL, compare, failures,  # noqa: E402
-                           file_rounding, make_room, outputs, rewritten, scene_radius, sweep_frame, ulp_moved,
-                           undone_bundle)
+                           file_rounding, make_room, nerfstudio_applied, outputs, rewritten, scene_radius,
+                           sweep_frame, ulp_moved, undone_bundle)
 
-#: ns-process-data's applied_transform for a COLMAP model (COLMAP world -> transforms.json world).
-APPLIED = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0], [0, -1.0, 0, 0]])
 #: (column title, width, the check's text from a compare result)
 COLUMNS = (
     ("rounding", 8, lambda c: f"{c['rounding']:.1e}"),
@@ -85,28 +82,6 @@ SUMMARY = (
     ("s_sem, s_geo (every axes entry): max |diff|", lambda c: c["exact"], 1e-6),
     *((f"{k}: other numbers' max |diff|", (lambda k: lambda c: c[k][0])(k), AXES_TOL) for k in AXES_KINDS),
 )
-
-
-def nerfstudio_applied(folder: Path, dst: Path) -> Path:
-    """A copy of a nerfstudio layout whose transforms.json records ns-process-data's applied_transform
-    (APPLIED) and whose dataparser transforms include it, as nerfstudio writes them: the same cameras
-    and splats, the frame reached through the applied transform."""
-    import shutil
-
-    shutil.copytree(folder, dst)
-    tj = dst / "data" / "transforms.json"
-    doc = json.loads(tj.read_text())
-    doc["applied_transform"] = APPLIED.tolist()
-    tj.write_text(json.dumps(doc))
-    a = np.eye(4)
-    a[:3] = APPLIED
-    for dp in dst.glob("exports/*/dataparser_transforms.json"):
-        d = json.loads(dp.read_text())
-        t = np.eye(4)
-        t[:3] = d["transform"]
-        d["transform"] = (t @ a)[:3].tolist()
-        dp.write_text(json.dumps(d))
-    return dst
 
 
 def main() -> int:

@@ -12,11 +12,13 @@ sweep.
 """
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
 import numpy as np
 
+from frame_class import APPLIED  # ns-process-data's applied_transform (COLMAP -> transforms.json world)
 from r360gpu.bundle import load_bundle
 from r360gpu.io import load_gaussians, load_mask
 
@@ -239,6 +241,26 @@ def ulp_moved(g, rng):
     moved = np.where(step > 0, np.nextafter(m, np.float32(np.inf)),
                      np.where(step < 0, np.nextafter(m, np.float32(-np.inf)), m))
     return Gaussians(moved, g.scales, g.quats, g.opacities, g.sh)
+
+
+def nerfstudio_applied(folder: Path, dst: Path) -> Path:
+    """A copy of a nerfstudio layout whose transforms.json records ns-process-data's applied_transform
+    (APPLIED) and whose dataparser transforms include it, as nerfstudio writes them: the same cameras
+    and splats, the frame reached through the applied transform."""
+    shutil.copytree(folder, dst)
+    tj = dst / "data" / "transforms.json"
+    doc = json.loads(tj.read_text())
+    doc["applied_transform"] = APPLIED.tolist()
+    tj.write_text(json.dumps(doc))
+    a = np.eye(4)
+    a[:3] = APPLIED
+    for dp in dst.glob("exports/*/dataparser_transforms.json"):
+        d = json.loads(dp.read_text())
+        t = np.eye(4)
+        t[:3] = d["transform"]
+        d["transform"] = (t @ a)[:3].tolist()
+        dp.write_text(json.dumps(d))
+    return dst
 
 
 def scene_radius(means) -> float:

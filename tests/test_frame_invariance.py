@@ -22,11 +22,13 @@ Far frames (SWEEP_DRAWS) are compared with that undone run instead: docs/3d-eval
 """
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
-from frame_outputs import (ARGS, EXACT, compare, failures, file_rounding, make_room, outputs, scene_radius,
-                           sweep_frame, undone_bundle)
+from frame_outputs import (ARGS, EXACT, compare, failures, file_rounding, make_room, nerfstudio_applied, outputs,
+                           scene_radius, sweep_frame, undone_bundle)
 from r360gpu.bundle import load_bundle
 from r360gpu.io import load_gaussians
 from r360gpu.io.frames import in_frame
@@ -82,6 +84,27 @@ def test_far_frames_add_nothing_to_the_files_rounding(room, ctx, seed):
     assert file_rounding(moved) > 1e2 * file_rounding(folder)
     assert not failures(c), (failures(c), c)
     assert not failures(compare(out, plain), ("lifted", "rendered", "mask_pixels", "indices_pixels", "orbit_kept"))
+
+
+@pytest.mark.parametrize("layout", ["gsplat", "nerfstudio-applied"])
+def test_every_3d_output_is_unchanged_in_the_users_layouts(room, ctx, layout):
+    """The room written as gsplat leaves it (frame = "gsplat", recomputed from the COLMAP model and its
+    points) and as nerfstudio does, with the applied_transform ns-process-data records in
+    transforms.json (the dataparser transform including it): every 3D output as unframed."""
+    from r360gpu.synthetic.layouts import write_layouts
+
+    root, folder, (n_floaters, target), plain = room
+    made = write_layouts(folder, root / f"layouts-{layout}", layouts=(layout.split("-")[0],), ctx=ctx)
+    bundle = made[layout.split("-")[0]][0]
+    frame = load_bundle(bundle).pre.frame
+    if layout == "nerfstudio-applied":  # the files say another transform; taken back out, the same frame
+        bundle = nerfstudio_applied(bundle, root / "nerfstudio-applied")
+        dp = json.loads((bundle / "exports" / "pre" / "dataparser_transforms.json").read_text())
+        assert np.abs(np.asarray(dp["transform"]) - frame.m[:3] / frame.scale).max() > 0.5
+        np.testing.assert_allclose(load_bundle(bundle).pre.frame.m, frame.m, atol=1e-12)
+    assert frame is not None and abs(frame.scale - 1.0) > 0.1
+    c = compare(outputs(bundle, root / f"out-{layout}", ctx, n_floaters, target), plain)
+    assert not failures(c), (failures(c), c)
 
 
 def test_moved_gaussians_and_in_frame_see_the_same_image(ctx):
