@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 LIFT_VIEWS = 4
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # with_target, shared with the frame tests
 
 
 def make_bundles(folder: Path, args) -> None:
@@ -41,21 +42,9 @@ def make_bundles(folder: Path, args) -> None:
 
 def with_target(bundle_dir: Path, out: Path, indices=None) -> Path:
     """A copy whose scene.toml has no masks but a [target]: LIFT_VIEWS views' masks, or ``indices``."""
-    from r360gpu.io import load_mask
+    from frame_outputs import with_target as shared
 
-    shutil.copytree(bundle_dir, out)
-    text = (out / "scene.toml").read_text().replace('masks = "masks"\n', "")
-    if indices is not None:
-        np.save(out / "target.npy", indices)
-        (out / "scene.toml").write_text(text + '\n[target]\nindices = "target.npy"\n')
-        return out
-    views = sorted(p.stem for p in (out / "masks").glob("*.png"))
-    shown = [v for v in views if load_mask(out / "masks" / f"{v}.png").any()]
-    (out / "given").mkdir()
-    for i in np.linspace(0, len(shown) - 1, LIFT_VIEWS).round().astype(int):
-        shutil.copy(out / "masks" / f"{shown[i]}.png", out / "given" / f"{shown[i]}.png")
-    (out / "scene.toml").write_text(text + '\n[target]\nmasks = "given"\n')
-    return out
+    return shared(bundle_dir, out, indices, views=LIFT_VIEWS)
 
 
 def outputs(bundle_dir: Path, work: Path, args, ctx) -> dict:

@@ -22,50 +22,16 @@ of a moved file differ from the unframed ones by at least that much, in the came
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-ARGS = dict(seed=0, n_views=5, width=160, height=120, detail=0.25)
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # shared with the frame tests
+from frame_outputs import ARGS, rewritten, ulp_moved, undone  # noqa: E402
+
 DRAWS = ((0.1, 0.1), (0.1, 10.0), (10.0, 10.0))  # as tests/test_frame_invariance.py, seeds 100 + draw
-SCENE_KEY = 'scene = "'
-
-
-def rewritten(src: Path, dst: Path, make) -> Path:
-    """A copy of bundle ``src`` whose every splat file is ``make(relative path)``."""
-    from r360gpu.io.inria_ply import save_ply
-
-    shutil.copytree(src, dst)
-    for line in (dst / "scene.toml").read_text().splitlines():
-        if line.startswith(SCENE_KEY):
-            rel = Path(line[len(SCENE_KEY):].rstrip('"'))
-            save_ply(dst / rel, make(rel))
-    return dst
-
-
-def undone(g, frame):
-    """Gaussians of a file in ``frame`` moved back into the cameras' world, in float64 before storing."""
-    from r360gpu.io.gaussians import Gaussians
-    from r360gpu.io.rotation import quat_to_rotmat, rotmat_to_quat
-
-    back = frame.rotation.T
-    quats = np.array([rotmat_to_quat(back @ m) for m in quat_to_rotmat(g.quats)])
-    return Gaussians(frame.points_back(g.means), np.asarray(g.scales, np.float64) / frame.scale, quats,
-                     g.opacities, g.sh)
-
-
-def ulp_moved(g, rng):
-    """``g`` with every centre coordinate moved to a random float32 neighbour or kept."""
-    from r360gpu.io.gaussians import Gaussians
-
-    m = np.asarray(g.means, np.float32)
-    step = rng.integers(-1, 2, size=m.shape)
-    moved = np.where(step > 0, np.nextafter(m, np.float32(np.inf)),
-                     np.where(step < 0, np.nextafter(m, np.float32(-np.inf)), m))
-    return Gaussians(moved, g.scales, g.quats, g.opacities, g.sh)
 
 
 def largest(a: dict, b: dict, n: int = 3) -> str:

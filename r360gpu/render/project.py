@@ -95,7 +95,8 @@ def project(ctx: GpuContext, enc, scene: DeviceScene, cam: dict, tiles: tuple[in
         row_counts=scratch.get("proj.row_counts", (gy + 1) * 4),
     )
     enc.clear_buffer(out.row_counts, 0, out.row_counts.size)
-    R, t = cam["R"], cam["t"]
+    R = cam["R"]
+    t = cam["t"] + R @ scene.origin  # the centres are stored relative to scene.origin (DeviceScene)
     centre = -R.T @ t
     fx, fy, cx, cy, w, h = (cam[k] for k in ("fx", "fy", "cx", "cy", "width", "height"))
     guard_x = FRUSTUM_GUARD * 0.5 * w / fx

@@ -11,6 +11,27 @@ from ..gpu.context import GpuContext
 PARAM_FLOATS = 12
 
 
+def storage_origin(means) -> np.ndarray:
+    """(3,) float64: the point the device stores the centres relative to.
+
+    The projection computes a centre's camera coordinates ``R x + t`` in float32.  A scene far
+    from its coordinates' origin (a trainer's frame with a large shift, a georeferenced capture)
+    has ``x`` and ``t`` both large, and their sum loses the digits that place the Gaussian in the
+    image: 100 scene radii away, the same file gives another lifted set than the scene around its
+    origin (bench/frame_invariance_sweep.py).  So such a scene is stored relative to the centre of
+    its bounding box, subtracted in float64, and the camera moved to match (`project`).  A scene
+    whose box centre lies within the box's half-diagonal of the origin is stored as it is: the
+    same float32 numbers as the file's, bit for bit.
+    """
+    m = np.asarray(means, np.float64).reshape(-1, 3)
+    m = m[np.isfinite(m).all(axis=1)]
+    if not len(m):
+        return np.zeros(3)
+    lo, hi = m.min(axis=0), m.max(axis=0)
+    centre = (lo + hi) / 2
+    return centre if np.linalg.norm(centre) > np.linalg.norm(hi - lo) / 2 else np.zeros(3)
+
+
 def _array(scene, name: str, shape_tail: tuple, n: int | None) -> np.ndarray:
     try:
         arr = np.asarray(getattr(scene, name), dtype=np.float32)
@@ -36,6 +57,8 @@ class DeviceScene:
         N x 12 float32 (see :data:`PARAM_FLOATS`).
     sh : wgpu buffer
         N x (3K) float32, the SH coefficients coefficient-major ((N, K, 3) flattened).
+    origin : (3,) float64
+        the centres are stored relative to it (`storage_origin`).
     """
 
     def __init__(self, ctx: GpuContext, scene):
@@ -48,7 +71,8 @@ class DeviceScene:
         if sh.ndim != 3 or sh.shape[0] != n or sh.shape[2] != 3 or sh.shape[1] not in (1, 4, 9, 16):
             raise InputError(f"scene.sh has shape {sh.shape}, expected ({n}, K, 3) with K in 1, 4, 9, 16")
         packed = np.zeros((n, PARAM_FLOATS), np.float32)
-        packed[:, 0:3] = means
+        self.origin = storage_origin(scene.means)
+        packed[:, 0:3] = np.asarray(scene.means, np.float64) - self.origin if self.origin.any() else means
         packed[:, 3] = opacities
         packed[:, 4:7] = scales
         packed[:, 8:12] = quats
