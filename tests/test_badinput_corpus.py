@@ -229,9 +229,13 @@ def _env():
 @pytest.mark.parametrize("delay", [0.1, 0.3, 0.6, 0.9])
 def test_ctrl_c_in_the_first_second(tmp_path, delay):
     b = renders_bundle(tmp_path / "b")
-    proc = subprocess.Popen([sys.executable, "-m", "r360gpu", "score", str(b), "--out", str(tmp_path / "o"),
-                             *SCORE_FLAGS], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_env(),
-                            cwd=tmp_path)
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)  # Ctrl-C live in the child, as from a
+    try:                                                              # terminal (tests/test_processes.py)
+        proc = subprocess.Popen([sys.executable, "-m", "r360gpu", "score", str(b), "--out", str(tmp_path / "o"),
+                                 *SCORE_FLAGS], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_env(),
+                                cwd=tmp_path)
+    finally:
+        signal.signal(signal.SIGINT, old)
     time.sleep(delay)
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=120)

@@ -111,10 +111,18 @@ def test_ctrl_c_stops_the_workers_without_their_tracebacks(scenes, tmp_path):
 
     root = Path(__file__).resolve().parents[1]
     env = {**os.environ, "PYTHONPATH": str(root)}
-    proc = subprocess.Popen([sys.executable, "-m", "r360gpu", "score", *map(str, scenes), "--out",
-                             str(tmp_path / "o"), "--processes", "2", "--n-boot", "200", "--n-perm", "100"],
-                            cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            start_new_session=True)
+    # The command starts as from a terminal, with Ctrl-C live.  A test process started with SIGINT
+    # ignored (a shell's background job: `pytest ... &`) would pass that on, and a process that starts
+    # with SIGINT ignored rightly keeps ignoring it (r360gpu.util.interrupts.install).  A handler of
+    # ours in this process becomes the default disposition in the child when it execs.
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        proc = subprocess.Popen([sys.executable, "-m", "r360gpu", "score", *map(str, scenes), "--out",
+                                 str(tmp_path / "o"), "--processes", "2", "--n-boot", "200", "--n-perm", "100"],
+                                cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                start_new_session=True)
+    finally:
+        signal.signal(signal.SIGINT, old)
     seen = []
     for line in proc.stdout:  # plain progress lines (not a terminal)
         seen.append(line)
