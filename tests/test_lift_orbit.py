@@ -46,7 +46,7 @@ def test_orbit_cameras_ring_the_target_in_the_capture_band():
         assert (c.fx, c.width, c.height) == (cams[2].fx, 80, 60)  # the median-focal camera's intrinsics
     az = np.sort(np.degrees(np.arctan2(*[np.array([c.center[k] - centre[k] for c in orbit]) for k in (1, 0)])))
     assert np.diff(np.r_[az, az[0] + 360]).max() < 60  # all the way round, no gap as wide as the capture's
-    with pytest.raises(InputError, match="at least 1"):
+    with pytest.raises(InputError, match="from 1 to"):
         orbit_cameras(centre, cams, 0)
     with pytest.raises(InputError, match="evaluation cameras"):
         orbit_cameras(centre, [], 4)

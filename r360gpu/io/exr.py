@@ -36,7 +36,9 @@ from ..errors import InputError
 from ..util.filehash import read_file
 from .paths import read_error
 
-#: The largest data window decoded (the limit of :mod:`.renders`, a 8192 x 8192 view).
+#: Decoded images (and EXR data windows) larger than this many pixels are refused before decoding
+#: (an 8192 x 8192 view; a few kilobytes of PNG can claim a size whose decoding takes gigabytes).
+#: The bundle check also bounds every rendering and mask by its view's size from the headers.
 MAX_PIXELS = 1 << 26
 
 _MAGIC = b"\x76\x2f\x31\x01"

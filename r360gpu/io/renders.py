@@ -39,10 +39,8 @@ first used, since OpenCV reads the variable at that first use.
 """
 from __future__ import annotations
 
-import io
 import os
 import struct
-import tokenize
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -55,7 +53,8 @@ import numpy as np  # noqa: E402
 
 from ..errors import InputError  # noqa: E402
 from ..util.filehash import read_file  # noqa: E402
-from .exr import UnsupportedExrError, read_exr, read_exr_info  # noqa: E402
+from .exr import MAX_PIXELS, UnsupportedExrError, read_exr, read_exr_info  # noqa: E402
+from .npy import npy_header, read_npy  # noqa: E402
 from .paths import link_problem, read_error  # noqa: E402
 
 RGB_EXTENSIONS = (".png", ".jpg", ".jpeg")
@@ -159,10 +158,6 @@ def image_size(path: str | os.PathLike) -> tuple[int, int]:
 
 
 _JPEG_MAGIC = b"\xff\xd8\xff"
-#: Decoded images larger than this many pixels are refused before decoding (an 8192 x 8192 view;
-#: a few kilobytes of PNG can claim a size whose decoding takes gigabytes).  The bundle check also
-#: bounds every rendering and mask by its view's size from the headers, before any decode.
-MAX_PIXELS = 1 << 26
 #: Extensions of lossy formats: a depth file in one is named in the "missing depth" message.
 LOSSY_EXTENSIONS = (".jpg", ".jpeg", ".webp")
 
@@ -408,38 +403,10 @@ def _exr_depth_opencv(path, unsupported: UnsupportedExrError) -> np.ndarray:
     return img
 
 
-# What numpy's .npy header parser raises on a damaged header (it evaluates the header as a literal).
-_NPY_HEADER_ERRORS = (ValueError, SyntaxError, TypeError, EOFError, OverflowError, tokenize.TokenError)
-
-
-def _npy_header(f, path) -> tuple[tuple[int, ...], np.dtype]:
-    """(shape, dtype) from a .npy header, its length checked against the file before numpy reads it
-    (numpy allocates what the length field claims)."""
-    try:
-        start = f.tell()
-        size = f.seek(0, os.SEEK_END)
-        f.seek(start)
-        version = np.lib.format.read_magic(f)
-        if version not in ((1, 0), (2, 0), (3, 0)):
-            raise ValueError(f"unknown .npy format version {version}")
-        field = f.read(2 if version == (1, 0) else 4)
-        length = int.from_bytes(field, "little")
-        if len(field) < (2 if version == (1, 0) else 4) or length > size - f.tell():
-            raise ValueError(f"the header claims {length} bytes, the file has {size - f.tell()} left")
-        f.seek(f.tell() - len(field))
-        if version == (1, 0):
-            shape, _, dtype = np.lib.format.read_array_header_1_0(f)
-        else:
-            shape, _, dtype = np.lib.format.read_array_header_2_0(f)
-    except _NPY_HEADER_ERRORS as e:
-        raise InputError(f"not a valid .npy file ({type(e).__name__}: {str(e)[:200]})", path) from None
-    return tuple(shape), dtype
-
-
 def _npy_shape(path) -> tuple[int, ...]:
     try:
         with open(path, "rb") as f:
-            return _npy_header(f, path)[0]
+            return npy_header(f, path)[0]
     except OSError as e:
         raise read_error(e, path) from None
 
@@ -452,32 +419,6 @@ def _npy_hw(shape: tuple[int, ...], path) -> tuple[int, int]:
     if len(shape) == 3 and shape[0] == 1:
         return _checked_hw(shape[1], shape[2], path)
     raise InputError(f"depth array has shape {shape}; expected (H, W), (H, W, 1) or (1, H, W)", path)
-
-
-def read_npy(path, *, max_values: int | None = None) -> np.ndarray:
-    """The array of a .npy file (hashed as read), its header checked before numpy allocates what it
-    claims: a shape the file's bytes (or ``max_values``) cannot hold, a damaged file, pickled objects
-    (never unpickled) or an .npz archive are an InputError naming the file."""
-    try:
-        data = read_file(path)  # hashed as read (util.filehash)
-    except OSError as e:
-        raise read_error(e, path) from None
-    if data[:4] == b"PK\x03\x04":
-        raise InputError("an .npz archive, not one .npy array (save the array with np.save)", path)
-    f = io.BytesIO(data)
-    shape, dtype = _npy_header(f, path)
-    n = int(np.prod(shape, dtype=object)) if shape else 1
-    too_many = max_values is not None and n > max_values
-    if too_many or (not dtype.hasobject and n * dtype.itemsize > len(data) - f.tell()):
-        raise InputError(f"the .npy header claims shape {shape} of {dtype}, more than the file's "
-                         f"{len(data)} bytes hold (truncated?) or r360gpu decodes", path)
-    try:
-        arr = np.load(io.BytesIO(data), allow_pickle=False)
-    except _NPY_HEADER_ERRORS as e:
-        raise InputError(f"not a valid .npy file ({type(e).__name__}: {str(e)[:200]})", path) from None
-    if not isinstance(arr, np.ndarray):
-        raise InputError("not a .npy array file", path)
-    return arr
 
 
 def _npy_depth(path) -> np.ndarray:

@@ -123,8 +123,6 @@ def orbit_cameras(centre, cameras, n: int, *, prefix: str = "orbit", radius: flo
     fy, cx, cy, width, height.
     """
     cameras = list(cameras)
-    if n < 1:
-        raise InputError(f"an orbit needs at least 1 camera, got {n}")
     check_pose_count(n, "an orbit", low=1)
     if not cameras:
         raise InputError("an orbit needs the evaluation cameras (distance, elevation and intrinsics)")

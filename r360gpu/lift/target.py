@@ -214,7 +214,7 @@ def load_indices(path: str | os.PathLike, n: int, *, prop: str | None = None, ro
     if not path.is_file():
         raise InputError(f"{path}: target indices file does not exist")
     if path.suffix.lower() == ".npy":
-        from ..io.renders import read_npy
+        from ..io.npy import read_npy
 
         return target_from_indices(n, read_npy(path), where=str(path), rows=rows, warn=warn)
     if path.suffix.lower() == ".ply":
