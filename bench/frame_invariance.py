@@ -114,23 +114,11 @@ def outputs(bundle_dir: Path, work: Path, args, ctx) -> dict:
     return out
 
 
-def _leaves(x, prefix=""):
-    """(path, value) of every number in a nested dict / list of axes."""
-    if isinstance(x, dict):
-        for k, v in x.items():
-            yield from _leaves(v, f"{prefix}.{k}" if prefix else str(k))
-    elif isinstance(x, (list, tuple)):
-        for i, v in enumerate(x):
-            yield from _leaves(v, f"{prefix}[{i}]")
-    elif isinstance(x, (int, float)) and not isinstance(x, bool):
-        yield prefix, float(x)
-
-
 def max_diff(a, b) -> float:
-    la, lb = dict(_leaves(a)), dict(_leaves(b))
-    if la.keys() != lb.keys():
-        return float("inf")
-    return max((abs(la[k] - lb[k]) for k in la if np.isfinite(la[k]) or np.isfinite(lb[k])), default=0.0)
+    """The largest |a - b| over every number of two trees (inf when they differ in shape)."""
+    from frame_outputs import axes_diff
+
+    return axes_diff(a, b)[0]
 
 
 def _short(entry) -> str:
