@@ -24,6 +24,7 @@ from badinput_cases import SCORE_FLAGS, _depth_pre, renders_bundle
 from bundle_factory import H, VIEWS, W, write_rgb
 import r360gpu.io.exr
 import r360gpu.io.masks
+import r360gpu.io.npy
 import r360gpu.io.ply
 import r360gpu.io.renders
 import r360gpu.io.splat
@@ -31,7 +32,7 @@ from r360gpu import cli
 from r360gpu.util import filehash
 
 # Every module that reads input bytes (through filehash.read_file, the one place they are hashed).
-READERS = [r360gpu.io.exr, r360gpu.io.masks, r360gpu.io.ply, r360gpu.io.renders, r360gpu.io.splat]
+READERS = [r360gpu.io.exr, r360gpu.io.masks, r360gpu.io.npy, r360gpu.io.ply, r360gpu.io.renders, r360gpu.io.splat]
 
 EXAMPLES = int(os.environ.get("R360_FUZZ_EXAMPLES", "8"))
 
